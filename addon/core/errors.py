@@ -1,0 +1,33 @@
+"""Project exceptions.
+
+Every error a user can cause (a malformed rig file, a NaN joint angle, an
+unreachable pose) is one of these, with a message that names what was wrong and
+what is allowed. The command line prints the message on one line and exits
+non-zero; the Blender panel shows it in the status bar.
+"""
+
+
+class ScannerError(Exception):
+    """Base class of all errors the simulator raises on purpose."""
+
+
+class ConfigError(ScannerError):
+    """A rig, probe or scene file is missing, malformed or out of range.
+
+    The message starts with the file path and names the key and the allowed values.
+    """
+
+
+class InputError(ScannerError, ValueError):
+    """A value passed to a function is malformed (wrong shape, non-finite, non-rigid)."""
+
+
+class UnreachablePose(ScannerError):
+    """Inverse kinematics found no joint vector within limits for a target pose.
+
+    ``result`` carries the solver's best attempt (an ``IKResult``) for diagnosis.
+    """
+
+    def __init__(self, message: str, result=None):
+        super().__init__(message)
+        self.result = result

@@ -1,0 +1,328 @@
+"""Inverse kinematics: one entry point, one result type, success only when verified.
+
+``solve(robot, T_target, q0)`` uses the closed form for spherical-wrist arms
+(:mod:`addon.core.ik_analytic`) and damped least squares otherwise
+(:mod:`addon.core.ik_numeric`). Whatever the method, a result claims success only
+after forward kinematics of the returned joint vector lands on the target within
+the tolerances *and* every joint is inside its limits. An unreachable target can
+therefore never come back as a success; the result then carries the best attempt,
+how far it is from the target, and the reason in words and as a code.
+
+Default tolerances: position min(1e-6 mm, 1e-9 × the arm's length scale), so that
+a millimetre-sized arm gets a proportionally tight bound; orientation 1e-9 rad.
+
+Everything runs vectorised over targets (``solve_batch``); ``solve`` is a batch
+of one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError, UnreachablePose
+from .ik_analytic import branches, flange_targets, spherical_wrist_arm
+from .ik_numeric import levenberg_marquardt, solve_numeric
+from .transforms import check_transform, rotation_angle
+
+ROT_TOL_RAD = 1e-9
+LIMIT_TOL_RAD = 1e-10
+METHODS = ("auto", "analytic", "numeric")
+# IKResult.reason values: success; farther than any joint vector reaches; reachable
+# only with joints outside their limits; closed form off by rounding at a singularity
+# even after polishing; numeric solver found nothing within tolerance.
+REASONS = ("ok", "out_of_reach", "joint_limits", "numerical", "not_converged")
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """Outcome of one IK solve.
+
+    q : (6,) rad. On success, a joint vector inside the limits that reaches the
+        target; on failure, the best attempt (for diagnosis, not for motion).
+    success : FK(q) is within the tolerances of the target and q is within limits.
+    pos_err_mm, rot_err_rad : measured distance of FK(q) from the target.
+    iterations : solver iterations (0 for the closed form).
+    message : "ok" or why it failed, in words.
+    method : "analytic" or "numeric".
+    reason : machine-readable outcome, one of REASONS.
+    """
+
+    q: np.ndarray
+    success: bool
+    pos_err_mm: float
+    rot_err_rad: float
+    iterations: int
+    message: str
+    method: str
+    reason: str = "ok"
+
+
+@dataclass(frozen=True)
+class IKBatch:
+    """Outcome of n solves: q (n, 6), success, pos_err_mm, rot_err_rad, iterations (n,),
+    messages and reasons (lists of n str), and the method. ``batch[i]`` is an IKResult."""
+
+    q: np.ndarray
+    success: np.ndarray
+    pos_err_mm: np.ndarray
+    rot_err_rad: np.ndarray
+    iterations: np.ndarray
+    messages: list
+    reasons: list
+    method: str
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+    def __getitem__(self, i: int) -> IKResult:
+        return IKResult(self.q[i].copy(), bool(self.success[i]), float(self.pos_err_mm[i]),
+                        float(self.rot_err_rad[i]), int(self.iterations[i]), self.messages[i],
+                        self.method, self.reasons[i])
+
+
+# -- helpers ----------------------------------------------------------------------
+
+def default_pos_tol(robot) -> float:
+    return min(1e-6, 1e-9 * robot.length_scale_mm)
+
+
+def default_seed(robot) -> np.ndarray:
+    """q = 0 moved inside the limits: the seed used when the caller gives none."""
+    return np.clip(np.zeros(6), robot.q_min_rad, robot.q_max_rad)
+
+
+def wrap_to_limits(robot, q: np.ndarray, seed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Shift each joint of q (..., 6) by whole turns into its limits, nearest to ``seed``.
+
+    Returns (q_wrapped, inside) with inside (...,) True where every joint fits.
+    A joint that fits in no turn keeps the turn nearest to its limits.
+    """
+    lo, hi = robot.q_min_rad, robot.q_max_rad
+    two_pi = 2.0 * np.pi
+    seed = np.broadcast_to(seed, q.shape)
+    # The turn nearest the seed is the answer whenever it fits; otherwise one of
+    # its neighbours usually does. Rare leftovers get the exhaustive search.
+    c0 = q + two_pi * np.round((seed - q) / two_pi)
+    out = c0.copy()
+    fits = (c0 >= lo - LIMIT_TOL_RAD) & (c0 <= hi + LIMIT_TOL_RAD)
+    for shift in (-two_pi, two_pi):
+        c = c0 + shift
+        ok = ~fits & (c >= lo - LIMIT_TOL_RAD) & (c <= hi + LIMIT_TOL_RAD)
+        out = np.where(ok, c, out)
+        fits |= ok
+    if not fits.all():
+        bad = ~fits
+        joint = np.broadcast_to(np.arange(6), q.shape)[bad]
+        l, h = lo[joint], hi[joint]
+        turns = np.arange(-4, 5, dtype=np.float64)
+        k0 = np.round((0.5 * (l + h) - q[bad]) / two_pi)
+        cands = q[bad][:, None] + (k0[:, None] + turns) * two_pi
+        inside = (cands >= l[:, None] - LIMIT_TOL_RAD) & (cands <= h[:, None] + LIMIT_TOL_RAD)
+        dist = np.where(inside, np.abs(cands - seed[bad][:, None]), np.inf)
+        violation = np.maximum(l[:, None] - cands, 0.0) + np.maximum(cands - h[:, None], 0.0)
+        pick = np.where(inside.any(1), np.argmin(dist, 1), np.argmin(violation, 1))
+        out[bad] = cands[np.arange(len(pick)), pick]
+        fits[bad] = inside.any(1)
+    out = np.where(fits, np.clip(out, lo, hi), out)
+    return out, np.all(fits, axis=-1)
+
+
+def pose_errors(robot, q: np.ndarray, T_targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Position (mm) and orientation (rad) distance of FK(q) from targets; q (..., 6)."""
+    shape = q.shape[:-1]
+    Tq = robot.fk(q.reshape(-1, 6)).reshape(shape + (4, 4))
+    pos = np.linalg.norm(Tq[..., :3, 3] - T_targets[..., :3, 3], axis=-1)
+    rel = np.swapaxes(T_targets[..., :3, :3], -1, -2) @ Tq[..., :3, :3]
+    return pos, rotation_angle(rel)
+
+
+def _check_method(robot, method: str):
+    if method not in METHODS:
+        raise InputError(f"IK method {method!r} is not one of: {', '.join(METHODS)}")
+    arm, reason = spherical_wrist_arm(robot)
+    if method == "analytic" and arm is None:
+        raise InputError(reason + "; use method='numeric' or 'auto'")
+    return arm if method in ("auto", "analytic") else None
+
+
+def _check_tols(robot, pos_tol_mm, rot_tol_rad) -> tuple[float, float]:
+    pos_tol = default_pos_tol(robot) if pos_tol_mm is None else float(pos_tol_mm)
+    rot_tol = ROT_TOL_RAD if rot_tol_rad is None else float(rot_tol_rad)
+    for name, v in (("pos_tol_mm", pos_tol), ("rot_tol_rad", rot_tol)):
+        if not np.isfinite(v) or v <= 0:
+            raise InputError(f"{name} must be a positive finite number, got {v}")
+    return pos_tol, rot_tol
+
+
+def _check_seeds(robot, q0, n: int) -> np.ndarray:
+    if q0 is None:
+        return np.tile(default_seed(robot), (n, 1))
+    q0 = robot.check_q(q0, "q0")
+    q0 = np.broadcast_to(q0, (n, 6)) if q0.ndim == 1 else q0
+    if q0.shape != (n, 6):
+        raise InputError(f"q0 must have shape (6,) or ({n}, 6), got {q0.shape}")
+    return np.array(q0)
+
+
+# -- solving ----------------------------------------------------------------------
+
+def solve(robot, T_target, q0=None, *, method: str = "auto", pos_tol_mm: float | None = None,
+          rot_tol_rad: float | None = None, raise_on_failure: bool = False, seed: int = 0,
+          max_starts: int = 121) -> IKResult:
+    """Joint vector (6,) rad that puts the tool at ``T_target`` (4, 4, mm, world frame).
+
+    q0 : (6,) seed; among several solutions the one nearest q0 wins (default: q = 0
+        clipped into the limits). Angles beyond ±2π are fine.
+    method : "auto" (closed form when the arm has a spherical wrist, else numeric),
+        "analytic" or "numeric".
+    raise_on_failure : raise UnreachablePose (carrying the result) instead of
+        returning success=False.
+    seed, max_starts : random restarts of the numeric solver (reproducible).
+    """
+    T = check_transform(T_target, "IK target pose")
+    if T.shape != (4, 4):
+        raise InputError(f"IK target pose must have shape (4, 4), got {T.shape}; use ik_batch for many")
+    if q0 is not None and np.shape(q0) != (6,):
+        raise InputError(f"q0 must have shape (6,), got {np.shape(q0)}")
+    result = solve_batch(robot, T[None], None if q0 is None else np.asarray(q0)[None], method=method,
+                         pos_tol_mm=pos_tol_mm, rot_tol_rad=rot_tol_rad, seed=seed, max_starts=max_starts)[0]
+    if raise_on_failure and not result.success:
+        raise UnreachablePose(f"{robot.name}: {result.message}", result)
+    return result
+
+
+def solve_batch(robot, T_targets, q0=None, *, method: str = "auto", pos_tol_mm: float | None = None,
+                rot_tol_rad: float | None = None, seed: int = 0, max_starts: int = 121) -> IKBatch:
+    """IK for targets (n, 4, 4). q0: (6,) for all or (n, 6) per target. See :func:`solve`."""
+    T = check_transform(T_targets, "IK target poses")
+    if T.ndim != 3:
+        raise InputError(f"IK target poses must have shape (n, 4, 4), got {T.shape}")
+    n = T.shape[0]
+    q0 = _check_seeds(robot, q0, n)
+    pos_tol, rot_tol = _check_tols(robot, pos_tol_mm, rot_tol_rad)
+    arm = _check_method(robot, method)
+    name = "analytic" if arm is not None else "numeric"
+
+    q = q0.copy()
+    success = np.zeros(n, dtype=bool)
+    iterations = np.zeros(n, dtype=int)
+    reasons = ["ok"] * n
+    messages = ["ok"] * n
+
+    # Farther from the shoulder than the sum of the link lengths: no solver needed.
+    dist = np.linalg.norm(T[:, :3, 3] - robot.shoulder_world, axis=1)
+    bound = robot.reach_bound_mm
+    far = dist > bound * (1.0 + 1e-12)
+    for i in np.nonzero(far)[0]:
+        reasons[i] = "out_of_reach"
+        messages[i] = (f"target is out of reach: {dist[i]:.6g} mm from the shoulder, and no joint vector "
+                       f"places the tool farther than {bound:.6g} mm")
+    todo = np.nonzero(~far)[0]
+
+    if todo.size and arm is not None:
+        qa, ok, why, text = _solve_analytic(robot, arm, T[todo], q0[todo], pos_tol, rot_tol)
+        q[todo], success[todo] = qa, ok
+        for j, i in enumerate(todo):
+            reasons[i], messages[i] = why[j], text[j]
+        # Rounding at a singularity can leave every branch a hair outside tolerance:
+        # polish the best branch with a few damped least-squares steps.
+        polish = np.array([i for i in todo if reasons[i] == "numerical"], dtype=int)
+        if polish.size:
+            qp, _, _, conv, its = levenberg_marquardt(robot, T[polish], q[polish], pos_tol, rot_tol, 50)
+            iterations[polish] += its
+            for j, i in enumerate(polish):
+                if conv[j]:
+                    q[i], success[i], reasons[i], messages[i] = qp[j], True, "ok", "ok"
+    elif todo.size:
+        out = solve_numeric(robot, T[todo], q0[todo], pos_tol, rot_tol, np.random.default_rng(seed),
+                            max_starts=max_starts)
+        q[todo], success[todo], iterations[todo] = out.q, out.converged, out.iterations
+        for j, i in enumerate(todo):
+            if not out.converged[j]:
+                reasons[i] = "not_converged"
+                messages[i] = (f"no joint vector within limits reaches the target: the best of "
+                               f"{out.starts[j]} starts stays {out.pos_err_mm[j]:.3g} mm and "
+                               f"{out.rot_err_rad[j]:.3g} rad away; the pose is outside the workspace "
+                               "or needs joints beyond their limits")
+
+    pos, rot = pose_errors(robot, q, T)
+    # Success is re-checked here, from FK of the returned q, for every method.
+    verified = success & (pos <= pos_tol) & (rot <= rot_tol) & robot.within_limits(q, LIMIT_TOL_RAD)
+    for i in np.nonzero(success & ~verified)[0]:
+        reasons[i], messages[i] = "numerical", f"solution failed verification ({pos[i]:.3g} mm, {rot[i]:.3g} rad)"
+    return IKBatch(q, verified, pos, rot, iterations, messages, reasons, name)
+
+
+def _solve_analytic(robot, arm, T, q0, pos_tol, rot_tol):
+    """Closed form for T (m, 4, 4), seeds q0 (m, 6): (q, success, reasons, messages)."""
+    m = T.shape[0]
+    q, inside, pos, rot, geom_ok = all_branches(robot, arm, T, q0)
+    ok = inside & (pos <= pos_tol) & (rot <= rot_tol)
+    dist = np.linalg.norm(q - q0[:, None, :], axis=-1)
+    success = ok.any(axis=1)
+    pick = np.argmin(np.where(ok, dist, np.inf), axis=1)
+    # For failures return the branch nearest to success: inside the limits first, then smallest error.
+    err = pos + rot * robot.length_scale_mm
+    fallback = np.argmin(np.where(inside, err, err + 1e300), axis=1)
+    pick = np.where(success, pick, fallback)
+    reasons, messages = [], []
+    for i in range(m):
+        if success[i]:
+            reasons.append("ok")
+            messages.append("ok")
+        else:
+            r, t = _analytic_failure(robot, q[i], geom_ok[i], pos[i], rot[i], pos_tol, rot_tol)
+            reasons.append(r)
+            messages.append(t)
+    return q[np.arange(m), pick], success, reasons, messages
+
+
+def all_branches(robot, arm, T: np.ndarray, q0: np.ndarray):
+    """Every closed-form branch for targets T (n, 4, 4), wrapped into limits near q0 (n, 6).
+
+    Returns q (n, 8, 6), inside (n, 8), pos_err (n, 8) mm, rot_err (n, 8) rad,
+    geometry_ok (n, 8) (False where the link lengths could not reach and values were clamped).
+    """
+    F = flange_targets(robot, T)
+    br = branches(arm, F, q0 + robot.theta_offset_rad)
+    q_raw = br.theta - robot.theta_offset_rad
+    q, inside = wrap_to_limits(robot, q_raw, q0[:, None, :])
+    pos, rot = pose_errors(robot, q, T[:, None])
+    return q, inside, pos, rot, br.shoulder_ok & br.elbow_ok
+
+
+def _analytic_failure(robot, q, geom_ok, pos, rot, pos_tol, rot_tol) -> tuple[str, str]:
+    """(reason, message) for a target none of whose 8 branches succeeded."""
+    reach = (pos <= pos_tol) & (rot <= rot_tol)
+    if reach.any():
+        cands = np.nonzero(reach)[0]
+        fewest = min((robot.limit_violations(q[k]) for k in cands), key=len)
+        return "joint_limits", (f"reachable only outside the joint limits ({len(cands)} of 8 solutions reach "
+                                f"it): the nearest has {'; '.join(fewest)}")
+    if not geom_ok.any():
+        return "out_of_reach", ("target is out of reach: links 2–3 cannot place the wrist centre where "
+                                f"the pose needs it (best attempt {pos.min():.6g} mm away)")
+    k = int(np.argmin(pos + rot * robot.length_scale_mm))
+    return "numerical", (f"no closed-form solution within tolerance: best is {pos[k]:.3g} mm and "
+                         f"{rot[k]:.3g} rad away (rounding at a singularity)")
+
+
+def solve_all(robot, T_target, *, pos_tol_mm: float | None = None, rot_tol_rad: float | None = None) -> np.ndarray:
+    """Every distinct closed-form solution (k, 6), k ≤ 8, inside the limits and verified by FK.
+
+    Raises InputError for arms without a closed form.
+    """
+    T = check_transform(T_target, "IK target pose")
+    if T.shape != (4, 4):
+        raise InputError(f"IK target pose must have shape (4, 4), got {T.shape}")
+    arm = _check_method(robot, "analytic")
+    pos_tol, rot_tol = _check_tols(robot, pos_tol_mm, rot_tol_rad)
+    q, inside, pos, rot, _ = all_branches(robot, arm, T[None], default_seed(robot)[None])
+    ok = inside[0] & (pos[0] <= pos_tol) & (rot[0] <= rot_tol)
+    sols: list[np.ndarray] = []
+    for k in np.nonzero(ok)[0]:
+        if all(np.max(np.abs(q[0, k] - s)) > 1e-6 for s in sols):
+            sols.append(q[0, k])
+    return np.array(sols).reshape(-1, 6)

@@ -1,0 +1,169 @@
+"""Numeric inverse kinematics for any 6-joint DH arm (UR5 has no spherical wrist).
+
+Damped least squares with adaptive damping (Levenberg–Marquardt):
+
+    (JᵀJ + λ·tr(JᵀJ)/6·I) Δq = Jᵀe,     e = [(p* − p)/L ; ω(R* Rᵀ)]
+
+L is the arm's length scale, so that position and orientation errors weigh alike
+and λ is dimensionless; ω is the rotation vector of the remaining rotation. A step
+that lowers |e| is taken and λ shrinks; one that does not is refused and λ grows,
+so the solver moves between Gauss–Newton (quadratic near a solution) and gradient
+descent (safe near singularities and for targets out of reach). Steps are
+projected onto the joint limits.
+
+Many problems run at once: every array carries a leading problem axis, so one
+iteration costs a few dozen numpy calls whether it serves 1 target or 10 000, and
+restarts from several random joint vectors run side by side. The seed is always
+tried alone first, so a solution near the seed wins over a distant one; random
+restarts (from a seeded generator, reproducible) only serve targets it missed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .transforms import rotation_vector
+
+LAMBDA_START = 1e-3
+LAMBDA_MIN = 1e-15
+LAMBDA_MAX = 1e8
+STALL_STEPS = 15  # steps without a real improvement before a start counts as stuck
+STALL_GAIN = 1e-4  # relative cost decrease below which a step is "no real improvement"
+MAX_STEP_RAD = 0.5  # largest change of any joint in one step
+
+
+@dataclass
+class NumericOutcome:
+    """Per target: q (n, 6) best joint vector, pos_err_mm, rot_err_rad (n,),
+    iterations (n,), starts (n,) tried, converged (n,) bool."""
+
+    q: np.ndarray
+    pos_err_mm: np.ndarray
+    rot_err_rad: np.ndarray
+    iterations: np.ndarray
+    starts: np.ndarray
+    converged: np.ndarray
+
+
+def _evaluate(robot, T: np.ndarray, q: np.ndarray, L: float):
+    """Error e (N, 6), scaled Jacobian J (N, 6, 6), |Δp| (N,) mm and |ω| (N,) rad for q (N, 6)."""
+    X, Y, Z, P, zs, os_ = robot._fk_columns(q, with_tool=True, record_axes=True)
+    dp = T[:, :3, 3] - P.T
+    R = np.stack([X.T, Y.T, Z.T], axis=-1)
+    w = rotation_vector(T[:, :3, :3] @ np.swapaxes(R, 1, 2))
+    e = np.concatenate([dp / L, w], axis=1)
+    # Column i: [z_{i-1} × (p − o_{i-1}) / L ; z_{i-1}].
+    r = P[None] - os_
+    J = np.empty((q.shape[0], 6, 6))
+    J[:, 0, :] = (zs[:, 1] * r[:, 2] - zs[:, 2] * r[:, 1]).T / L
+    J[:, 1, :] = (zs[:, 2] * r[:, 0] - zs[:, 0] * r[:, 2]).T / L
+    J[:, 2, :] = (zs[:, 0] * r[:, 1] - zs[:, 1] * r[:, 0]).T / L
+    J[:, 3:, :] = np.transpose(zs, (2, 1, 0))
+    return e, J, np.linalg.norm(dp, axis=1), np.linalg.norm(w, axis=1)
+
+
+def _into_limits(q: np.ndarray, lo: np.ndarray, hi: np.ndarray, full_turn: np.ndarray) -> np.ndarray:
+    """Project q (N, 6) onto the limits; joints spanning a full turn wrap by 2π instead of sticking."""
+    two_pi = 2.0 * np.pi
+    wrapped = np.where(q > hi, q - two_pi * np.ceil((q - hi) / two_pi), q)
+    wrapped = np.where(wrapped < lo, wrapped + two_pi * np.ceil((lo - wrapped) / two_pi), wrapped)
+    return np.clip(np.where(full_turn, wrapped, q), lo, hi)
+
+
+def levenberg_marquardt(robot, T: np.ndarray, q: np.ndarray, pos_tol: float, rot_tol: float,
+                        max_iter: int = 100):
+    """Run LM on N independent problems: targets T (N, 4, 4), starts q (N, 6).
+
+    Returns q (N, 6), pos_err (N,), rot_err (N,), converged (N,), iterations (N,).
+    A problem stops when it converges, when λ exceeds LAMBDA_MAX, or after
+    STALL_STEPS steps without real progress.
+    """
+    lo, hi = robot.q_min_rad, robot.q_max_rad
+    full_turn = (hi - lo) >= 2.0 * np.pi
+    L = robot.length_scale_mm
+    q = _into_limits(np.array(q, dtype=np.float64), lo, hi, full_turn)
+    N = q.shape[0]
+    e, J, pe, re = _evaluate(robot, T, q, L)
+    cost = np.einsum("ij,ij->i", e, e)
+    lam = np.full(N, LAMBDA_START)
+    stall = np.zeros(N, dtype=int)
+    iters = np.zeros(N, dtype=int)
+    converged = (pe <= pos_tol) & (re <= rot_tol)
+    active = ~converged
+    eye = np.eye(6)
+    for _ in range(max_iter):
+        idx = np.nonzero(active)[0]
+        if idx.size == 0:
+            break
+        Ja, ea = J[idx], e[idx]
+        JT = np.swapaxes(Ja, 1, 2)
+        H = JT @ Ja
+        g = np.einsum("nij,nj->ni", JT, ea)
+        scale = lam[idx] * (np.trace(H, axis1=1, axis2=2) / 6.0 + 1e-300)
+        dq = np.linalg.solve(H + scale[:, None, None] * eye, g[..., None])[..., 0]
+        # Trust region: far from the solution a full Gauss-Newton step overshoots.
+        big = np.max(np.abs(dq), axis=1)
+        dq *= np.minimum(1.0, MAX_STEP_RAD / np.maximum(big, 1e-300))[:, None]
+        qn = _into_limits(q[idx] + dq, lo, hi, full_turn)
+        en, Jn, pen, ren = _evaluate(robot, T[idx], qn, L)
+        costn = np.einsum("ij,ij->i", en, en)
+        iters[idx] += 1
+        better = costn < cost[idx]
+        acc = idx[better]
+        gain = (cost[acc] - costn[better]) / np.maximum(cost[acc], 1e-300)
+        q[acc], e[acc], J[acc], pe[acc], re[acc], cost[acc] = qn[better], en[better], Jn[better], pen[better], ren[better], costn[better]
+        lam[acc] = np.maximum(lam[acc] / 3.0, LAMBDA_MIN)
+        stall[acc] = np.where(gain < STALL_GAIN, stall[acc] + 1, 0)
+        rej = idx[~better]
+        lam[rej] *= 4.0
+        stall[rej] += 1
+        converged[idx] = (pe[idx] <= pos_tol) & (re[idx] <= rot_tol)
+        active[idx] = ~converged[idx] & (lam[idx] <= LAMBDA_MAX) & (stall[idx] < STALL_STEPS)
+    return q, pe, re, converged, iters
+
+
+def solve_numeric(robot, T: np.ndarray, seeds: np.ndarray, pos_tol: float, rot_tol: float,
+                  rng: np.random.Generator, max_starts: int = 121, starts_per_round: int = 8,
+                  max_iter: int = 150) -> NumericOutcome:
+    """Best joint vectors within limits for targets T (n, 4, 4), seeds (n, 6).
+
+    Round 0 runs LM from each seed. Targets it misses get rounds of
+    ``starts_per_round`` random starts side by side, up to ``max_starts`` starts in
+    all; among converged starts the one nearest the seed wins, otherwise the one
+    with the smallest error. Never raises for an unreachable target.
+    """
+    n = T.shape[0]
+    lo, hi = robot.q_min_rad, robot.q_max_rad
+    q, pe, re, conv, iters = levenberg_marquardt(robot, T, seeds.copy(), pos_tol, rot_tol, max_iter)
+    L = robot.length_scale_mm
+    best_cost = (pe / L) ** 2 + re ** 2
+    starts = np.ones(n, dtype=int)
+    while True:
+        todo = np.nonzero(~conv & (starts + starts_per_round <= max_starts))[0]
+        if todo.size == 0:
+            break
+        k = starts_per_round
+        Tk = np.repeat(T[todo], k, axis=0)
+        qk = rng.uniform(lo, hi, size=(todo.size * k, 6))
+        qk, pek, rek, convk, itk = levenberg_marquardt(robot, Tk, qk, pos_tol, rot_tol, max_iter)
+        qk, pek, rek, convk = (a.reshape((todo.size, k) + a.shape[1:]) for a in (qk, pek, rek, convk))
+        iters[todo] += itk.reshape(todo.size, k).sum(axis=1)
+        starts[todo] += k
+        dist = np.linalg.norm(qk - seeds[todo, None, :], axis=-1)
+        costk = (pek / L) ** 2 + rek ** 2
+        # Converged starts compete on distance to the seed, the rest on error.
+        pick = np.where(convk.any(axis=1), np.argmin(np.where(convk, dist, np.inf), axis=1),
+                        np.argmin(costk, axis=1))
+        rows = np.arange(todo.size)
+        got = convk[rows, pick]
+        improve = got | (costk[rows, pick] < best_cost[todo])
+        sel = todo[improve]
+        r = rows[improve]
+        q[sel] = qk[r, pick[improve]]
+        pe[sel] = pek[r, pick[improve]]
+        re[sel] = rek[r, pick[improve]]
+        best_cost[sel] = costk[r, pick[improve]]
+        conv[sel] = got[improve]
+    return NumericOutcome(q, pe, re, iters, starts, conv)

@@ -1,0 +1,53 @@
+"""The rotary table (paper Eq. 4–5): the workpiece frame R and its angle θ_R.
+
+    T_0^R = R_Z(−θ_R) · T(a_R, 0, d_R)          base2table: robot base (world) -> table
+    T_R^0 = T(−a_R, 0, −d_R) · R_Z(θ_R)          table2base: table -> robot base (world)
+
+with a_R = −500 mm and d_R = −200 mm in the paper: the table centre sits 500 mm in
+front of the robot and 200 mm above its base, and a point fixed on the table turns
+by +θ_R about the table's Z axis (parallel to the robot's Z) as the table turns.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+from .transforms import rot_z, trans
+
+PAPER_A_R_MM = -500.0
+PAPER_D_R_MM = -200.0
+
+
+@dataclass(frozen=True)
+class Turntable:
+    """Placement of the rotary table relative to the robot base (Eq. 4), mm."""
+
+    a_mm: float = PAPER_A_R_MM
+    d_mm: float = PAPER_D_R_MM
+
+    def __post_init__(self) -> None:
+        for name in ("a_mm", "d_mm"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not np.isfinite(v):
+                raise InputError(f"turntable {name} must be a finite number of millimetres, got {v!r}")
+            object.__setattr__(self, name, float(v))
+
+    @staticmethod
+    def _angle(theta_rad) -> np.ndarray:
+        th = np.asarray(theta_rad, dtype=np.float64)
+        if not np.all(np.isfinite(th)):
+            raise InputError(f"table angle must be finite (radians), got {theta_rad}")
+        return th
+
+    def base2table(self, theta_rad) -> np.ndarray:
+        """T_0^R (Eq. 4): scalar θ -> (4, 4); θ of shape S -> S + (4, 4)."""
+        th = self._angle(theta_rad)
+        return rot_z(-th) @ trans(self.a_mm, 0.0, self.d_mm)
+
+    def table2base(self, theta_rad) -> np.ndarray:
+        """T_R^0 (Eq. 5), the closed-form inverse of :meth:`base2table`."""
+        th = self._angle(theta_rad)
+        return trans(-self.a_mm, 0.0, -self.d_mm) @ rot_z(th)
