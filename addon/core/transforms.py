@@ -151,9 +151,11 @@ def rotation_angle(R: np.ndarray) -> np.ndarray:
 
 
 def rotation_vector(R: np.ndarray) -> np.ndarray:
-    """Axis-angle vector (..., 3) of rotation(s) R (..., 3, 3); angle in rad = its norm.
+    """Axis-angle vector (..., 3) of rotation(s) R (..., 3, 3); the angle (rad) is its norm.
 
-    Stable at small angles and exact at π (where the skew part vanishes).
+    Below 90° the axis comes from the skew part (R − Rᵀ)/2 = sin θ·[k]ₓ; above, where
+    sin θ shrinks towards π, from the symmetric part (R + Rᵀ)/2 − cos θ·I = (1 − cos θ)·k kᵀ,
+    which stays well conditioned. At exactly π the sign of the axis is arbitrary.
     """
     R = np.asarray(R, dtype=np.float64)
     if R.shape[-2:] == (4, 4):
@@ -162,18 +164,17 @@ def rotation_vector(R: np.ndarray) -> np.ndarray:
     s = np.linalg.norm(v, axis=-1)
     c = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
     angle = np.arctan2(s, c)
-    small = s < 1e-12
-    scale = np.where(small, 1.0, angle / np.where(small, 1.0, s))
-    out = v * scale[..., None]
-    # Near π the skew part carries no direction; take the axis from R + I instead.
-    near_pi = small & (c < 0)
-    if np.any(near_pi):
-        Rp = R[near_pi]
-        B = 0.5 * (Rp + np.eye(3))
+    zero = s == 0.0
+    out = v * np.where(zero, 0.0, angle / np.where(zero, 1.0, s))[..., None]
+    obtuse = c < 0
+    if np.any(obtuse):
+        Ro = R[obtuse]
+        B = 0.5 * (Ro + np.swapaxes(Ro, -1, -2)) - c[obtuse][..., None, None] * np.eye(3)
         idx = np.argmax(np.diagonal(B, axis1=-2, axis2=-1), axis=-1)
         axis = B[np.arange(len(idx)), :, idx]
         axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
-        out[near_pi] = axis * angle[near_pi][..., None]
+        sign = np.where(np.einsum("ij,ij->i", axis, v[obtuse]) < 0, -1.0, 1.0)
+        out[obtuse] = axis * (sign * angle[obtuse])[..., None]
     return out
 
 

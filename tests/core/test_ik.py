@@ -1,0 +1,308 @@
+"""Inverse kinematics: round trips, all branches, seeds, singular and extreme cases, honesty.
+
+Unreachable targets are made unreachable by geometry (triangle inequality on the
+link lengths), never by asking the solver.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from addon.core.errors import InputError, UnreachablePose
+from addon.core.ik import IKResult, default_pos_tol
+from addon.core.kinematics import Robot, load_robot
+from addon.core.transforms import trans
+
+SPHERICAL = ["adept_viper_s650", "puma560"]
+
+
+def assert_reaches(robot, res: IKResult, T, tol_scale=1.0):
+    assert res.success, res.message
+    assert res.reason == "ok"
+    assert robot.within_limits(res.q)
+    Tq = robot.fk(res.q)
+    tol = default_pos_tol(robot) * tol_scale
+    assert np.linalg.norm(Tq[:3, 3] - T[:3, 3]) <= tol
+    assert np.max(np.abs(Tq[:3, :3] - T[:3, :3])) <= 2e-9
+    assert res.pos_err_mm <= tol and res.rot_err_rad <= 1e-9
+
+
+def assert_finite(res: IKResult):
+    assert np.all(np.isfinite(res.q)) and np.isfinite(res.pos_err_mm) and np.isfinite(res.rot_err_rad)
+
+
+def unlimited(robot: Robot) -> Robot:
+    return replace(robot, q_min_rad=np.full(6, -2 * np.pi), q_max_rad=np.full(6, 2 * np.pi))
+
+
+def stretched_q(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """q with the elbow fully stretched: θ3 = β puts link 3's wrist leg in line with link 2."""
+    beta = np.arctan2(robot.d_mm[3] * np.sign(robot._sa[2]), robot.a_mm[2])
+    q = q.copy()
+    q[2] = beta - robot.theta_offset_rad[2]
+    return q
+
+
+# -- round trips ------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", SPHERICAL)
+def test_closed_form_round_trip_random(name):
+    robot = load_robot(name)
+    rng = np.random.default_rng(11)
+    qs = robot.random_q(2000, rng)
+    Ts = robot.fk(qs)
+    batch = robot.ik_batch(Ts)
+    assert batch.method == "analytic"
+    assert batch.success.all()
+    assert batch.pos_err_mm.max() < 1e-9 and batch.rot_err_rad.max() < 1e-12
+    assert robot.within_limits(batch.q).all()
+    for i in range(0, 2000, 97):  # each reported result really reaches its target
+        np.testing.assert_allclose(robot.fk(batch.q[i]), Ts[i], atol=1e-9)
+
+
+@pytest.mark.parametrize("name", SPHERICAL + ["ur5"])
+def test_numeric_round_trip_random(name):
+    robot = load_robot(name)
+    rng = np.random.default_rng(12)
+    qs = robot.random_q(300, rng)
+    Ts = robot.fk(qs)
+    batch = robot.ik_batch(Ts, method="numeric")
+    assert batch.method == "numeric"
+    # A local solver may miss a target whose basin is tiny (workspace corners, near
+    # singular solutions); the goal is ≥ 99.9 % (bench), and a miss must be honest.
+    ok = batch.success
+    assert ok.mean() >= 0.99, [m for m in batch.messages if m != "ok"][:3]
+    assert batch.pos_err_mm[ok].max() <= 1e-6 and batch.rot_err_rad[ok].max() <= 1e-9
+    assert robot.within_limits(batch.q).all()
+    for i in np.nonzero(~ok)[0]:
+        assert batch.reasons[i] == "not_converged"
+        assert batch.pos_err_mm[i] > 1e-6 or batch.rot_err_rad[i] > 1e-9
+
+
+def test_all_eight_closed_form_solutions():
+    robot = unlimited(load_robot("adept_viper_s650"))
+    q_true = np.radians([30, 50, -40, 20, 60, -10])
+    T = robot.fk(q_true)
+    sols = robot.ik_all(T)
+    assert sols.shape == (8, 6)
+    for q in sols:
+        np.testing.assert_allclose(robot.fk(q), T, atol=1e-9)
+    # Distinct configurations (not the same angles shifted by whole turns).
+    wrapped = np.round(np.mod(sols + np.pi, 2 * np.pi) - np.pi, 6)
+    assert len({tuple(w) for w in wrapped}) == 8
+    d = np.abs(np.mod(sols - q_true + np.pi, 2 * np.pi) - np.pi).max(axis=1)
+    assert d.min() < 1e-9  # the configuration we started from is among them
+
+
+def test_limits_cut_solutions_and_each_is_inside():
+    robot = load_robot("puma560")
+    T = robot.fk(np.radians([30, 50, -40, 20, 60, -10]))
+    sols = robot.ik_all(T)
+    assert 1 <= len(sols) <= 8
+    assert robot.within_limits(sols).all()
+
+
+def test_seed_picks_the_nearest_solution():
+    robot = unlimited(load_robot("adept_viper_s650"))
+    q_true = np.radians([30, 50, -40, 20, 60, -10])
+    T = robot.fk(q_true)
+    for q in robot.ik_all(T):
+        res = robot.ik(T, q0=q + 0.01)
+        np.testing.assert_allclose(res.q, q, atol=1e-9)
+
+
+def test_numeric_prefers_solution_near_seed():
+    robot = load_robot("ur5")
+    q_true = np.radians([20, -70, 80, -100, -80, 30])
+    res = robot.ik(robot.fk(q_true), q0=q_true + 0.05)
+    np.testing.assert_allclose(res.q, q_true, atol=1e-6)
+
+
+def test_seed_beyond_two_pi_and_result_wrapped_into_limits():
+    robot = load_robot("adept_viper_s650")
+    q_true = np.radians([10, 60, -80, 30, 40, 50])
+    res = robot.ik(robot.fk(q_true), q0=q_true + 2 * np.pi * np.array([3, 0, 0, -2, 0, 1]))
+    assert_reaches(robot, res, robot.fk(q_true))
+
+
+# -- singular and extreme cases ------------------------------------------------------
+
+@pytest.mark.parametrize("name,method", [(n, "analytic") for n in SPHERICAL] + [(n, "numeric") for n in SPHERICAL + ["ur5"]])
+@pytest.mark.parametrize("q5", [0.0, 1e-12, 1e-9, -1e-6])
+def test_wrist_singularity(name, method, q5):
+    robot = load_robot(name)
+    q = np.radians([25, 35, -50, 40, 0, 70])
+    q[4] = q5
+    T = robot.fk(q)
+    res = robot.ik(T, method=method)
+    assert_finite(res)
+    assert_reaches(robot, res, T)
+    # A target 1e-9 mm away from the singular pose is just as solvable.
+    res = robot.ik(trans(1e-9, -1e-9, 1e-9) @ T, method=method)
+    assert_finite(res)
+    assert_reaches(robot, res, trans(1e-9, -1e-9, 1e-9) @ T)
+
+
+def viper_shoulder_singular_q():
+    """Viper q with the wrist centre on the joint-1 axis, found by bisection on q2 using FK only."""
+    robot = load_robot("adept_viper_s650")
+
+    def wrist_x(q2):
+        q = np.radians([0.0, 0.0, -150.0, 30.0, 45.0, 10.0])
+        q[1] = q2
+        return robot.link_frames(q)[4][0, 3]
+
+    lo, hi = np.radians(0.0), np.radians(60.0)
+    assert np.sign(wrist_x(lo)) != np.sign(wrist_x(hi))
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if np.sign(wrist_x(mid)) == np.sign(wrist_x(lo)):
+            lo = mid
+        else:
+            hi = mid
+    q = np.radians([0.0, 0.0, -150.0, 30.0, 45.0, 10.0])
+    q[1] = 0.5 * (lo + hi)
+    return robot, q
+
+
+@pytest.mark.parametrize("method", ["analytic", "numeric"])
+@pytest.mark.parametrize("offset_mm", [0.0, 1e-9, 1e-3])
+def test_shoulder_singularity_wrist_on_base_axis(method, offset_mm):
+    robot, q = viper_shoulder_singular_q()
+    w = robot.link_frames(q)[4][:3, 3]
+    assert np.hypot(w[0], w[1]) < 1e-9  # really on the axis
+    T = trans(offset_mm, offset_mm, 0) @ robot.fk(q)
+    res = robot.ik(T, q0=np.radians([40, 10, -140, 0, 30, 0]), method=method)
+    assert_finite(res)
+    assert_reaches(robot, res, T)
+
+
+@pytest.mark.parametrize("name", SPHERICAL)
+@pytest.mark.parametrize("method", ["analytic", "numeric"])
+def test_elbow_fully_stretched_and_just_beyond(name, method):
+    robot = load_robot(name)
+    q = stretched_q(robot, np.radians([20, 30, 0, 30, 50, -20]))
+    assert robot.within_limits(q)
+    frames = robot.link_frames(q)
+    T = robot.fk(q)
+    # Outward = from joint 2's axis point towards the wrist centre, in the arm's plane.
+    out = frames[4][:3, 3] - frames[1][:3, 3]
+    out /= np.linalg.norm(out)
+    for delta, reachable in [(0.0, True), (-1e-9, True), (1e-9, True), (1e-3, False), (1.0, False)]:
+        Td = T.copy()
+        Td[:3, 3] += delta * out
+        res = robot.ik(Td, q0=q, method=method)
+        assert_finite(res)
+        if reachable:
+            # 1e-9 mm beyond the boundary is within tolerance of the reachable boundary.
+            assert res.success, (delta, res.message)
+            assert res.pos_err_mm <= max(default_pos_tol(robot), abs(delta) * 1.01)
+        else:
+            assert not res.success, (delta, res.message)
+            assert res.pos_err_mm == pytest.approx(delta, rel=0.05), res.message
+            assert res.reason in ("out_of_reach", "not_converged")
+
+
+@pytest.mark.parametrize("name", SPHERICAL + ["ur5"])
+def test_never_claims_success_beyond_reach(name):
+    robot = load_robot(name)
+    rng = np.random.default_rng(13)
+    n = 60
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    radius = robot.reach_bound_mm * (1 + rng.uniform(1e-3, 0.5, n))
+    Ts = robot.fk(robot.random_q(n, rng))
+    Ts[:, :3, 3] = robot.shoulder_world + dirs * radius[:, None]
+    batch = robot.ik_batch(Ts)
+    assert not batch.success.any()
+    assert set(batch.reasons) == {"out_of_reach"}
+    assert np.isfinite(batch.q).all()
+    assert "out of reach" in batch.messages[0] and "mm" in batch.messages[0]
+
+
+@pytest.mark.parametrize("name", SPHERICAL)
+def test_never_claims_success_just_outside_the_stretched_boundary(name):
+    """Targets 1 µm–10 mm beyond the stretched-arm boundary, within the loose reach bound."""
+    robot = load_robot(name)
+    rng = np.random.default_rng(14)
+    Ts, qs = [], robot.random_q(40, rng)
+    for q in qs:
+        q = stretched_q(robot, q)
+        q = np.clip(q, robot.q_min_rad, robot.q_max_rad)
+        frames = robot.link_frames(q)
+        out = frames[4][:3, 3] - frames[1][:3, 3]
+        T = robot.fk(q)
+        T[:3, 3] += out / np.linalg.norm(out) * 10 ** rng.uniform(-3, 1)
+        Ts.append(T)
+    Ts = np.array(Ts)
+    for method in ("analytic", "numeric"):
+        batch = robot.ik_batch(Ts, method=method)
+        assert not batch.success.any(), method
+        assert np.isfinite(batch.q).all()
+
+
+def test_reachable_only_outside_joint_limits():
+    robot = load_robot("adept_viper_s650")
+    T = robot.fk(np.radians([10, 60, -80, 30, 150, 50]))  # J5 = 150° is beyond ±120°
+    every = unlimited(robot).ik_all(T)
+    assert len(every) > 0 and not robot.within_limits(every).any()  # precondition, by FK-verified branches
+    res = robot.ik(T)
+    assert not res.success
+    assert res.reason == "joint_limits"
+    assert "outside" in res.message and "J5" in res.message
+    with pytest.raises(UnreachablePose, match="J5") as info:
+        robot.ik(T, raise_on_failure=True)
+    assert info.value.result.reason == "joint_limits"
+    assert not robot.ik(T, method="numeric").success
+
+
+@pytest.mark.parametrize("scale_to", [1e-3, 1e5])
+@pytest.mark.parametrize("name", SPHERICAL + ["ur5"])
+def test_link_lengths_from_a_micron_to_a_hundred_metres(name, scale_to):
+    base = load_robot(name)
+    lengths = np.abs(np.r_[base.a_mm, base.d_mm])
+    lengths = lengths[lengths > 0]
+    factor = scale_to / (lengths.min() if scale_to < 1 else lengths.max())
+    robot = base.scaled(factor)
+    rng = np.random.default_rng(15)
+    qs = robot.random_q(40, rng)
+    batch = robot.ik_batch(robot.fk(qs))
+    assert batch.success.all()
+    assert batch.pos_err_mm.max() <= default_pos_tol(robot)
+    assert np.isfinite(batch.q).all()
+
+
+def test_mixed_link_lengths_in_one_arm():
+    viper = load_robot("adept_viper_s650")
+    robot = replace(viper, a_mm=np.array([1e-3, 1e5, 1e-3, 0, 0, 0]), d_mm=np.array([1e5, 0, 0, 1e5, 0, 1e-3]))
+    rng = np.random.default_rng(16)
+    qs = robot.random_q(200, rng)
+    for method in ("analytic", "numeric"):
+        batch = robot.ik_batch(robot.fk(qs[:100] if method == "numeric" else qs), method=method)
+        assert batch.success.all(), method
+        assert batch.pos_err_mm.max() <= default_pos_tol(robot)
+
+
+# -- inputs -------------------------------------------------------------------------
+
+@pytest.mark.parametrize(
+    "kwargs,fragment",
+    [
+        (dict(T_target=np.full((4, 4), np.nan)), "NaN"),
+        (dict(T_target=np.diag([1, 1, 2, 1.0])), "orthonormal"),
+        (dict(T_target=np.eye(4), q0=[0, 0, 0]), "q0"),
+        (dict(T_target=np.eye(4), q0=[0, 0, np.nan, 0, 0, 0]), "finite"),
+        (dict(T_target=np.eye(4), method="magic"), "magic"),
+        (dict(T_target=np.eye(4), pos_tol_mm=-1), "pos_tol_mm"),
+    ],
+)
+def test_bad_ik_inputs(kwargs, fragment):
+    with pytest.raises(InputError, match=fragment):
+        load_robot("puma560").ik(**kwargs)
+
+
+def test_analytic_refused_for_arm_without_spherical_wrist():
+    with pytest.raises(InputError, match="closed form.*α3"):
+        load_robot("ur5").ik(np.eye(4), method="analytic")
+    assert load_robot("ur5").ik(load_robot("ur5").fk(np.full(6, 0.3))).method == "numeric"

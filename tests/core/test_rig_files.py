@@ -1,0 +1,103 @@
+"""Robot rig files: loading by name or path, and one clear error per kind of mistake."""
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from addon.core.errors import ConfigError
+from addon.core.kinematics import load_robot
+
+LINK = """
+[[link]]
+a_mm = 100.0
+d_mm = 0.0
+alpha_deg = 90.0
+theta_offset_deg = 0.0
+min_deg = -170.0
+max_deg = 170.0
+"""
+
+
+def write_rig(tmp_path, body: str, links: int = 6, name="bad.toml"):
+    path = tmp_path / name
+    path.write_text('name = "test arm"\n' + textwrap.dedent(body) + LINK * links)
+    return path
+
+
+def test_load_by_path_and_tool_base_tables(tmp_path):
+    path = tmp_path / "ok.toml"
+    path.write_text('name = "test arm"\n' + LINK * 6 + textwrap.dedent("""
+        [tool]
+        xyz_mm = [0, 0, 150]
+        [base]
+        xyz_mm = [10, 20, 30]
+        yzz_deg = [90, 0, 0]
+        """))
+    robot = load_robot(str(path))
+    assert robot.name == "test arm"
+    np.testing.assert_allclose(robot.tool[:3, 3], [0, 0, 150])
+    np.testing.assert_allclose(robot.base[:3, 3], [10, 20, 30])
+    np.testing.assert_allclose(robot.base[:3, 0], [0, 1, 0], atol=1e-15)
+
+
+def test_unknown_name_lists_the_bundled_robots():
+    with pytest.raises(ConfigError, match="puma560") as info:
+        load_robot("kuka_kr6")
+    assert "kuka_kr6" in str(info.value)
+
+
+def test_missing_file():
+    with pytest.raises(ConfigError, match="no such file"):
+        load_robot("/nonexistent/robot.toml")
+
+
+@pytest.mark.parametrize(
+    "body,links,fragments",
+    [
+        ("", 5, ["found 5 [[link]]", "exactly 6"]),
+        ("colour = 'red'\n", 6, ["unknown key colour"]),
+        ("name2 = 1\n", 6, ["unknown key name2"]),
+        ("this is not toml\n", 6, ["not valid TOML"]),
+    ],
+)
+def test_structural_errors(tmp_path, body, links, fragments):
+    path = write_rig(tmp_path, body, links)
+    with pytest.raises(ConfigError) as info:
+        load_robot(path)
+    msg = str(info.value)
+    assert str(path) in msg
+    for f in fragments:
+        assert f in msg
+
+
+@pytest.mark.parametrize(
+    "replace,fragments",
+    [
+        (("a_mm = 100.0", "a_mm = nan"), ["link[1].a_mm", "finite"]),
+        (("a_mm = 100.0", "a_mm = 'long'"), ["link[1].a_mm", "not a number"]),
+        (("a_mm = 100.0", "a_mm = true"), ["link[1].a_mm", "not a number"]),
+        (("a_mm = 100.0", "a_mm = 1e9"), ["link[1].a_mm", "out of range", "[-1e+06, 1e+06]"]),
+        (("max_deg = 170.0", "max_deg = -180.0"), ["link[1].max_deg", "greater than min_deg"]),
+        (("min_deg = -170.0", "min_deg = -1000.0"), ["link[1].min_deg", "[-720, 720]"]),
+        (("alpha_deg = 90.0\n", ""), ["link[1].alpha_deg", "missing"]),
+        (("d_mm = 0.0", "d_mm = 0.0\nmass_kg = 3.0"), ["link[1].mass_kg", "unknown key"]),
+    ],
+)
+def test_value_errors_name_file_key_and_range(tmp_path, replace, fragments):
+    path = write_rig(tmp_path, "")
+    text = path.read_text()
+    path.write_text(text.replace(replace[0], replace[1], 1))
+    with pytest.raises(ConfigError) as info:
+        load_robot(path)
+    msg = str(info.value)
+    assert str(path) in msg
+    for f in fragments:
+        assert f in msg, msg
+
+
+def test_mesh_keys_are_accepted(tmp_path):
+    path = write_rig(tmp_path, "")
+    text = path.read_text().replace("max_deg = 170.0", 'max_deg = 170.0\nmesh = "link1.stl"\n[link.mesh_offset]\nxyz_mm = [0, 0, 5]', 1)
+    path.write_text(text)
+    assert load_robot(path).name == "test arm"
