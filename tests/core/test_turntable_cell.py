@@ -1,0 +1,108 @@
+"""Rotary table (Eq. 4–5) and the probe-to-table transform of Eq. 8, settled by round trips."""
+
+import numpy as np
+import pytest
+
+from addon.core.cell import Cell
+from addon.core.errors import InputError
+from addon.core.euler import pose_from_xyz_yzz
+from addon.core.kinematics import load_robot
+from addon.core.transforms import rigid_inverse, rot_z, transform_points, trans
+from addon.core.turntable import Turntable
+
+
+def test_eq4_and_eq5_are_inverse_and_match_the_paper():
+    table = Turntable()
+    assert (table.a_mm, table.d_mm) == (-500.0, -200.0)
+    for theta in (0.0, 0.4, -2.0, 7.5):
+        np.testing.assert_allclose(table.base2table(theta) @ table.table2base(theta), np.eye(4), atol=1e-13)
+        # Eq. 5 written out: T(500, 0, 200)·R_Z(θ).
+        np.testing.assert_allclose(table.table2base(theta), trans(500, 0, 200) @ rot_z(theta), atol=1e-13)
+        np.testing.assert_allclose(table.base2table(theta), rigid_inverse(trans(500, 0, 200) @ rot_z(theta)), atol=1e-13)
+
+
+def test_table_turns_points_counter_clockwise_about_its_centre():
+    table = Turntable()
+    p = transform_points(table.table2base(np.pi / 2), [100.0, 0.0, 10.0])
+    np.testing.assert_allclose(p, [500.0, 100.0, 210.0], atol=1e-12)
+
+
+def test_placement_is_configurable_and_batched():
+    table = Turntable(a_mm=-700, d_mm=50)
+    np.testing.assert_allclose(table.table2base(0.0)[:3, 3], [700, 0, -50])
+    thetas = np.linspace(0, 2 * np.pi, 5)
+    assert table.base2table(thetas).shape == (5, 4, 4)
+
+
+@pytest.mark.parametrize("kwargs", [dict(a_mm=np.nan), dict(d_mm="far"), dict(a_mm=True)])
+def test_bad_placement(kwargs):
+    with pytest.raises(InputError, match="turntable"):
+        Turntable(**kwargs)
+
+
+def test_bad_angle():
+    with pytest.raises(InputError, match="table angle"):
+        Turntable().base2table(np.nan)
+
+
+def looking_down_at(point_table, theta, stand_off=150.0, yaw=0.3):
+    """Probe pose in the table frame with its beam (+Z) pointing down at a table point."""
+    return pose_from_xyz_yzz(np.asarray(point_table) + [0, 0, stand_off], [yaw, np.pi, 0.0])
+
+
+@pytest.mark.parametrize("robot_name", ["adept_viper_s650", "puma560", "ur5"])
+def test_eq8_round_trip_table_point_to_probe_and_back(robot_name):
+    """A point fixed on the workpiece, seen by the probe, must come back to the same table coordinates.
+
+    The probe measures the point in its own frame; which transform takes that
+    measurement back to the table settles the reading of Eq. 8.
+    """
+    cell = Cell(load_robot(robot_name))
+    point_table = np.array([40.0, -25.0, 30.0])
+    for theta in (0.0, 0.9, -2.4):
+        res = cell.ik(looking_down_at(point_table, theta), relative_to="table", table_angle_rad=theta)
+        assert res.success, res.message
+        # Physics: where the point is in the world, and where it is seen from the probe.
+        world = transform_points(cell.table.table2base(theta), point_table)
+        seen = transform_points(rigid_inverse(cell.probe2base(res.q)), world)
+        np.testing.assert_allclose(seen, [0, 0, 150], atol=1e-6)  # on the beam, 150 mm out
+        # Eq. 8 done right: T_0^R · T_DK.
+        back = transform_points(cell.probe2table(res.q, theta), seen)
+        np.testing.assert_allclose(back, point_table, atol=1e-6)
+        # The product as printed in the paper, T_R^0 · T_DK, lands elsewhere.
+        printed = transform_points(cell.table.table2base(theta) @ cell.probe2base(res.q), seen)
+        assert np.linalg.norm(printed - point_table) > 100.0
+
+
+def test_turning_the_table_does_not_move_the_workpiece_frame():
+    cell = Cell(load_robot("adept_viper_s650"))
+    point_table = np.array([-30.0, 55.0, 20.0])
+    recovered = []
+    for theta in np.linspace(0, 2 * np.pi, 7)[:-1]:
+        # Probe fixed in the world; the point comes round with the table.
+        world = transform_points(cell.table.table2base(theta), point_table)
+        T = pose_from_xyz_yzz(world + [0, 0, 150], [0.0, np.pi, 0.0])
+        res = cell.ik(T)
+        assert res.success, res.message
+        seen = transform_points(rigid_inverse(cell.probe2base(res.q)), world)
+        recovered.append(transform_points(cell.probe2table(res.q, theta), seen))
+    np.testing.assert_allclose(recovered, np.tile(point_table, (6, 1)), atol=1e-6)
+
+
+def test_probe2table_batches_over_joint_vectors_and_angles():
+    cell = Cell(load_robot("puma560"))
+    rng = np.random.default_rng(4)
+    qs = cell.robot.random_q(5, rng)
+    thetas = rng.uniform(-3, 3, 5)
+    batch = cell.probe2table(qs, thetas)
+    for q, th, T in zip(qs, thetas, batch):
+        np.testing.assert_allclose(T, cell.probe2table(q, th), atol=1e-10)
+
+
+def test_cartesian_target_frames():
+    cell = Cell(load_robot("puma560"))
+    T = looking_down_at([0, 0, 0], 0.5)
+    np.testing.assert_allclose(cell.target_in_base(T, "table", 0.5), cell.table.table2base(0.5) @ T)
+    np.testing.assert_array_equal(cell.target_in_base(T, "base"), T)
+    with pytest.raises(InputError, match="relative_to"):
+        cell.target_in_base(T, "world")

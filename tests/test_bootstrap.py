@@ -1,0 +1,64 @@
+"""The set-up step installs once and is skipped while the lock file is unchanged."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from headless import bootstrap
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def fake_repo(tmp_path, monkeypatch):
+    venv = tmp_path / ".venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / "bin" / "python").write_text("")
+    lock = tmp_path / "requirements.txt"
+    lock.write_text("numpy==1.26.4\n")
+    monkeypatch.setattr(bootstrap, "VENV", venv)
+    monkeypatch.setattr(bootstrap, "LOCK", lock)
+    monkeypatch.setattr(bootstrap, "STAMP", venv / ".installed-lock.sha256")
+    calls = []
+    monkeypatch.setattr(bootstrap.subprocess, "call", lambda cmd, cwd=None: calls.append(cmd) or 0)
+    return lock, calls
+
+
+def test_installs_once_then_skips(fake_repo):
+    lock, calls = fake_repo
+    bootstrap.ensure_venv()
+    assert len(calls) == 1 and "install" in calls[0]
+    bootstrap.ensure_venv()
+    bootstrap.ensure_venv()
+    assert len(calls) == 1  # nothing re-installed
+
+
+def test_reinstalls_when_the_lock_changes(fake_repo):
+    lock, calls = fake_repo
+    bootstrap.ensure_venv()
+    lock.write_text("numpy==1.26.4\ntrimesh==4.12.2\n")
+    bootstrap.ensure_venv()
+    assert len(calls) == 2
+
+
+def test_failed_install_leaves_no_stamp(fake_repo, monkeypatch):
+    lock, calls = fake_repo
+    monkeypatch.setattr(bootstrap.subprocess, "call", lambda cmd, cwd=None: 1)
+    with pytest.raises(SystemExit, match="failed"):
+        bootstrap.ensure_venv()
+    assert not bootstrap.STAMP.exists()
+
+
+def test_no_tests_collected_is_not_a_failure(fake_repo, monkeypatch):
+    monkeypatch.setattr(bootstrap, "ensure_python", lambda: None)
+    monkeypatch.setattr(bootstrap.subprocess, "call",
+                        lambda cmd, cwd=None: bootstrap.PYTEST_NO_TESTS if "pytest" in cmd else 0)
+    assert bootstrap.main(["test", "-k", "nothing_matches"]) == 0
+
+
+def test_help_runs_on_plain_python():
+    out = subprocess.run([sys.executable, "-m", "headless.bootstrap", "--help"], cwd=REPO,
+                         capture_output=True, text=True)
+    assert out.returncode == 0 and "python3.11 -m headless.bootstrap test" in out.stdout
