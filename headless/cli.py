@@ -1,0 +1,52 @@
+"""Command line of the simulator: ``python -m headless <command>``.
+
+Commands:
+  demo                 the main job of the README's first command (for now the
+                       kinematics demo: tool poses of the bundled robots, IK solves)
+  bench kinematics     FK/IK speed, IK success and accuracy, false successes
+
+Errors the user can fix (bad rig file, bad value) print one line and exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from addon.core.errors import ScannerError
+
+EXIT_USER_ERROR = 2
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m headless", description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    demo = sub.add_parser("demo", help="run the demo (kinematics of the bundled robots)")
+    demo.set_defaults(run=_run_demo)
+
+    bench = sub.add_parser("bench", help="benchmarks that print figures and ratios")
+    bench_sub = bench.add_subparsers(dest="bench", required=True, metavar="NAME")
+    from headless.bench import kinematics as bench_kinematics
+
+    bench_kinematics.add_arguments(bench_sub.add_parser("kinematics", help=bench_kinematics.__doc__.split("\n")[0]))
+    return parser
+
+
+def _run_demo(args: argparse.Namespace) -> int:
+    from headless import demo
+
+    return demo.run()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.run(args)
+    except ScannerError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,48 @@
+"""The command line: demo, a small benchmark, and one-line errors for bad input."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "headless", *args], cwd=REPO, capture_output=True, text=True)
+
+
+def test_demo_prints_poses_and_solves_ik_for_every_robot():
+    out = run_cli("demo")
+    assert out.returncode == 0, out.stderr
+    for name in ("Adept Viper s650", "Unimation PUMA 560", "Universal Robots UR5"):
+        assert out.stdout.count(name) == 4  # three poses and one IK row
+    assert out.stdout.count(" yes ") == 3 and " NO " not in out.stdout
+    # The PUMA's zero pose as published for Corke's model (plus the 671.83 mm base height).
+    assert "452.10    -150.05    1103.63" in out.stdout
+
+
+def test_small_kinematics_bench_reports_zero_false_successes():
+    out = run_cli("bench", "kinematics", "--robots", "puma560", "--n", "60", "--near", "20",
+                  "--unreachable", "20", "--fk-batch", "2000")
+    assert out.returncode == 0, out.stderr
+    rows = [line for line in out.stdout.splitlines() if line.startswith("Unimation PUMA 560")]
+    assert len(rows) == 2 + 4 + 2  # speed, quality (random + near per method), unreachable
+    unreachable_rows = rows[-2:]
+    for row in unreachable_rows:
+        assert row.split()[5] == "0", row  # false successes
+
+
+def test_bad_rig_file_gives_one_line_error(tmp_path):
+    bad = tmp_path / "broken.toml"
+    bad.write_text("name = 'x'\n[[link]]\na_mm = 'long'\n")
+    out = run_cli("bench", "kinematics", "--robots", str(bad), "--n", "10")
+    assert out.returncode == 2
+    assert "Traceback" not in out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and str(bad) in lines[0]
+
+
+def test_unknown_robot_name_lists_alternatives():
+    out = run_cli("bench", "kinematics", "--robots", "abb_irb120", "--n", "10")
+    assert out.returncode == 2
+    assert "adept_viper_s650" in out.stderr and "Traceback" not in out.stderr
