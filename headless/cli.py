@@ -4,6 +4,8 @@ Commands:
   demo                 the main job of the README's first command (for now the
                        kinematics demo: tool poses of the bundled robots, IK solves)
   bench kinematics     FK/IK speed, IK success and accuracy, false successes
+  bench detect         laser-line detection accuracy and speed on synthetic images
+  bench triangulate    paper's Eq. 6 against the exact intersection, speed, stability
 
 Errors the user can fix (bad rig file, bad value) print one line and exit 2.
 """
@@ -27,9 +29,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="benchmarks that print figures and ratios")
     bench_sub = bench.add_subparsers(dest="bench", required=True, metavar="NAME")
+    from headless.bench import detect as bench_detect
     from headless.bench import kinematics as bench_kinematics
+    from headless.bench import triangulate as bench_triangulate
 
-    bench_kinematics.add_arguments(bench_sub.add_parser("kinematics", help=bench_kinematics.__doc__.split("\n")[0]))
+    for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),
+                         ("triangulate", bench_triangulate)):
+        module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))
     return parser
 
 

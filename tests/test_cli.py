@@ -46,3 +46,19 @@ def test_unknown_robot_name_lists_alternatives():
     out = run_cli("bench", "kinematics", "--robots", "abb_irb120", "--n", "10")
     assert out.returncode == 2
     assert "adept_viper_s650" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_triangulate_bench_reports_the_paper_difference():
+    out = run_cli("bench", "triangulate", "--probes", "default")
+    assert out.returncode == 0, out.stderr
+    assert "largest Δ|y|" in out.stdout and "all finite: True" in out.stdout
+    pct = float(out.stdout.split("largest Δ|y|:")[1].split("(")[1].split("%")[0])
+    assert 2.5 < pct < 2.9  # about 1/cos γ − 1 at the sensor's outer rows
+
+
+def test_detect_bench_runs_small():
+    out = run_cli("bench", "detect", "--images", "1", "--cols", "60")
+    assert out.returncode == 0, out.stderr
+    for method in ("threshold", "cog", "gauss", "steger"):
+        assert f"{method}: line σ" in out.stdout
+    assert "1280x1024" in out.stdout

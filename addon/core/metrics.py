@@ -1,0 +1,85 @@
+"""Ground-truth error of a cloud: point-to-surface distances, their statistics, coverage.
+
+Truth is either an analytic shape (:mod:`addon.core.shapes`, exact distances) or
+a mesh (trimesh closest-point queries, exact for the mesh's flat faces).
+Statistics are reported in micrometres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+from .errors import InputError
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """Point-to-surface error of n points, µm. bias: mean signed distance (NaN if unsigned)."""
+
+    n: int
+    rms_um: float
+    mean_um: float
+    p95_um: float
+    max_um: float
+    bias_um: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def error_stats(distance_mm, signed_mm=None) -> ErrorStats:
+    d = np.abs(np.asarray(distance_mm, dtype=np.float64).ravel())
+    if d.size == 0:
+        nan = float("nan")
+        return ErrorStats(0, nan, nan, nan, nan, nan)
+    bias = float(np.mean(signed_mm)) * 1e3 if signed_mm is not None else float("nan")
+    return ErrorStats(int(d.size), float(np.sqrt(np.mean(d * d))) * 1e3, float(np.mean(d)) * 1e3,
+                      float(np.percentile(d, 95)) * 1e3, float(d.max()) * 1e3, bias)
+
+
+def _check_mesh(mesh) -> trimesh.Trimesh:
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise InputError(f"ground truth must be a trimesh.Trimesh or an analytic shape, got {type(mesh).__name__}")
+    if len(mesh.faces) == 0:
+        raise InputError("ground-truth mesh has no faces")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise InputError("ground-truth mesh has NaN or inf vertices")
+    return mesh
+
+
+def distances(points, truth) -> tuple[np.ndarray, np.ndarray | None]:
+    """(unsigned distance (n,) mm, signed distance (n,) mm or None) from points (n, 3) to the truth."""
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if hasattr(truth, "signed_distance"):
+        s = truth.signed_distance(P)
+        return np.abs(s), s
+    mesh = _check_mesh(truth)
+    if len(P) == 0:
+        return np.zeros(0), None
+    _, dist, _ = trimesh.proximity.closest_point(mesh, P)
+    return np.asarray(dist), None
+
+
+def evaluate(points, truth) -> ErrorStats:
+    d, s = distances(points, truth)
+    return error_stats(d, s)
+
+
+def coverage(points, mesh, tolerance_mm: float, samples: int = 20000, seed: int = 0) -> float:
+    """Fraction of the mesh's area that lies within ``tolerance_mm`` of some cloud point.
+
+    Estimated from ``samples`` points drawn uniformly over the area (seeded).
+    """
+    mesh = _check_mesh(mesh.mesh() if hasattr(mesh, "mesh") and not isinstance(mesh, trimesh.Trimesh) else mesh)
+    if tolerance_mm <= 0 or not np.isfinite(tolerance_mm):
+        raise InputError(f"coverage tolerance must be a positive number of mm, got {tolerance_mm}")
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(P) == 0:
+        return 0.0
+    surface, _ = trimesh.sample.sample_surface(mesh, samples, seed=seed)
+    d, _ = cKDTree(P).query(surface, k=1, distance_upper_bound=tolerance_mm)
+    return float(np.mean(np.isfinite(d)))

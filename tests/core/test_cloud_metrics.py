@@ -1,0 +1,128 @@
+"""Clouds in the table frame, PLY round trips, analytic ground truth, error statistics, coverage."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+import trimesh
+
+from addon.core import files
+from addon.core.cloud import Cloud, CloudAccumulator, load_ply, save_ply
+from addon.core.errors import InputError, ScannerError
+from addon.core.metrics import coverage, distances, error_stats, evaluate
+from addon.core.shapes import Cylinder, PlanePatch, Sphere
+from addon.core.transforms import rot_x, rot_z, trans
+from addon.core.triangulate import Profile
+
+
+def profile(points, camera=1):
+    n = len(points)
+    return Profile(np.asarray(points, float), np.arange(n, dtype=float), np.full(n, camera, np.uint8),
+                   np.full(n, 0.5), np.full(n, 0.01), {})
+
+
+def test_accumulator_moves_profiles_into_the_table_frame():
+    acc = CloudAccumulator()
+    T0 = trans(10, 0, 0)
+    T1 = rot_z(math.pi / 2) @ trans(0, 0, 5)
+    acc.add(profile([[0, 0, 100.0], [0, 1, 100.0]]), T0, frame=0)
+    acc.add(profile([[0, 0, 100.0]], camera=3), T1, frame=7)
+    cloud = acc.cloud()
+    np.testing.assert_allclose(cloud.points, [[10, 0, 100], [10, 1, 100], [0, 0, 105]], atol=1e-12)
+    np.testing.assert_array_equal(cloud.frame, [0, 0, 7])
+    np.testing.assert_array_equal(cloud.camera, [1, 1, 3])
+    assert len(CloudAccumulator().cloud()) == 0
+
+
+def test_ply_round_trip_keeps_attributes(tmp_path):
+    rng = np.random.default_rng(0)
+    cloud = Cloud(rng.uniform(-300, 300, (1000, 3)), rng.integers(0, 500, 1000), rng.integers(1, 4, 1000),
+                  rng.uniform(0, 0.2, 1000))
+    path = save_ply(cloud, tmp_path / "out" / "cloud.ply")
+    assert path.read_bytes().startswith(b"ply\nformat binary_little_endian")
+    back = load_ply(path)
+    assert len(back) == 1000
+    np.testing.assert_allclose(back.points, cloud.points, atol=1e-4)  # float32 in the file
+    np.testing.assert_array_equal(back.frame, cloud.frame)
+    np.testing.assert_array_equal(back.camera, cloud.camera)
+    np.testing.assert_allclose(back.quality, cloud.quality, rtol=1e-7)
+    assert not [p for p in path.parent.iterdir() if p.name != "cloud.ply"]  # no temporary left over
+
+
+def test_failed_write_leaves_no_file(tmp_path, monkeypatch):
+    target = tmp_path / "cloud.ply"
+
+    def boom(src, dst):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(files.os, "replace", boom)
+    with pytest.raises(OSError):
+        save_ply(Cloud(np.zeros((3, 3)), [0, 0, 0], [1, 1, 1], [0, 0, 0]), target)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_loading_bad_files(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        load_ply(tmp_path / "missing.ply")
+    junk = tmp_path / "junk.ply"
+    junk.write_bytes(b"this is not a ply file at all")
+    with pytest.raises(ScannerError, match="junk.ply"):
+        load_ply(junk)
+
+
+def test_analytic_distances_are_exact():
+    sphere = Sphere(trans(10, 0, 30), radius_mm=25)
+    assert sphere.signed_distance([[10, 0, 30 + 27.0], [10, 20, 30]]).tolist() == pytest.approx([2.0, -5.0])
+    plane = PlanePatch(trans(0, 0, 5) @ rot_x(math.pi / 2), width_mm=40, height_mm=20)
+    # The patch lies in the world XZ plane at y = 0 (after the 90° tilt), spanning x ∈ ±20, z ∈ 5 ± 10.
+    assert plane.signed_distance([[3, -2.5, 7]])[0] == pytest.approx(2.5)  # local +Z is world −Y
+    assert plane.distance([[25, 0, 5]])[0] == pytest.approx(5.0)  # beyond the edge
+    cyl = Cylinder(radius_mm=20, height_mm=60)
+    d = cyl.signed_distance([[0, 0, 30], [25, 0, 30], [0, 0, 70], [25, 0, 70], [19, 0, 59.5]])
+    np.testing.assert_allclose(d, [-20, 5, 10, math.hypot(5, 10), -0.5])
+
+
+def test_error_statistics_of_known_offsets():
+    rng = np.random.default_rng(1)
+    dirs = rng.normal(size=(2000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    offsets = np.where(np.arange(2000) % 2 == 0, 0.004, -0.002)  # ±µm-scale errors
+    sphere = Sphere(radius_mm=30.0)
+    stats = evaluate(dirs * (30.0 + offsets[:, None]), sphere)
+    assert stats.n == 2000
+    assert stats.rms_um == pytest.approx(math.sqrt((16 + 4) / 2), rel=1e-6)
+    assert stats.mean_um == pytest.approx(3.0, rel=1e-6)
+    assert stats.max_um == pytest.approx(4.0, rel=1e-6)
+    assert stats.p95_um == pytest.approx(4.0, rel=1e-6)
+    assert stats.bias_um == pytest.approx(1.0, rel=1e-6)
+    assert error_stats([]).n == 0
+
+
+def test_mesh_distances_agree_with_analytic_on_flat_faces():
+    plane = PlanePatch(rot_z(0.3) @ trans(0, 0, 12), width_mm=50, height_mm=50)
+    rng = np.random.default_rng(2)
+    P = np.column_stack([rng.uniform(-20, 20, 300), rng.uniform(-20, 20, 300), rng.uniform(-1, 1, 300)])
+    P = P @ rot_z(0.3)[:3, :3].T + [0, 0, 12]
+    d_mesh, signed = distances(P, plane.mesh())
+    assert signed is None
+    np.testing.assert_allclose(d_mesh, plane.distance(P), atol=1e-9)
+
+
+def test_coverage_of_half_a_plane():
+    plane = PlanePatch(width_mm=100, height_mm=100)
+    x, y = np.meshgrid(np.arange(-50, 0.01, 0.5), np.arange(-50, 50.01, 0.5))
+    half = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    assert coverage(half, plane, tolerance_mm=1.0) == pytest.approx(0.5, abs=0.03)
+    assert coverage(np.zeros((0, 3)), plane, tolerance_mm=1.0) == 0.0
+    with pytest.raises(InputError, match="tolerance"):
+        coverage(half, plane, tolerance_mm=0)
+
+
+def test_bad_ground_truth():
+    with pytest.raises(InputError, match="no faces"):
+        distances(np.zeros((1, 3)), trimesh.Trimesh(np.zeros((3, 3)), np.zeros((0, 3), int)))
+    with pytest.raises(InputError, match="radius"):
+        Sphere(radius_mm=-1.0)
+    with pytest.raises(InputError):
+        Cylinder(radius_mm=float("nan"))

@@ -1,0 +1,132 @@
+"""Laser-line detection on synthetic images with known sub-pixel centres, and on bad images."""
+
+import numpy as np
+import pytest
+
+from addon.core.detect import LineCode, detect_line
+from addon.core.errors import InputError
+from addon.core.synthetic import line_image
+
+H, W = 160, 200
+
+
+def smooth_line(seed=0, rows=H, cols=W):
+    """A gently tilted and curved line, continuous from column to column, at known centres."""
+    rng = np.random.default_rng(seed)
+    u = np.arange(cols)
+    return rows / 2 + rng.uniform(-0.5, 0.5) + 0.05 * (u - cols / 2) + 3 * np.sin(u / 23.0 + rng.uniform(0, 6))
+
+
+# Mean absolute error bounds; the benchmark (python -m headless bench detect) measures the full grid.
+BOUNDS = {  # method: (noise-free, 2 % noise)
+    "gauss": (0.01, 0.05),
+    "steger": (0.01, 0.05),
+    "cog": (0.1, 0.12),
+    "threshold": (0.35, 0.4),
+}
+
+
+@pytest.mark.parametrize("method", list(BOUNDS))
+@pytest.mark.parametrize("sigma", [0.7, 1.0, 2.0, 3.0])
+@pytest.mark.parametrize("noise", [0.0, 0.02])
+def test_sub_pixel_accuracy(method, sigma, noise):
+    centre = smooth_line(seed=int(sigma * 10))
+    img = line_image(H, centre, sigma, noise=noise, rng=np.random.default_rng(1))
+    line = detect_line(img, method)
+    assert line.valid.mean() >= 0.95, line.counts()
+    err = np.abs(line.row - centre)[line.valid]
+    assert err.mean() <= BOUNDS[method][0 if noise == 0 else 1], (method, sigma, noise, err.mean())
+
+
+def test_result_layout():
+    centre = smooth_line()
+    line = detect_line(line_image(H, centre, 1.2), "gauss")
+    np.testing.assert_array_equal(line.col, np.arange(W))
+    assert line.row.shape == line.peak.shape == line.width.shape == line.code.shape == (W,)
+    assert line.shape == (H, W)
+    # FWHM of a Gaussian is 2.355 σ.
+    assert np.median(line.width) == pytest.approx(2.355 * 1.2, rel=0.1)
+    assert np.median(line.peak) == pytest.approx(0.6, rel=0.15)
+
+
+@pytest.mark.parametrize("method", list(BOUNDS))
+def test_reflection_double_peak_is_rejected_not_averaged(method):
+    centre = smooth_line()
+    img = line_image(H, centre, 1.2, peak=0.6)
+    ghost = line_image(H, centre + 30, 1.2, peak=0.3, background=0.0)  # a reflection 30 px away
+    both = np.clip(img + ghost, 0, 1)
+    line = detect_line(both, method)
+    assert np.all(line.code[5:-5] == LineCode.AMBIGUOUS), line.counts()
+    assert np.isnan(line.row[line.code == LineCode.AMBIGUOUS]).all()
+    # A faint stray reflection (below the ratio) does not reject the column.
+    faint = np.clip(img + line_image(H, centre + 30, 1.2, peak=0.05, background=0.0), 0, 1)
+    ok = detect_line(faint, method)
+    assert ok.valid.mean() > 0.95
+
+
+@pytest.mark.parametrize("method", list(BOUNDS))
+def test_saturated_line_is_flagged(method):
+    img = line_image(H, smooth_line(), 1.5, peak=1.5)  # clips at full scale
+    line = detect_line(img, method)
+    assert np.all(line.code == LineCode.SATURATED), line.counts()
+
+
+@pytest.mark.parametrize("method", list(BOUNDS))
+@pytest.mark.parametrize("fill", [0.0, 0.5, 1.0])
+def test_blank_images_have_no_line(method, fill):
+    line = detect_line(np.full((H, W, 3), fill, np.float32), method)
+    assert np.all(line.code == LineCode.NO_LINE)
+    assert np.isnan(line.row).all()
+
+
+@pytest.mark.parametrize("method", list(BOUNDS))
+def test_nan_pixels_only_spoil_their_columns(method):
+    img = line_image(H, smooth_line(), 1.2)
+    img[40, 10] = np.nan
+    img[100, 50, 1] = np.inf
+    line = detect_line(img, method)
+    assert line.code[10] == LineCode.BAD_PIXELS and line.code[50] == LineCode.BAD_PIXELS
+    others = np.delete(np.arange(W), [10, 50])
+    assert line.valid[others].mean() > 0.95
+
+
+def test_too_wide_and_edge():
+    wide = detect_line(line_image(H, np.full(W, 80.0), 15.0, peak=0.6), "gauss")
+    assert np.all(wide.code == LineCode.TOO_WIDE)
+    edge = detect_line(line_image(H, np.full(W, 0.0), 1.0), "gauss")
+    assert np.all(edge.code == LineCode.EDGE)
+
+
+def test_integer_and_colour_formats_agree():
+    centre = smooth_line()
+    img = line_image(H, centre, 1.5, peak=0.5)
+    ref = detect_line(img, "gauss").row
+    u8 = detect_line(np.round(img * 255).astype(np.uint8), "gauss").row
+    u16 = detect_line(np.round(img * 65535).astype(np.uint16), "gauss").row
+    rgba = detect_line(np.dstack([img, np.ones((H, W), np.float32)]), "gauss").row
+    grey = detect_line(img[:, :, 0] - img[:, :, 1], "gauss").row
+    assert np.nanmax(np.abs(u8 - ref)) < 0.05  # 8-bit quantisation
+    assert np.nanmax(np.abs(u16 - ref)) < 1e-3
+    np.testing.assert_allclose(rgba, ref, atol=1e-9)
+    np.testing.assert_allclose(grey, ref, atol=1e-5)
+
+
+@pytest.mark.parametrize(
+    "image,fragment",
+    [
+        (np.zeros(10), "shape"),
+        (np.zeros((5, 5, 2)), "shape"),
+        (np.zeros((2, 5)), "at least 3 rows"),
+        (np.zeros((5, 5), dtype=bool), "dtype"),
+        (np.zeros((5, 5), dtype=complex), "dtype"),
+        ([[0.0, 1.0]], "numpy array"),
+    ],
+)
+def test_bad_inputs_give_clear_errors(image, fragment):
+    with pytest.raises(InputError, match=fragment):
+        detect_line(image)
+
+
+def test_unknown_method():
+    with pytest.raises(InputError, match="not one of"):
+        detect_line(np.zeros((5, 5)), "magic")
