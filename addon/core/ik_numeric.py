@@ -66,6 +66,36 @@ def _evaluate(robot, T: np.ndarray, q: np.ndarray, L: float):
     return e, J, np.linalg.norm(dp, axis=1), np.linalg.norm(w, axis=1)
 
 
+class _Problems:
+    """Current joint vectors, errors and Jacobians of N problems; keeps only improving steps."""
+
+    def __init__(self, robot, T: np.ndarray, q: np.ndarray):
+        self.robot, self.T, self.L = robot, T, robot.length_scale_mm
+        lo, hi = robot.q_min_rad, robot.q_max_rad
+        self.lo, self.hi, self.full_turn = lo, hi, (hi - lo) >= 2.0 * np.pi
+        self.q = _into_limits(np.array(q, dtype=np.float64), lo, hi, self.full_turn)
+        self.e, self.J, self.pe, self.re = _evaluate(robot, T, self.q, self.L)
+        self.cost = np.einsum("ij,ij->i", self.e, self.e)
+
+    def converged(self, pos_tol: float, rot_tol: float, idx=slice(None)) -> np.ndarray:
+        return (self.pe[idx] <= pos_tol) & (self.re[idx] <= rot_tol)
+
+    def try_step(self, idx: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Take q[idx] + dq (projected onto the limits) where it lowers the error.
+
+        Returns (better (len(idx),) bool, relative cost decrease of the accepted steps).
+        """
+        qn = _into_limits(self.q[idx] + dq, self.lo, self.hi, self.full_turn)
+        en, Jn, pen, ren = _evaluate(self.robot, self.T[idx], qn, self.L)
+        costn = np.einsum("ij,ij->i", en, en)
+        better = costn < self.cost[idx]
+        acc = idx[better]
+        gain = (self.cost[acc] - costn[better]) / np.maximum(self.cost[acc], 1e-300)
+        self.q[acc], self.e[acc], self.J[acc] = qn[better], en[better], Jn[better]
+        self.pe[acc], self.re[acc], self.cost[acc] = pen[better], ren[better], costn[better]
+        return better, gain
+
+
 def _into_limits(q: np.ndarray, lo: np.ndarray, hi: np.ndarray, full_turn: np.ndarray) -> np.ndarray:
     """Project q (N, 6) onto the limits; joints spanning a full turn wrap by 2π instead of sticking."""
     two_pi = 2.0 * np.pi
@@ -82,24 +112,19 @@ def levenberg_marquardt(robot, T: np.ndarray, q: np.ndarray, pos_tol: float, rot
     A problem stops when it converges, when λ exceeds LAMBDA_MAX, or after
     STALL_STEPS steps without real progress.
     """
-    lo, hi = robot.q_min_rad, robot.q_max_rad
-    full_turn = (hi - lo) >= 2.0 * np.pi
-    L = robot.length_scale_mm
-    q = _into_limits(np.array(q, dtype=np.float64), lo, hi, full_turn)
-    N = q.shape[0]
-    e, J, pe, re = _evaluate(robot, T, q, L)
-    cost = np.einsum("ij,ij->i", e, e)
+    P = _Problems(robot, T, q)
+    N = P.q.shape[0]
     lam = np.full(N, LAMBDA_START)
     stall = np.zeros(N, dtype=int)
     iters = np.zeros(N, dtype=int)
-    converged = (pe <= pos_tol) & (re <= rot_tol)
+    converged = P.converged(pos_tol, rot_tol)
     active = ~converged
     eye = np.eye(6)
     for _ in range(max_iter):
         idx = np.nonzero(active)[0]
         if idx.size == 0:
             break
-        Ja, ea = J[idx], e[idx]
+        Ja, ea = P.J[idx], P.e[idx]
         JT = np.swapaxes(Ja, 1, 2)
         H = JT @ Ja
         g = np.einsum("nij,nj->ni", JT, ea)
@@ -108,24 +133,18 @@ def levenberg_marquardt(robot, T: np.ndarray, q: np.ndarray, pos_tol: float, rot
         # Trust region: far from the solution a full Gauss-Newton step overshoots.
         big = np.max(np.abs(dq), axis=1)
         dq *= np.minimum(1.0, MAX_STEP_RAD / np.maximum(big, 1e-300))[:, None]
-        qn = _into_limits(q[idx] + dq, lo, hi, full_turn)
-        en, Jn, pen, ren = _evaluate(robot, T[idx], qn, L)
-        costn = np.einsum("ij,ij->i", en, en)
+        better, gain = P.try_step(idx, dq)
         iters[idx] += 1
-        better = costn < cost[idx]
-        acc = idx[better]
-        gain = (cost[acc] - costn[better]) / np.maximum(cost[acc], 1e-300)
-        q[acc], e[acc], J[acc], pe[acc], re[acc], cost[acc] = qn[better], en[better], Jn[better], pen[better], ren[better], costn[better]
+        acc, rej = idx[better], idx[~better]
         # Shrink λ fast after a good step: near a nearly-singular solution only an
         # almost undamped (Gauss-Newton) step converges quickly.
         lam[acc] = np.maximum(lam[acc] / LAMBDA_DOWN, LAMBDA_MIN)
         stall[acc] = np.where(gain < STALL_GAIN, stall[acc] + 1, 0)
-        rej = idx[~better]
         lam[rej] *= LAMBDA_UP
         stall[rej] += 1
-        converged[idx] = (pe[idx] <= pos_tol) & (re[idx] <= rot_tol)
+        converged[idx] = P.converged(pos_tol, rot_tol, idx)
         active[idx] = ~converged[idx] & (lam[idx] <= LAMBDA_MAX) & (stall[idx] < STALL_STEPS)
-    return q, pe, re, converged, iters
+    return P.q, P.pe, P.re, converged, iters
 
 
 def gauss_newton_polish(robot, T: np.ndarray, q: np.ndarray, pos_tol: float, rot_tol: float,
@@ -136,28 +155,18 @@ def gauss_newton_polish(robot, T: np.ndarray, q: np.ndarray, pos_tol: float, rot
     in a few steps; this finishes targets that LM left close to, but not within,
     tolerance. Returns q, pos_err, rot_err, converged, iterations like LM.
     """
-    lo, hi = robot.q_min_rad, robot.q_max_rad
-    full_turn = (hi - lo) >= 2.0 * np.pi
-    L = robot.length_scale_mm
-    q = q.copy()
-    e, J, pe, re = _evaluate(robot, T, q, L)
-    cost = np.einsum("ij,ij->i", e, e)
-    iters = np.zeros(q.shape[0], dtype=int)
-    active = ~((pe <= pos_tol) & (re <= rot_tol))
+    P = _Problems(robot, T, q)
+    iters = np.zeros(P.q.shape[0], dtype=int)
+    active = ~P.converged(pos_tol, rot_tol)
     for _ in range(steps):
         idx = np.nonzero(active)[0]
         if idx.size == 0:
             break
-        dq = np.einsum("nij,nj->ni", np.linalg.pinv(J[idx], rcond=1e-12), e[idx])
-        qn = _into_limits(q[idx] + dq, lo, hi, full_turn)
-        en, Jn, pen, ren = _evaluate(robot, T[idx], qn, L)
-        costn = np.einsum("ij,ij->i", en, en)
+        dq = np.einsum("nij,nj->ni", np.linalg.pinv(P.J[idx], rcond=1e-12), P.e[idx])
+        better, _ = P.try_step(idx, dq)
         iters[idx] += 1
-        better = costn < cost[idx]
-        acc = idx[better]
-        q[acc], e[acc], J[acc], pe[acc], re[acc], cost[acc] = qn[better], en[better], Jn[better], pen[better], ren[better], costn[better]
-        active[idx] = better & ~((pe[idx] <= pos_tol) & (re[idx] <= rot_tol))
-    return q, pe, re, (pe <= pos_tol) & (re <= rot_tol), iters
+        active[idx] = better & ~P.converged(pos_tol, rot_tol, idx)
+    return P.q, P.pe, P.re, P.converged(pos_tol, rot_tol), iters
 
 
 def solve_numeric(robot, T: np.ndarray, seeds: np.ndarray, pos_tol: float, rot_tol: float,
