@@ -52,6 +52,8 @@ class Robot:
     q_min_rad, q_max_rad : (6,) joint limits, applied to q (not to θ = q + offset)
     base : (4, 4) pose of DH frame 0 in the world (identity: world = robot base)
     tool : (4, 4) pose of the tool frame in the flange frame, the paper's T_L^6
+    link_meshes : per link, (mesh file or "", (4, 4) pose of the mesh in DH frame k)
+        for display only; empty tuple when the rig names no meshes
     """
 
     name: str
@@ -64,6 +66,7 @@ class Robot:
     base: np.ndarray = field(default_factory=lambda: np.eye(4))
     tool: np.ndarray = field(default_factory=lambda: np.eye(4))
     source: str = ""
+    link_meshes: tuple = ()
 
     def __post_init__(self) -> None:
         for label in ("a_mm", "d_mm", "alpha_rad", "theta_offset_rad", "q_min_rad", "q_max_rad"):
@@ -347,6 +350,7 @@ def load_robot(name_or_path: str | Path) -> Robot:
         raise ConfigError(f"{path}: found {len(links)} [[link]] tables; a robot needs exactly {N_JOINTS} "
                           "(one per joint, in order from the base)")
     cols: dict[str, list[float]] = {k: [] for k in ("a", "d", "alpha", "offset", "lo", "hi")}
+    meshes: list[tuple[str, np.ndarray]] = []
     for t in links:
         cols["a"].append(t.number("a_mm", lo=-MAX_LENGTH_MM, hi=MAX_LENGTH_MM))
         cols["d"].append(t.number("d_mm", lo=-MAX_LENGTH_MM, hi=MAX_LENGTH_MM))
@@ -358,11 +362,14 @@ def load_robot(name_or_path: str | Path) -> Robot:
             raise t.error("max_deg", f"{hi:g} must be greater than min_deg = {lo:g}")
         cols["lo"].append(lo)
         cols["hi"].append(hi)
-        # Per-link display meshes are read by the Blender scene builder, not here;
-        # accept the keys so that rigs naming meshes validate.
+        # Display meshes (the Blender scene loads them); the path is relative to the rig file.
+        mesh = ""
         if t.has("mesh"):
-            t.string("mesh")
-        t.pose("mesh_offset")
+            mesh_path = (path.parent / t.string("mesh")).resolve()
+            if not mesh_path.is_file():
+                raise t.error("mesh", f"no such file: {mesh_path}")
+            mesh = str(mesh_path)
+        meshes.append((mesh, t.pose("mesh_offset")))
         t.finish()
     base = top.pose("base")
     tool = top.pose("tool")
@@ -379,6 +386,7 @@ def load_robot(name_or_path: str | Path) -> Robot:
             base=base,
             tool=tool,
             source=source,
+            link_meshes=tuple(meshes) if any(m for m, _ in meshes) else (),
         )
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None

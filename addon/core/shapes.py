@@ -111,3 +111,73 @@ class Cylinder(_Shape):
         m = trimesh.creation.cylinder(radius=self.radius_mm, height=self.height_mm, sections=sections)
         m.apply_translation([0.0, 0.0, self.height_mm / 2])
         return m
+
+
+@dataclass(frozen=True, eq=False)
+class StepBlock(_Shape):
+    """A staircase block on the local XY plane: ``steps`` columns along X, each
+    ``step_mm`` deep, heights ``heights_mm`` (descending), all ``width_mm`` wide in Y,
+    centred on the origin in X and Y, standing on z = 0.
+
+    The exact distance to a union of boxes is the smallest distance to any of them
+    outside; on and just inside the visible faces it is exact too (the boxes only
+    touch along interior faces that a scan never sees).
+    """
+
+    heights_mm: tuple = (45.0, 30.0, 15.0)
+    step_mm: float = 25.0
+    width_mm: float = 50.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        h = tuple(_positive("step height", float(v)) for v in self.heights_mm)
+        if not h or any(b >= a for a, b in zip(h, h[1:])):
+            raise InputError(f"step heights must be positive and strictly descending, got {self.heights_mm}")
+        object.__setattr__(self, "heights_mm", h)
+        object.__setattr__(self, "step_mm", _positive("step depth", self.step_mm))
+        object.__setattr__(self, "width_mm", _positive("step block width", self.width_mm))
+
+    def _boxes(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(min corner, max corner) of each column, local frame."""
+        x0 = -len(self.heights_mm) * self.step_mm / 2
+        w = self.width_mm / 2
+        return [(np.array([x0 + i * self.step_mm, -w, 0.0]), np.array([x0 + (i + 1) * self.step_mm, w, h]))
+                for i, h in enumerate(self.heights_mm)]
+
+    def signed_distance(self, points) -> np.ndarray:
+        p = self.to_local(points)
+        best = np.full(len(p), np.inf)
+        for lo, hi in self._boxes():
+            c, half = (lo + hi) / 2, (hi - lo) / 2
+            q = np.abs(p - c) - half
+            outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+            inside = np.minimum(q.max(axis=1), 0.0)
+            best = np.minimum(best, outside + inside)
+        return best
+
+    def _local_mesh(self) -> trimesh.Trimesh:
+        # The XZ profile is star-shaped from its corner (x0, 0) (heights descend), so a
+        # fan triangulates each side; risers, treads, ends and bottom are quads.
+        boxes = self._boxes()
+        x = [b[0][0] for b in boxes] + [boxes[-1][1][0]]
+        h = self.heights_mm
+        # Counter-clockwise in XZ: along the bottom, then up and left over the stairs.
+        profile = [(x[0], 0.0), (x[-1], 0.0)]
+        for i in range(len(h) - 1, -1, -1):
+            profile += [(x[i + 1], h[i]), (x[i], h[i])]
+        w = self.width_mm / 2
+        ring = np.array(profile)
+        n = len(ring)
+        verts = np.vstack([np.column_stack([ring[:, 0], np.full(n, -w), ring[:, 1]]),
+                           np.column_stack([ring[:, 0], np.full(n, w), ring[:, 1]])])
+        faces = []
+        for i in range(1, n - 1):  # side fans (front y = −w faces −Y, back faces +Y)
+            faces.append([0, i + 1, i])
+            faces.append([n, n + i, n + i + 1])
+        for i in range(n):  # the band around the profile
+            j = (i + 1) % n
+            faces.append([i, j, n + j])
+            faces.append([i, n + j, n + i])
+        m = trimesh.Trimesh(verts, np.array(faces), process=True)
+        trimesh.repair.fix_normals(m)
+        return m

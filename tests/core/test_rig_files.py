@@ -96,8 +96,21 @@ def test_value_errors_name_file_key_and_range(tmp_path, replace, fragments):
         assert f in msg, msg
 
 
-def test_mesh_keys_are_accepted(tmp_path):
+def test_link_meshes_are_resolved_next_to_the_rig(tmp_path):
+    (tmp_path / "link1.stl").write_text("solid x\nendsolid x\n")
     path = write_rig(tmp_path, "")
     text = path.read_text().replace("max_deg = 170.0", 'max_deg = 170.0\nmesh = "link1.stl"\n[link.mesh_offset]\nxyz_mm = [0, 0, 5]', 1)
     path.write_text(text)
-    assert load_robot(path).name == "test arm"
+    robot = load_robot(path)
+    assert len(robot.link_meshes) == 6
+    mesh, offset = robot.link_meshes[0]
+    assert mesh == str((tmp_path / "link1.stl").resolve()) and offset[2, 3] == 5.0
+    assert robot.link_meshes[1][0] == ""
+    assert load_robot("puma560").link_meshes == ()
+
+
+def test_missing_link_mesh_is_an_error(tmp_path):
+    path = write_rig(tmp_path, "")
+    path.write_text(path.read_text().replace("max_deg = 170.0", 'max_deg = 170.0\nmesh = "nope.stl"', 1))
+    with pytest.raises(ConfigError, match="link\\[1\\].mesh.*no such file"):
+        load_robot(path)

@@ -1,0 +1,109 @@
+"""Workpieces: meshes loaded through trimesh, or built-in analytic shapes with exact truth.
+
+One loader serves the Blender panel and the headless pipeline. A workpiece is a
+mesh in the table (workpiece) frame in millimetres, plus its ground truth: the
+analytic shape where there is one (exact distances), else the mesh itself.
+
+Units: STL, OBJ and PLY carry no units and are read as millimetres; glTF/GLB
+are metres by their specification and are scaled by 1000. ``scale`` overrides both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .errors import InputError
+from .shapes import Cylinder, PlanePatch, Sphere, StepBlock
+from .transforms import check_transform, trans
+
+FORMATS = (".stl", ".obj", ".ply", ".glb", ".gltf")
+METRE_FORMATS = (".glb", ".gltf")
+MAX_EXTENT_MM = 5000.0   # a workpiece on a rotary table; larger is a unit mistake
+MIN_EXTENT_MM = 0.01
+MAX_FACES = 10_000_000
+
+BUILTINS = {
+    # name: (constructor, default parameters); each stands on the table (z = 0 up).
+    "plane": (lambda pose, **kw: PlanePatch(pose, **kw), dict(width_mm=120.0, height_mm=120.0)),
+    "sphere": (lambda pose, **kw: Sphere(pose @ trans(0, 0, kw["radius_mm"]), **kw), dict(radius_mm=30.0)),
+    "cylinder": (lambda pose, **kw: Cylinder(pose, **kw), dict(radius_mm=25.0, height_mm=60.0)),
+    "step_block": (lambda pose, **kw: StepBlock(pose, **kw), dict(heights_mm=(45.0, 30.0, 15.0), step_mm=25.0,
+                                                                    width_mm=50.0)),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Workpiece:
+    """mesh: (trimesh) in the table frame, mm; truth: analytic shape or the mesh; source: file or builtin name."""
+
+    name: str
+    mesh: trimesh.Trimesh
+    truth: object
+    source: str
+    pose: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    @property
+    def is_analytic(self) -> bool:
+        return self.truth is not self.mesh
+
+
+def builtin_workpiece(kind: str, pose=None, **params) -> Workpiece:
+    """A built-in analytic shape placed by ``pose`` (shape -> table frame) with exact truth."""
+    if kind not in BUILTINS:
+        raise InputError(f"unknown built-in workpiece {kind!r}; choose one of: {', '.join(BUILTINS)}")
+    pose = np.eye(4) if pose is None else check_transform(pose, f"{kind} pose")
+    make, defaults = BUILTINS[kind]
+    unknown = set(params) - set(defaults)
+    if unknown:
+        raise InputError(f"{kind}: unknown parameter(s) {', '.join(sorted(unknown))}; allowed: {', '.join(defaults)}")
+    shape = make(pose, **{**defaults, **params})
+    mesh = shape.mesh()
+    check_mesh(mesh, kind)
+    return Workpiece(kind, mesh, shape, f"builtin:{kind}", pose)
+
+
+def check_mesh(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
+    """Refuse meshes that cannot be a workpiece, naming what is wrong."""
+    if len(mesh.vertices) == 0 or len(mesh.faces) == 0:
+        raise InputError(f"{what}: the mesh is empty (no faces); a workpiece needs a surface")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise InputError(f"{what}: the mesh has NaN or infinite vertex coordinates")
+    if len(mesh.faces) > MAX_FACES:
+        raise InputError(f"{what}: {len(mesh.faces)} faces is more than the {MAX_FACES} allowed; decimate it first")
+    extent = float(np.max(mesh.extents))
+    if extent > MAX_EXTENT_MM:
+        raise InputError(f"{what}: the mesh is {extent:g} mm across, larger than {MAX_EXTENT_MM:g} mm; "
+                         "is it in the wrong unit? (set the scale)")
+    if extent < MIN_EXTENT_MM:
+        raise InputError(f"{what}: the mesh is only {extent:g} mm across (at least {MIN_EXTENT_MM:g} mm); "
+                         "is it in the wrong unit? (set the scale)")
+    return mesh
+
+
+def load_workpiece(path: str | Path, pose=None, scale: float | None = None) -> Workpiece:
+    """A mesh file (STL/OBJ/PLY/GLB/glTF) placed by ``pose`` in the table frame; its truth is the mesh."""
+    path = Path(path)
+    if path.suffix.lower() not in FORMATS:
+        raise InputError(f"{path}: unsupported mesh format {path.suffix or '(none)'}; use one of {', '.join(FORMATS)}")
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=True)
+    except Exception as exc:  # trimesh raises many kinds for broken files
+        raise InputError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise InputError(f"{path}: holds no triangle mesh")
+    if scale is None:
+        scale = 1000.0 if path.suffix.lower() in METRE_FORMATS else 1.0
+    if not np.isfinite(scale) or scale <= 0:
+        raise InputError(f"{path}: scale must be a positive number, got {scale}")
+    if scale != 1.0:
+        mesh.apply_scale(scale)
+    check_mesh(mesh, str(path))
+    pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
+    mesh.apply_transform(pose)
+    return Workpiece(path.stem, mesh, mesh, str(path), pose)

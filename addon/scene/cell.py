@@ -1,0 +1,158 @@
+"""The scanning cell in Blender, built from the core models.
+
+Collections: ``Robot`` (armature, links, probe housing: never seen by the probe
+cameras, hidden from their renders), ``Probe`` (the probe frame, its two cameras
+and the laser) and ``Table`` (turntable and workpiece). The probe frame is an
+empty parented to the last bone through the tool transform T_L^6 (the probe's
+mount, which becomes the robot's tool).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import bpy
+import numpy as np
+import trimesh
+
+from ..core.cell import Cell
+from ..core.errors import InputError
+from ..core.probe import Probe
+from ..core.workpiece import Workpiece
+from . import rig
+from .animation import keyframe_values
+from .cameras import add_probe_cameras, camera_to_world_cv
+from .laser import add_laser
+from .materials import diffuse
+from .meshes import mesh_object
+from .render import RenderSettings, configure, render_animation
+from .turntable import add_turntable, add_workpiece, set_table_angle
+from .units import from_blender
+
+
+@dataclass
+class SceneCell:
+    """Handles on the Blender objects of a built cell, and the core models behind them."""
+
+    scene: bpy.types.Scene
+    cell: Cell
+    probe: Probe
+    workpiece: Workpiece | None
+    laser_model: str
+    root: bpy.types.Collection
+    robot_collection: bpy.types.Collection
+    robot: bpy.types.Object
+    probe_frame: bpy.types.Object
+    cameras: list
+    laser: list
+    table: bpy.types.Object
+    workpiece_object: bpy.types.Object | None
+    extras: dict = field(default_factory=dict)
+
+    # -- posing -------------------------------------------------------------------
+    def pose(self, q, table_angle_rad: float = 0.0) -> None:
+        """Set joints q (6,) rad and the table angle; the scene is updated."""
+        q = self.cell.robot.check_q(q)
+        set_table_angle(self.table, table_angle_rad)
+        rig.set_joints(self.robot, q)
+
+    def keyframe(self, qs, table_angles_rad=None, first_frame: int = 1) -> range:
+        """Keyframe a path: qs (n, 6) rad and table angles (n,) at frames first..first+n−1."""
+        qs = self.cell.robot.check_q(qs)
+        if qs.ndim != 2:
+            raise InputError("keyframe needs joint vectors of shape (n, 6)")
+        n = len(qs)
+        thetas = np.zeros(n) if table_angles_rad is None else np.asarray(table_angles_rad, dtype=np.float64)
+        if thetas.shape != (n,) or not np.all(np.isfinite(thetas)):
+            raise InputError(f"table angles must be {n} finite numbers (radians)")
+        frames = np.arange(first_frame, first_frame + n)
+        for k in range(6):
+            keyframe_values(self.robot, f'["{rig.joint_property(k + 1)}"]', frames, qs[:, k])
+        keyframe_values(self.table, "rotation_euler", frames, thetas, index=2)
+        return range(first_frame, first_frame + n)
+
+    # -- what Blender has -----------------------------------------------------------
+    def probe_to_world_mm(self) -> np.ndarray:
+        return from_blender(self.probe_frame.matrix_world)
+
+    def camera_to_world_mm(self, camera: int) -> np.ndarray:
+        return camera_to_world_cv(self.cameras[camera])
+
+    def dh_frames_mm(self) -> np.ndarray:
+        return rig.dh_frames(self.robot, self.cell.robot)
+
+    # -- rendering ----------------------------------------------------------------
+    def render(self, first: int, last: int, settings: RenderSettings | None = None, cameras=(0, 1),
+               out_dir=None) -> list[list[np.ndarray | None]]:
+        """Probe images for frames first..last in one render call ([frame][camera], float32 (H, W, 3))."""
+        settings = settings or RenderSettings()
+        if settings.engine == "eevee" and self.laser_model == "gobo":
+            raise InputError("Eevee ignores light node trees, so the gobo laser renders as a plain spot; "
+                             "build the cell with laser='slit' to render with Eevee")
+        configure(self.scene, self.probe, settings, self.cameras[0])
+        self.robot_collection.hide_render = True  # behind the probe: never in its images
+        try:
+            return render_animation(self.scene, first, last, cameras, out_dir)
+        finally:
+            self.robot_collection.hide_render = False
+
+
+def _child_collection(parent: bpy.types.Collection, name: str) -> bpy.types.Collection:
+    col = bpy.data.collections.new(name)
+    parent.children.link(col)
+    return col
+
+
+def remove_cell(scene: bpy.types.Scene, name: str = "Scanner Cell") -> None:
+    """Delete a previously built cell (its collections and objects)."""
+    root = bpy.data.collections.get(name)
+    if root is None:
+        return
+    for col in [root, *root.children_recursive]:
+        for obj in list(col.objects):
+            bpy.data.objects.remove(obj, do_unlink=True)
+    for col in reversed([root, *root.children_recursive]):
+        bpy.data.collections.remove(col)
+
+
+def add_probe(collection, probe: Probe, laser: str = "gobo", laser_power_w: float | None = None,
+              housing_collection=None):
+    """The probe frame (an empty at the world origin until parented), its cameras, laser and housing.
+
+    Returns (probe_frame, [camera 0, camera 1], [laser objects]).
+    """
+    probe_frame = bpy.data.objects.new("Probe frame", None)
+    probe_frame.empty_display_type = "ARROWS"
+    probe_frame.empty_display_size = 0.03
+    collection.objects.link(probe_frame)
+    housing = trimesh.creation.box([2 * probe.a_mm + 30.0, 40.0, 50.0])
+    housing.apply_translation([0.0, 0.0, -33.0])  # behind the cameras and the laser (z < 0)
+    body = mesh_object("Probe housing", housing, housing_collection or collection,
+                       diffuse("Probe housing", (0.08, 0.08, 0.1)))
+    body.parent = probe_frame
+    body.matrix_parent_inverse.identity()
+    cams = add_probe_cameras(collection, probe, probe_frame)
+    lasers = add_laser(collection, probe, probe_frame, laser, laser_power_w)
+    return probe_frame, cams, lasers
+
+
+def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Workpiece | None = None,
+               laser: str = "gobo", laser_power_w: float | None = None, name: str = "Scanner Cell") -> SceneCell:
+    """Build (or rebuild) the cell in ``scene``. The probe's mount becomes the robot's tool."""
+    remove_cell(scene, name)
+    cell = replace(cell, robot=cell.robot.with_tool(probe.mount))
+    root = bpy.data.collections.new(name)
+    scene.collection.children.link(root)
+    robot_col = _child_collection(root, "Robot")
+    probe_col = _child_collection(root, "Probe")
+    table_col = _child_collection(root, "Table")
+
+    arm = rig.build_robot(robot_col, cell.robot)
+    probe_frame, cams, lasers = add_probe(probe_col, probe, laser, laser_power_w, housing_collection=robot_col)
+    rig.parent_to_bone(probe_frame, arm, rig.bone_name(6), cell.robot.fk(np.zeros(6)))
+
+    table = add_turntable(table_col, cell.table)
+    wp = add_workpiece(table_col, workpiece, table) if workpiece is not None else None
+    bpy.context.view_layer.update()
+    return SceneCell(scene, cell, probe, workpiece, laser, root, robot_col, arm, probe_frame, cams, lasers,
+                     table, wp)

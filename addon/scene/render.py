@@ -1,0 +1,180 @@
+"""Rendering the probe cameras: settings, one animation call for many frames, images back as arrays.
+
+Both probe cameras render in one pass through multiview (views ``_L`` = camera 0
+and ``_R`` = camera 1, matched by camera-name suffix). Frames are rendered as
+one animation (the path is keyframed), written as 32-bit float EXR (linear,
+no view transform, no 8-bit quantisation) and read back as float32 (H, W, 3)
+arrays in OpenCV row order (row 0 at the top).
+
+What the probe images do not need is left out: no light bounces for diffuse
+scenes, no denoising, no passes beyond the combined image, no world light
+beyond an optional dim ambient. With 1 sample and a box filter of 0.01 px each
+pixel is point-sampled at its centre: deterministic and exact for the smooth
+Gaussian line profile of the gobo laser.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.probe import Probe
+from .session import ENGINES, use_device
+
+PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
+VIEWS = (("left", "_L"), ("right", "_R"))
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """engine: cycles | eevee; device: CPU | GPU; samples per pixel; pixel filter and width (px);
+    bounces (0 for diffuse scenes); ambient: world strength (0 = dark); resolution override (W, H)."""
+
+    engine: str = "cycles"
+    device: str = "CPU"
+    samples: int = 1
+    pixel_filter: str = "BOX"
+    filter_width_px: float = 0.01
+    bounces: int = 0
+    ambient: float = 0.0
+    resolution: tuple[int, int] | None = None
+    persistent_data: bool = True
+
+    def __post_init__(self) -> None:
+        if self.engine not in ENGINES:
+            raise InputError(f"render engine {self.engine!r} is not one of: {', '.join(ENGINES)}")
+        if isinstance(self.samples, bool) or not isinstance(self.samples, int) or not 1 <= self.samples <= 65536:
+            raise InputError(f"samples must be a whole number in [1, 65536], got {self.samples!r}")
+        if self.pixel_filter not in PIXEL_FILTERS:
+            raise InputError(f"pixel filter {self.pixel_filter!r} is not one of: {', '.join(PIXEL_FILTERS)}")
+        if not 0.01 <= self.filter_width_px <= 10:
+            raise InputError(f"filter width must be in [0.01, 10] px, got {self.filter_width_px}")
+        if not 0 <= self.bounces <= 64:
+            raise InputError(f"bounces must be in [0, 64], got {self.bounces}")
+        if not 0 <= self.ambient <= 100:
+            raise InputError(f"ambient must be in [0, 100], got {self.ambient}")
+
+
+def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderSettings, camera_left: bpy.types.Object) -> str:
+    """Set the scene up for probe renders; returns the device used."""
+    r = scene.render
+    r.engine = ENGINES[settings.engine]
+    W, H = settings.resolution or (probe.cols_px, probe.rows_px)
+    r.resolution_x, r.resolution_y, r.resolution_percentage = W, H, 100
+    r.pixel_aspect_x = r.pixel_aspect_y = 1.0
+    r.use_border = False
+    r.film_transparent = False
+    r.use_persistent_data = settings.persistent_data
+    device = "CPU"
+    if settings.engine == "cycles":
+        device = use_device(scene, settings.device)
+        c = scene.cycles
+        c.samples = settings.samples
+        c.use_adaptive_sampling = False
+        c.use_denoising = False
+        c.pixel_filter_type = settings.pixel_filter
+        c.filter_width = settings.filter_width_px
+        c.seed = 0
+        c.max_bounces = settings.bounces
+        for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces"):
+            setattr(c, name, settings.bounces)
+        c.transparent_max_bounces = max(settings.bounces, 0)
+        c.caustics_reflective = c.caustics_refractive = False
+        c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+    else:
+        scene.eevee.taa_render_samples = settings.samples
+        r.filter_size = max(settings.filter_width_px, 0.01)
+    view = scene.view_settings
+    view.view_transform = "Standard"
+    view.look = "None"
+    view.exposure = 0.0
+    view.gamma = 1.0
+    _world(scene, settings.ambient)
+    for layer in scene.view_layers:
+        layer.use_pass_z = False
+    image = r.image_settings
+    image.file_format = "OPEN_EXR"
+    image.color_depth = "32"
+    image.color_mode = "RGB"
+    image.exr_codec = "NONE"
+    r.use_multiview = True
+    r.views_format = "MULTIVIEW"
+    image.views_format = "INDIVIDUAL"
+    for view_name, suffix in VIEWS:
+        v = r.views.get(view_name) or r.views.new(view_name)
+        v.camera_suffix = suffix
+        v.use = True
+    scene.camera = camera_left
+    return device
+
+
+def use_views(scene: bpy.types.Scene, cameras=(0, 1)) -> None:
+    """Render only the given probe cameras (a camera that sees nothing can be skipped)."""
+    for index, (view_name, _) in enumerate(VIEWS):
+        scene.render.views[view_name].use = index in cameras
+
+
+def _world(scene, strength: float) -> None:
+    world = scene.world or bpy.data.worlds.new("Scanner world")
+    scene.world = world
+    bg = world.node_tree.nodes.get("Background")
+    if bg is not None:
+        bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        bg.inputs["Strength"].default_value = strength
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """A float image file -> (H, W, 3) float32, row 0 at the top (OpenCV order)."""
+    img = bpy.data.images.load(str(path), check_existing=False)
+    try:
+        W, H = img.size
+        px = np.empty(W * H * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+    finally:
+        bpy.data.images.remove(img)
+    return px.reshape(H, W, 4)[::-1, :, :3].copy()
+
+
+def render_animation(scene: bpy.types.Scene, first: int, last: int, cameras=(0, 1),
+                     out_dir: str | Path | None = None) -> list[list[np.ndarray | None]]:
+    """Render frames first..last (inclusive) in one call; returns [frame][camera] images.
+
+    A camera not in ``cameras`` gives None. Images go through a temporary folder
+    unless ``out_dir`` is given (then the EXR files stay there).
+    """
+    if last < first:
+        raise InputError(f"frame range {first}..{last} is empty")
+    use_views(scene, cameras)
+    keep = out_dir is not None
+    folder = Path(out_dir) if keep else Path(tempfile.mkdtemp(prefix="scanner-render-"))
+    folder.mkdir(parents=True, exist_ok=True)
+    r = scene.render
+    old = (scene.frame_start, scene.frame_end, scene.frame_step, r.filepath, r.use_file_extension)
+    scene.frame_start, scene.frame_end, scene.frame_step = first, last, 1
+    r.filepath = str(folder / "frame_")
+    r.use_file_extension = True
+    try:
+        bpy.ops.render.render(animation=True)
+        out = []
+        for frame in range(first, last + 1):
+            images = []
+            for index, (_, suffix) in enumerate(VIEWS):
+                path = folder / f"frame_{frame:04d}{suffix}.exr"
+                images.append(read_image(path) if index in cameras else None)
+                if not keep and index in cameras:
+                    os.remove(path)
+            out.append(images)
+        return out
+    finally:
+        scene.frame_start, scene.frame_end, scene.frame_step, r.filepath, r.use_file_extension = old
+        if not keep:
+            try:
+                folder.rmdir()
+            except OSError:
+                pass

@@ -1,0 +1,170 @@
+"""The robot as an armature rig built from its DH table.
+
+One bone per joint. Bone k rests at DH frame k−1 (at q = 0) turned by R_X(+90°),
+so the bone's local Y axis is the joint axis z_{k−1}; each bone is parented to the
+previous one. A joint is a pose rotation about the bone's local Y only (X and Z
+locked; rotation order YXZ keeps Y out of the middle of the Euler order, where it
+would fold at ±90°), clamped by a Limit Rotation constraint with the rig's limits.
+
+Joint angles are custom properties ``q1`` … ``q6`` (radians, shown in degrees) on
+the armature object; a driver copies each into its bone's Y rotation, so setting
+or keyframing the properties poses the rig. DH frame k is recovered from a posed
+bone as ``bone.matrix · R_X(90°)⁻¹ · A_k(0)`` (see :func:`dh_frames`).
+
+Link geometry: procedural cylinders along each link's d and a offsets, or the
+rig's per-link meshes, each parented to its bone.
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+import trimesh
+
+from ..core.kinematics import N_JOINTS, Robot
+from ..core.transforms import rigid_inverse, rot_x
+from ..core.workpiece import check_mesh
+from .materials import diffuse
+from .meshes import mesh_object
+from .units import from_blender, to_blender
+
+BONE_TO_DH = rot_x(-math.pi / 2)  # R_X(90°)⁻¹: bone frame -> DH frame k−1 (rotation part)
+
+
+def joint_property(k: int) -> str:
+    """Name of the custom property holding joint k's angle (k = 1..6)."""
+    return f"q{k}"
+
+
+def bone_name(k: int) -> str:
+    return f"J{k}"
+
+
+def build_robot(collection: bpy.types.Collection, robot: Robot, name: str = "Robot") -> bpy.types.Object:
+    """Armature object with bones, constraints, joint properties, drivers and link geometry."""
+    arm = bpy.data.armatures.new(f"{name}Armature")
+    arm.display_type = "STICK"
+    obj = bpy.data.objects.new(name, arm)
+    collection.objects.link(obj)
+    obj.matrix_world = to_blender(robot.base)
+    obj["robot_name"] = robot.name
+
+    frames0 = robot.link_frames(np.zeros(N_JOINTS))
+    base_inv = rigid_inverse(robot.base)
+    size = bone_length_mm(robot)
+    view_layer = bpy.context.view_layer
+    previous_active = view_layer.objects.active
+    view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode="EDIT")
+    parent = None
+    for k in range(N_JOINTS):
+        eb = arm.edit_bones.new(bone_name(k + 1))
+        eb.head = (0.0, 0.0, 0.0)
+        eb.tail = (0.0, size * 1e-3, 0.0)
+        eb.matrix = to_blender(base_inv @ frames0[k] @ rot_x(math.pi / 2))
+        if parent is not None:
+            eb.parent = parent
+            eb.use_connect = False
+        parent = eb
+    bpy.ops.object.mode_set(mode="OBJECT")
+    view_layer.objects.active = previous_active
+
+    for k in range(N_JOINTS):
+        pb = obj.pose.bones[bone_name(k + 1)]
+        pb.rotation_mode = "YXZ"
+        pb.lock_rotation = (True, False, True)
+        pb.lock_location = (True, True, True)
+        pb.lock_scale = (True, True, True)
+        limit = pb.constraints.new("LIMIT_ROTATION")
+        limit.owner_space = "LOCAL"
+        limit.euler_order = "YXZ"
+        limit.use_limit_y = True
+        limit.min_y = float(robot.q_min_rad[k])
+        limit.max_y = float(robot.q_max_rad[k])
+        prop = joint_property(k + 1)
+        obj[prop] = 0.0
+        obj.id_properties_ui(prop).update(
+            subtype="ANGLE", min=float(robot.q_min_rad[k]), max=float(robot.q_max_rad[k]),
+            description=f"Joint {k + 1} angle (DH q{k + 1}, offset excluded)")
+        fcurve = pb.driver_add("rotation_euler", 1)
+        driver = fcurve.driver
+        driver.type = "AVERAGE"  # the value of its one variable: no Python expression needed
+        var = driver.variables.new()
+        var.name = "q"
+        var.type = "SINGLE_PROP"
+        var.targets[0].id = obj
+        var.targets[0].data_path = f'["{prop}"]'
+    bpy.context.view_layer.update()
+    _add_link_geometry(collection, obj, robot, frames0)
+    return obj
+
+
+def bone_length_mm(robot: Robot) -> float:
+    return 0.12 * max(float(np.max(np.abs(np.r_[robot.a_mm, robot.d_mm]))), 1e-3)
+
+
+def set_joints(obj: bpy.types.Object, q) -> None:
+    """Pose the rig: joint angles q (6,) rad. Updates the view layer."""
+    q = np.asarray(q, dtype=np.float64)
+    for k in range(N_JOINTS):
+        obj[joint_property(k + 1)] = float(q[k])
+    obj.update_tag()
+    bpy.context.view_layer.update()
+
+
+def get_joints(obj: bpy.types.Object) -> np.ndarray:
+    return np.array([obj[joint_property(k + 1)] for k in range(N_JOINTS)], dtype=np.float64)
+
+
+def dh_frames(obj: bpy.types.Object, robot: Robot) -> np.ndarray:
+    """(7, 4, 4) mm: DH frames 0..6 in the world as Blender evaluates the posed rig."""
+    A0 = robot.link_transforms(np.zeros(N_JOINTS))
+    world = from_blender(obj.matrix_world)
+    out = [world]
+    for k in range(N_JOINTS):
+        pb = obj.pose.bones[bone_name(k + 1)]
+        out.append(world @ from_blender(pb.matrix) @ BONE_TO_DH @ A0[k])
+    return np.array(out)
+
+
+def parent_to_bone(child: bpy.types.Object, armature: bpy.types.Object, bone: str, world_mm: np.ndarray) -> None:
+    """Parent ``child`` to a bone, keeping its world pose ``world_mm`` at the current pose."""
+    child.parent = armature
+    child.parent_type = "BONE"
+    child.parent_bone = bone
+    bpy.context.view_layer.update()
+    child.matrix_world = to_blender(world_mm)
+
+
+def _segment(p0, p1, radius) -> trimesh.Trimesh | None:
+    if np.linalg.norm(np.subtract(p1, p0)) < 1e-6:
+        return None
+    return trimesh.creation.cylinder(radius=radius, segment=np.array([p0, p1]), sections=24)
+
+
+def _add_link_geometry(collection, obj, robot: Robot, frames0: np.ndarray) -> None:
+    """Procedural links (or the rig's meshes), parented to their bones at q = 0."""
+    size = max(float(np.max(np.abs(np.r_[robot.a_mm, robot.d_mm]))), 1e-3)
+    r_link, r_joint = 0.05 * size, 0.07 * size
+    paint = diffuse("Robot paint", (0.85, 0.45, 0.1))
+    joints = diffuse("Robot joints", (0.2, 0.2, 0.22))
+    for k in range(N_JOINTS):
+        bone = bone_name(k + 1)
+        if robot.link_meshes and robot.link_meshes[k][0]:
+            path, offset = robot.link_meshes[k]
+            mesh = check_mesh(trimesh.load(path, force="mesh"), path)
+            mesh.apply_transform(frames0[k + 1] @ offset)
+            part = mesh_object(f"Link{k + 1}", mesh, collection, paint)
+            parent_to_bone(part, obj, bone, np.eye(4))
+            continue
+        o_prev, z_prev = frames0[k][:3, 3], frames0[k][:3, 2]
+        elbow = o_prev + robot.d_mm[k] * z_prev
+        pieces = [p for p in (_segment(o_prev, elbow, r_link), _segment(elbow, frames0[k + 1][:3, 3], r_link)) if p]
+        if pieces:
+            part = mesh_object(f"Link{k + 1}", trimesh.util.concatenate(pieces), collection, paint)
+            parent_to_bone(part, obj, bone, np.eye(4))
+        housing = _segment(o_prev - 1.2 * r_joint * z_prev, o_prev + 1.2 * r_joint * z_prev, r_joint)
+        part = mesh_object(f"Joint{k + 1}", housing, collection, joints)
+        parent_to_bone(part, obj, bone, np.eye(4))

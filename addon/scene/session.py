@@ -1,0 +1,49 @@
+"""A clean Blender scene for headless runs, and render-device selection."""
+
+from __future__ import annotations
+
+import bpy  # first: it puts Blender's own modules (addon_utils) on the path
+
+import addon_utils  # noqa: E402
+
+from ..core.errors import InputError
+
+ENGINES = {"cycles": "CYCLES", "eevee": "BLENDER_EEVEE"}
+DEVICES = ("CPU", "GPU")
+GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
+
+
+def new_scene(device: str = "CPU") -> bpy.types.Scene:
+    """Reset Blender to an empty factory state (headless use only) with Cycles enabled.
+
+    The factory reset also disables add-ons, Cycles among them, and resets the
+    preferences, so the render device is chosen again afterwards.
+    """
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    addon_utils.enable("cycles", default_set=True)
+    scene = bpy.context.scene
+    use_device(scene, device)
+    return scene
+
+
+def use_device(scene: bpy.types.Scene, device: str = "CPU") -> str:
+    """Select CPU or GPU for Cycles; returns the device actually used (GPU falls back to CPU)."""
+    if device not in DEVICES:
+        raise InputError(f"render device {device!r} is not one of: {', '.join(DEVICES)}")
+    scene.cycles.device = "CPU"
+    if device == "CPU":
+        return "CPU"
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    for backend in GPU_BACKENDS:
+        try:
+            prefs.compute_device_type = backend
+        except TypeError:
+            continue
+        prefs.get_devices()
+        gpus = [d for d in prefs.devices if d.type == backend]
+        if gpus:
+            for d in prefs.devices:
+                d.use = d.type == backend
+            scene.cycles.device = "GPU"
+            return f"GPU ({backend}: {', '.join(d.name for d in gpus)})"
+    return "CPU"

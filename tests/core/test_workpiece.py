@@ -1,0 +1,84 @@
+"""Workpieces: one loader for every format, built-in shapes with exact truth, bad meshes refused."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from addon.core.errors import InputError
+from addon.core.metrics import distances
+from addon.core.shapes import StepBlock
+from addon.core.transforms import rot_z, trans
+from addon.core.workpiece import BUILTINS, builtin_workpiece, load_workpiece
+
+
+@pytest.mark.parametrize("suffix,scale", [(".stl", 1.0), (".obj", 1.0), (".ply", 1.0), (".glb", 1000.0)])
+def test_loads_every_format_in_millimetres(tmp_path, suffix, scale):
+    box = trimesh.creation.box([40.0, 20.0, 10.0])
+    if suffix == ".glb":
+        box.apply_scale(1e-3)  # glTF is metres by its specification
+    path = tmp_path / f"part{suffix}"
+    box.export(path)
+    wp = load_workpiece(path, pose=trans(5, 0, 5))
+    np.testing.assert_allclose(wp.mesh.extents, [40, 20, 10], rtol=1e-6)
+    np.testing.assert_allclose(wp.mesh.bounds[0], [-15, -10, 0], atol=1e-5)
+    assert wp.truth is wp.mesh and not wp.is_analytic and wp.name == "part"
+
+
+def test_scale_override(tmp_path):
+    path = tmp_path / "part.stl"
+    trimesh.creation.box([0.04, 0.02, 0.01]).export(path)  # saved in metres by mistake
+    assert load_workpiece(path, scale=1000).mesh.extents.max() == pytest.approx(40)
+
+
+@pytest.mark.parametrize("kind", list(BUILTINS))
+def test_builtins_stand_on_the_table_with_exact_truth(kind):
+    wp = builtin_workpiece(kind, pose=trans(10, 20, 0) @ rot_z(0.3))
+    assert wp.is_analytic
+    assert wp.mesh.bounds[0][2] == pytest.approx(0.0, abs=1e-9)
+    # Mesh vertices lie on the analytic surface (to the tessellation, which only cuts chords inside).
+    d, s = distances(wp.mesh.vertices, wp.truth)
+    assert np.abs(d).max() < 1e-9
+
+
+def test_step_block_mesh_is_a_closed_solid_and_distances_are_exact():
+    block = StepBlock(heights_mm=(30.0, 20.0, 10.0), step_mm=10.0, width_mm=20.0)
+    mesh = block.mesh()
+    assert mesh.is_watertight and mesh.volume == pytest.approx(10 * 20 * (30 + 20 + 10))
+    # Above the middle step's tread, 3 mm up; beside the tallest riser, 2 mm out; inside the base.
+    d = block.signed_distance([[0.0, 0.0, 23.0], [-17.0, 0.0, 25.0], [0.0, 0.0, 5.0]])
+    np.testing.assert_allclose(d, [3.0, 2.0, -5.0])
+
+
+@pytest.mark.parametrize("make,fragment", [
+    (lambda p: trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int)).export(p), "empty"),
+    (lambda p: trimesh.creation.box([1e4, 1e4, 1e4]).export(p), "larger than"),
+    (lambda p: trimesh.creation.box([1e-3, 1e-3, 1e-3]).export(p), "only"),
+    (lambda p: p.write_bytes(b"solid junk\nthis is not an stl\n"), "mesh"),
+])
+def test_bad_meshes_are_refused_with_the_reason(tmp_path, make, fragment):
+    path = tmp_path / "bad.stl"
+    make(path)
+    with pytest.raises(InputError, match=fragment) as info:
+        load_workpiece(path)
+    assert "bad.stl" in str(info.value)
+
+
+def test_non_finite_vertices_are_refused():
+    from addon.core.workpiece import check_mesh
+
+    mesh = trimesh.creation.box([10, 10, 10])
+    mesh.vertices[0, 0] = np.nan
+    with pytest.raises(InputError, match="NaN"):
+        check_mesh(mesh, "part")
+
+
+def test_unknown_format_and_builtin(tmp_path):
+    (tmp_path / "part.step").write_text("ISO-10303-21;")
+    with pytest.raises(InputError, match="unsupported mesh format"):
+        load_workpiece(tmp_path / "part.step")
+    with pytest.raises(InputError, match="no such file"):
+        load_workpiece(tmp_path / "missing.stl")
+    with pytest.raises(InputError, match="choose one of"):
+        builtin_workpiece("torus")
+    with pytest.raises(InputError, match="unknown parameter"):
+        builtin_workpiece("sphere", colour="red")

@@ -1,0 +1,108 @@
+"""The cell: turntable carries the workpiece, paths render in one call, exactly as frame by frame."""
+
+import numpy as np
+import pytest
+
+from addon.core.cell import Cell
+from addon.core.errors import InputError
+from addon.core.euler import pose_from_xyz_yzz
+from addon.core.kinematics import load_robot
+from addon.core.probe import load_probe
+from addon.core.transforms import rot_z, trans
+from addon.core.workpiece import builtin_workpiece
+from addon.scene.cell import build_cell, remove_cell
+from addon.scene.render import RenderSettings
+from addon.scene.units import from_blender
+
+
+def world_vertices(obj):
+    me = obj.data
+    v = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", v)
+    v = v.reshape(-1, 3).astype(np.float64) * 1e3
+    M = from_blender(obj.matrix_world)
+    return v @ M[:3, :3].T + M[:3, 3]
+
+
+def test_workpiece_turns_with_the_table(scene):
+    wp = builtin_workpiece("step_block", pose=trans(20, -10, 0) @ rot_z(0.4))
+    sc = build_cell(scene, Cell(load_robot("adept_viper_s650")), load_probe("default"), wp)
+    for theta in (0.0, 0.7, -2.5, 3 * np.pi / 2):
+        sc.pose(np.zeros(6), theta)
+        got = world_vertices(sc.workpiece_object)
+        T = sc.cell.table.table2base(theta)
+        expect = np.asarray(wp.mesh.vertices) @ T[:3, :3].T + T[:3, 3]
+        assert np.abs(got - expect).max() < 1e-3  # float32 vertices in metres
+    # Keyframed table angles come back at frame_set.
+    thetas = np.linspace(0, 2 * np.pi, 9)
+    frames = sc.keyframe(np.zeros((9, 6)), thetas)
+    for frame, theta in zip(frames, thetas):
+        scene.frame_set(frame)
+        assert sc.table.rotation_euler[2] == pytest.approx(theta, abs=1e-6)
+
+
+def scanning_path(sc, n):
+    """Probe 150 mm above the sphere's top, stepping across it, table turning."""
+    qs, thetas, q = [], [], None
+    for i in range(n):
+        T = pose_from_xyz_yzz([-10.0 + 5 * i, 0.0, 60.0 + 150.0], [0.0, np.pi, 0.0])
+        res = sc.cell.ik(T, q, relative_to="table", table_angle_rad=0.1 * i)
+        assert res.success, res.message
+        q = res.q
+        qs.append(q)
+        thetas.append(0.1 * i)
+    return np.array(qs), np.array(thetas)
+
+
+def test_one_render_call_gives_the_same_images_as_frame_by_frame(scene):
+    sc = build_cell(scene, Cell(load_robot("adept_viper_s650")), load_probe("default"), builtin_workpiece("sphere"))
+    qs, thetas = scanning_path(sc, 4)
+    frames = sc.keyframe(qs, thetas)
+    batch = sc.render(frames.start, frames.stop - 1)
+    assert len(batch) == 4 and all(img.shape == (160, 160, 3) for pair in batch for img in pair)
+    for i in (0, 3):
+        single = sc.render(frames.start + i, frames.start + i)[0]
+        for camera in (0, 1):
+            np.testing.assert_array_equal(single[camera], batch[i][camera])
+    # The line is on the sphere in every frame, and brightest pixels are red.
+    for pair in batch:
+        for img in pair:
+            r, g = img[..., 0].max(), img[..., 1].max()
+            assert r > 0.2 and g < 1e-6
+
+
+def test_only_requested_cameras_render(scene):
+    sc = build_cell(scene, Cell(load_robot("puma560")), load_probe("default"), builtin_workpiece("plane"))
+    qs, thetas = scanning_path(sc, 1)
+    sc.keyframe(qs, thetas)
+    ((left, right),) = sc.render(1, 1, cameras=(1,))
+    assert left is None and right.shape == (160, 160, 3)
+
+
+def test_eevee_needs_the_slit_laser(scene):
+    sc = build_cell(scene, Cell(load_robot("ur5")), load_probe("default"))
+    with pytest.raises(InputError, match="slit"):
+        sc.render(1, 1, RenderSettings(engine="eevee"))
+
+
+def test_rebuilding_replaces_the_cell(scene):
+    import bpy
+
+    build_cell(scene, Cell(load_robot("ur5")), load_probe("default"), builtin_workpiece("cylinder"))
+    n_objects = len(bpy.data.objects)
+    build_cell(scene, Cell(load_robot("ur5")), load_probe("default"), builtin_workpiece("cylinder"))
+    assert len(bpy.data.objects) == n_objects
+    remove_cell(scene)
+    assert bpy.data.collections.get("Scanner Cell") is None
+    assert len([o for o in bpy.data.objects if o.users]) == 0
+
+
+@pytest.mark.parametrize("kwargs,fragment", [
+    (dict(samples=0), "samples"),
+    (dict(engine="luxcore"), "engine"),
+    (dict(pixel_filter="SINC"), "pixel filter"),
+    (dict(filter_width_px=0.0), "filter width"),
+])
+def test_bad_render_settings(kwargs, fragment):
+    with pytest.raises(InputError, match=fragment):
+        RenderSettings(**kwargs)
