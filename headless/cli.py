@@ -6,6 +6,8 @@ Commands:
   bench kinematics     FK/IK speed, IK success and accuracy, false successes
   bench detect         laser-line detection accuracy and speed on synthetic images
   bench triangulate    paper's Eq. 6 against the exact intersection, speed, stability
+  bench render         N frames in one render call against N separate calls
+  overview             a picture of the cell and the two probe camera images
 
 Errors the user can fix (bad rig file, bad value) print one line and exit 2.
 """
@@ -29,12 +31,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="benchmarks that print figures and ratios")
     bench_sub = bench.add_subparsers(dest="bench", required=True, metavar="NAME")
+    from headless import overview
     from headless.bench import detect as bench_detect
     from headless.bench import kinematics as bench_kinematics
+    from headless.bench import render as bench_render
     from headless.bench import triangulate as bench_triangulate
 
+    overview.add_arguments(sub.add_parser("overview", help=overview.__doc__.split("\n")[0]))
     for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),
-                         ("triangulate", bench_triangulate)):
+                         ("triangulate", bench_triangulate), ("render", bench_render)):
         module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))
     return parser
 

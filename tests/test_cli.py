@@ -62,3 +62,21 @@ def test_detect_bench_runs_small():
     for method in ("threshold", "cog", "gauss", "steger"):
         assert f"{method}: line σ" in out.stdout
     assert "1280x1024" in out.stdout
+
+
+def test_overview_picture_is_written(tmp_path):
+    import cv2
+
+    out = run_cli("overview", "--out", str(tmp_path / "cell.png"), "--width", "360", "--height", "240",
+                  "--samples", "4", "--workpiece", "step_block")
+    assert out.returncode == 0, out.stderr[-2000:]
+    img = cv2.imread(str(tmp_path / "cell.png"))
+    assert img.shape == (240, 360 + 120, 3)  # the cell, and the two probe images stacked beside it
+    right = img[:, 360:].astype(int)
+    assert (right[..., 2] - right[..., 1]).max() > 100  # the red laser line shows in the probe images
+
+
+def test_render_bench_runs_small():
+    out = run_cli("bench", "render", "--frames", "3", "--repeats", "1")
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "one animation call, both cameras" in out.stdout and "frames/s" in out.stdout

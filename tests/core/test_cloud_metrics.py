@@ -126,3 +126,10 @@ def test_bad_ground_truth():
         Sphere(radius_mm=-1.0)
     with pytest.raises(InputError):
         Cylinder(radius_mm=float("nan"))
+
+
+def test_written_files_get_the_usual_permissions(tmp_path):
+    path = files.write_bytes_atomic(tmp_path / "x.bin", b"data")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert (path.stat().st_mode & 0o777) == (0o666 & ~mask)
