@@ -1,12 +1,14 @@
 """Command line of the simulator: ``python -m headless <command>``.
 
 Commands:
-  demo                 the main job of the README's first command (for now the
-                       kinematics demo: tool poses of the bundled robots, IK solves)
+  demo                 the demo scan (rigs/scenes/demo.toml): the README's first command
+  scan CONFIG          a scan described by a config file (rigs/scenes/*.toml)
+  kinematics           tool poses of the bundled robots and IK solves
   bench kinematics     FK/IK speed, IK success and accuracy, false successes
   bench detect         laser-line detection accuracy and speed on synthetic images
   bench triangulate    paper's Eq. 6 against the exact intersection, speed, stability
   bench render         N frames in one render call against N separate calls
+  bench scan           profiles/s end to end, error, and what each leave-out saves
   overview             a picture of the cell and the two probe camera images
 
 Errors the user can fix (bad rig file, bad value) print one line and exit 2.
@@ -26,8 +28,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m headless", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    demo = sub.add_parser("demo", help="run the demo (kinematics of the bundled robots)")
-    demo.set_defaults(run=_run_demo)
+    from headless import scan
+
+    scan.add_arguments(sub.add_parser("demo", help="run the demo scan (rigs/scenes/demo.toml)"), demo=True)
+    scan.add_arguments(sub.add_parser("scan", help="run the scan a config file describes"))
+    sub.add_parser("kinematics", help="tool poses of the bundled robots and one IK solve each").set_defaults(
+        run=_run_kinematics)
 
     bench = sub.add_parser("bench", help="benchmarks that print figures and ratios")
     bench_sub = bench.add_subparsers(dest="bench", required=True, metavar="NAME")
@@ -35,19 +41,20 @@ def build_parser() -> argparse.ArgumentParser:
     from headless.bench import detect as bench_detect
     from headless.bench import kinematics as bench_kinematics
     from headless.bench import render as bench_render
+    from headless.bench import scan as bench_scan
     from headless.bench import triangulate as bench_triangulate
 
     overview.add_arguments(sub.add_parser("overview", help=overview.__doc__.split("\n")[0]))
     for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),
-                         ("triangulate", bench_triangulate), ("render", bench_render)):
+                         ("triangulate", bench_triangulate), ("render", bench_render), ("scan", bench_scan)):
         module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))
     return parser
 
 
-def _run_demo(args: argparse.Namespace) -> int:
-    from headless import demo
+def _run_kinematics(args: argparse.Namespace) -> int:
+    from headless import kinematics_demo
 
-    return demo.run()
+    return kinematics_demo.run()
 
 
 def main(argv: list[str] | None = None) -> int:

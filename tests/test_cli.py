@@ -11,8 +11,8 @@ def run_cli(*args):
     return subprocess.run([sys.executable, "-m", "headless", *args], cwd=REPO, capture_output=True, text=True)
 
 
-def test_demo_prints_poses_and_solves_ik_for_every_robot():
-    out = run_cli("demo")
+def test_kinematics_prints_poses_and_solves_ik_for_every_robot():
+    out = run_cli("kinematics")
     assert out.returncode == 0, out.stderr
     for name in ("Adept Viper s650", "Unimation PUMA 560", "Universal Robots UR5"):
         assert out.stdout.count(name) == 4  # three poses and one IK row
@@ -80,3 +80,11 @@ def test_render_bench_runs_small():
     out = run_cli("bench", "render", "--frames", "3", "--repeats", "1")
     assert out.returncode == 0, out.stderr[-2000:]
     assert "one animation call, both cameras" in out.stdout and "frames/s" in out.stdout
+
+
+def test_demo_scan_runs_and_summarises(tmp_path):
+    out = run_cli("demo", "--frames", "::15", "--out", str(tmp_path / "demo"), "--quiet")
+    assert out.returncode == 0, out.stderr[-2000:]
+    for word in ("points", "error", "coverage", "profiles/s", "cloud.ply", "report.json", "preview.png"):
+        assert word in out.stdout
+    assert {p.name for p in (tmp_path / "demo").iterdir()} == {"cloud.ply", "report.json", "preview.png"}

@@ -152,6 +152,15 @@ class Table:
                for i, v in enumerate(value)]
         return np.array(out, dtype=np.float64)
 
+    def number_list(self, key: str, default: Any = _MISSING, *, lo: float | None = None,
+                    hi: float | None = None, lo_open: bool = False, min_len: int = 1) -> np.ndarray:
+        """A list of at least ``min_len`` finite numbers, each in [lo, hi]."""
+        value = self._get(key, default)
+        if not isinstance(value, (list, tuple)) or len(value) < min_len:
+            raise self.error(key, f"{_describe(value)}: expected a list of at least {min_len} number(s)")
+        return np.array([self._check_number(key, v, lo, hi, lo_open, False, False, where=f"element {i}: ")
+                         for i, v in enumerate(value)], dtype=np.float64)
+
     # -- nested ---------------------------------------------------------------
     def table(self, key: str, default: Any = _MISSING) -> "Table | None":
         value = self._get(key, default)

@@ -56,7 +56,9 @@ class Sphere(_Shape):
     def signed_distance(self, points) -> np.ndarray:
         return np.linalg.norm(self.to_local(points), axis=1) - self.radius_mm
 
-    def _local_mesh(self, subdivisions: int = 5) -> trimesh.Trimesh:
+    def _local_mesh(self, subdivisions: int = 6) -> trimesh.Trimesh:
+        # Subdivision 6 (81 920 faces): the flat facets sag at most r/6400 inside the
+        # sphere (1.4 µm for r = 30 mm); subdivision 5 sagged 5.5 µm, a measurable bias.
         return trimesh.creation.icosphere(subdivisions=subdivisions, radius=self.radius_mm)
 
 

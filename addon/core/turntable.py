@@ -51,3 +51,16 @@ class Turntable:
         """T_R^0 (Eq. 5), the closed-form inverse of :meth:`base2table`."""
         th = self._angle(theta_rad)
         return trans(-self.a_mm, 0.0, -self.d_mm) @ rot_z(th)
+
+
+TABLE_RADIUS_MM = 150.0
+TABLE_THICKNESS_MM = 20.0
+
+
+def table_top_mesh(radius_mm: float = TABLE_RADIUS_MM, thickness_mm: float = TABLE_THICKNESS_MM):
+    """The table's disc in the table frame: its top face is z = 0 (a trimesh)."""
+    import trimesh
+
+    disc = trimesh.creation.cylinder(radius=radius_mm, height=thickness_mm, sections=128)
+    disc.apply_translation([0.0, 0.0, -thickness_mm / 2])
+    return disc

@@ -9,11 +9,13 @@ mount, which becomes the robot's tool).
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import bpy
 import numpy as np
 import trimesh
+from mathutils import Matrix
 
 from ..core.cell import Cell
 from ..core.errors import InputError
@@ -69,6 +71,8 @@ class SceneCell:
         for k in range(6):
             keyframe_values(self.robot, f'["{rig.joint_property(k + 1)}"]', frames, qs[:, k])
         keyframe_values(self.table, "rotation_euler", frames, thetas, index=2)
+        # The probe's world pose per frame, for renders that leave the rig out.
+        self.extras["path"] = (int(first_frame), self.cell.robot.fk(qs), thetas.copy())
         return range(first_frame, first_frame + n)
 
     # -- what Blender has -----------------------------------------------------------
@@ -83,18 +87,88 @@ class SceneCell:
 
     # -- rendering ----------------------------------------------------------------
     def render(self, first: int, last: int, settings: RenderSettings | None = None, cameras=(0, 1),
-               out_dir=None) -> list[list[np.ndarray | None]]:
-        """Probe images for frames first..last in one render call ([frame][camera], float32 (H, W, 3))."""
+               out_dir=None, rows: tuple[int, int] | None = None, leave_out_robot: bool = True
+               ) -> list[list[np.ndarray | None]]:
+        """Probe images for frames first..last in one render call ([frame][camera], float32 (H, W, 3)).
+
+        ``rows`` = (r0, r1) renders and returns only those rows. The robot never
+        appears in the probe images, so it is left out (unless ``leave_out_robot``
+        is False): when the frames were
+        keyframed with :meth:`keyframe`, the probe frame follows its own keyframed
+        world pose and the rig is not evaluated at all.
+        """
         settings = settings or RenderSettings()
         if settings.engine == "eevee" and self.laser_model == "gobo":
             raise InputError("Eevee ignores light node trees, so the gobo laser renders as a plain spot; "
                              "build the cell with laser='slit' to render with Eevee")
         configure(self.scene, self.probe, settings, self.cameras[0])
-        self.robot_collection.hide_render = True  # behind the probe: never in its images
+        if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else
+            return render_animation(self.scene, first, last, cameras, out_dir, rows)
+        with self._without_rig(first, last):
+            return render_animation(self.scene, first, last, cameras, out_dir, rows)
+
+    @contextmanager
+    def _without_rig(self, first: int, last: int):
+        """Leave the robot out of probe renders.
+
+        When the frames were keyframed with :meth:`keyframe`, the table and the
+        workpiece are held still at the world origin and the probe (cameras and
+        laser) moves by its pose in the table frame instead: the images depend only
+        on relative poses, and Cycles rebuilds the acceleration structure of every
+        mesh that moves, each frame, so moving the probe is far cheaper than turning
+        a dense workpiece. The rig is excluded from the view layer, not evaluated.
+        Otherwise the rig stays evaluated but is not rendered.
+        """
+        path = self.extras.get("path")
+        if path is None or not (path[0] <= first and last < path[0] + len(path[1])):
+            self.robot_collection.hide_render = True
+            try:
+                yield
+            finally:
+                self.robot_collection.hide_render = False
+            return
+        start, probe2base, thetas = path
+        frames = np.arange(start, start + len(probe2base))
+        probe2table = self.cell.table.base2table(thetas) @ probe2base  # Eq. 8
+        quats = np.array([Matrix(T[:3, :3].tolist()).to_quaternion()[:] for T in probe2table])
+        pf, table = self.probe_frame, self.table
+        saved_pf = (pf.parent, pf.parent_type, pf.parent_bone, pf.matrix_parent_inverse.copy(), pf.matrix_basis.copy(),
+                    pf.rotation_mode)
+        saved_table = (table.animation_data.action if table.animation_data else None, table.matrix_basis.copy())
+        layer = _layer_collection(self.scene.view_layers[0].layer_collection, self.robot_collection)
+        if table.animation_data:
+            table.animation_data.action = None
+        table.matrix_basis.identity()
+        pf.parent = None
+        pf.rotation_mode = "QUATERNION"
+        for i in range(3):
+            keyframe_values(pf, "location", frames, probe2table[:, i, 3] * 1e-3, index=i)
+        for i in range(4):
+            keyframe_values(pf, "rotation_quaternion", frames, quats[:, i], index=i)
+        layer.exclude = True
         try:
-            return render_animation(self.scene, first, last, cameras, out_dir)
+            yield
         finally:
-            self.robot_collection.hide_render = False
+            layer.exclude = False
+            pf.animation_data_clear()
+            pf.rotation_mode = saved_pf[5]
+            pf.parent, pf.parent_type, pf.parent_bone = saved_pf[0], saved_pf[1], saved_pf[2]
+            pf.matrix_parent_inverse, pf.matrix_basis = saved_pf[3], saved_pf[4]
+            if saved_table[0] is not None:
+                table.animation_data.action = saved_table[0]
+            table.matrix_basis = saved_table[1]
+            bpy.context.view_layer.update()
+
+
+def _layer_collection(layer, collection):
+    """The view layer's entry for ``collection`` (searched depth first)."""
+    if layer.collection == collection:
+        return layer
+    for child in layer.children:
+        found = _layer_collection(child, collection)
+        if found is not None:
+            return found
+    return None
 
 
 def _child_collection(parent: bpy.types.Collection, name: str) -> bpy.types.Collection:

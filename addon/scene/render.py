@@ -142,16 +142,39 @@ def read_image(path: str | Path) -> np.ndarray:
     return px.reshape(H, W, 4)[::-1, :, :3].copy()
 
 
+def set_rows(scene: bpy.types.Scene, rows: tuple[int, int] | None) -> None:
+    """Render only image rows r0..r1−1 (OpenCV order, top = 0), cropped; None renders all.
+
+    Blender's border counts from the bottom in fractions of the height; these
+    fractions give exactly the requested rows (checked pixel for pixel).
+    """
+    r = scene.render
+    if rows is None:
+        r.use_border = False
+        return
+    H = r.resolution_y
+    r0, r1 = int(rows[0]), int(rows[1])
+    if not 0 <= r0 < r1 <= H:
+        raise InputError(f"row band {r0}..{r1} is not inside the image's {H} rows")
+    r.use_border = True
+    r.use_crop_to_border = True
+    r.border_min_x, r.border_max_x = 0.0, 1.0
+    r.border_min_y, r.border_max_y = (H - r1) / H, (H - r0) / H
+
+
 def render_animation(scene: bpy.types.Scene, first: int, last: int, cameras=(0, 1),
-                     out_dir: str | Path | None = None) -> list[list[np.ndarray | None]]:
+                     out_dir: str | Path | None = None, rows: tuple[int, int] | None = None
+                     ) -> list[list[np.ndarray | None]]:
     """Render frames first..last (inclusive) in one call; returns [frame][camera] images.
 
-    A camera not in ``cameras`` gives None. Images go through a temporary folder
-    unless ``out_dir`` is given (then the EXR files stay there).
+    A camera not in ``cameras`` gives None. With ``rows`` = (r0, r1) only those image
+    rows are rendered and returned (arrays of r1 − r0 rows). Images go through a
+    temporary folder unless ``out_dir`` is given (then the EXR files stay there).
     """
     if last < first:
         raise InputError(f"frame range {first}..{last} is empty")
     use_views(scene, cameras)
+    set_rows(scene, rows)
     keep = out_dir is not None
     folder = Path(out_dir) if keep else Path(tempfile.mkdtemp(prefix="scanner-render-"))
     folder.mkdir(parents=True, exist_ok=True)

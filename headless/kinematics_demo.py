@@ -1,9 +1,8 @@
-"""The demo the README's first command runs.
+"""``python -m headless kinematics``: the kinematics core at work.
 
-For now (before the optics and the Blender cell exist) it shows the kinematics
-core at work: the tool pose of each bundled robot at a few joint vectors, and one
+The tool pose of each bundled robot at a few joint vectors, and one
 inverse-kinematics solve per robot for a probe pose given relative to the rotary
-table, as in the paper's user interface. Later it becomes the demo scan.
+table, as in the paper's user interface.
 """
 
 from __future__ import annotations
@@ -61,5 +60,4 @@ def run() -> int:
                     f"{res.rot_err_rad:.1e} rad", f"{dt * 1e3:.1f} ms"], widths))
         if not res.success:
             print(f"    {res.message}")
-    print("\n(The demo scan replaces this once the optics and the Blender cell exist.)")
     return 0

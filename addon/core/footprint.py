@@ -1,0 +1,111 @@
+"""Where the laser will fall, found by casting its fan against the scene's meshes before rendering.
+
+For every frame, ``rays`` rays leave the probe origin in the laser plane, spread
+over the fan angle; their first hits on the workpiece or the table are the line
+the cameras would see. From that:
+
+- frames whose laser meets no surface inside the probe's range [z_min, z_max]
+  give no data (reported before rendering, by index);
+- a camera that sees none of those points, over the whole path (off its sensor
+  or hidden behind the part), need not be rendered.
+
+Ray casting is trimesh's, through Embree when the ``embreex`` package is there
+(17x faster; single precision, ample for this check) and trimesh's own triangle
+tests otherwise; it runs in the table frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from .probe import Probe
+
+OCCLUSION_EPS_MM = 0.05  # slack for "the first surface on the camera's ray is the lit point" (Embree is float32)
+
+
+def _intersector(mesh: trimesh.Trimesh):
+    try:
+        from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+        return RayMeshIntersector(mesh)
+    except (ImportError, ModuleNotFoundError):
+        return trimesh.ray.ray_triangle.RayMeshIntersector(mesh)
+
+
+@dataclass
+class Footprint:
+    """depth_mm (n, k): z in the probe frame of each fan ray's first hit (NaN: no hit);
+    in_range (n, k); seen (n, 2): fan points each camera sees (in range, on its sensor, not hidden);
+    rows (n, 2, 2): per frame and camera, the lowest and highest sensor row of those points (NaN: none)."""
+
+    depth_mm: np.ndarray
+    in_range: np.ndarray
+    seen: np.ndarray
+    rows: np.ndarray
+
+    @property
+    def empty_frames(self) -> list[int]:
+        """Frames where no fan ray hits a surface inside the probe's range."""
+        return [int(i) for i in np.nonzero(~self.in_range.any(axis=1))[0]]
+
+    def cameras_needed(self) -> tuple[int, ...]:
+        return tuple(c for c in (0, 1) if self.seen[:, c].any())
+
+
+def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.Trimesh], rays: int = 65) -> Footprint:
+    """Cast the laser fan for frames with probe poses ``probe2table`` (n, 4, 4) against ``meshes`` (table frame)."""
+    scene = trimesh.util.concatenate(meshes)
+    caster = _intersector(scene)
+    n = len(probe2table)
+    alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
+    d_probe = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
+    R, t = probe2table[:, :3, :3], probe2table[:, :3, 3]
+    origins = np.repeat(t, rays, axis=0)
+    dirs = np.einsum("nij,kj->nki", R, d_probe).reshape(-1, 3)
+    hit_pts, hit_ray = _first_hits(caster, origins, dirs)
+    dist = np.full(n * rays, np.nan)
+    dist[hit_ray] = np.linalg.norm(hit_pts - origins[hit_ray], axis=1)
+    depth = (dist.reshape(n, rays) * np.cos(alpha)[None, :])
+    z0, z1 = probe.z_range_mm
+    with np.errstate(invalid="ignore"):
+        in_range = (depth >= z0) & (depth <= z1)
+    points = origins + dirs * dist[:, None]  # table frame; NaN where no hit
+    seen = np.zeros((n, 2), dtype=int)
+    rows = np.full((n, 2, 2), np.nan)
+    frame_of = np.repeat(np.arange(n), rays)
+    lit = np.nonzero(in_range.ravel())[0]
+    if lit.size:
+        target = points[lit]
+        Rf, tf = R[frame_of[lit]], t[frame_of[lit]]
+        local = np.einsum("nji,nj->ni", Rf, target - tf)  # into the probe frame: Rᵀ (p − t)
+        for camera in (0, 1):
+            uv = probe.project(local, camera)
+            on_sensor = np.isfinite(uv).all(axis=1)
+            # Hidden if the first surface along the camera's ray comes before the point.
+            centre = tf + np.einsum("nij,j->ni", Rf, probe.cam2probe(camera)[:3, 3])
+            to = target - centre
+            length = np.linalg.norm(to, axis=1)
+            occ_pts, occ_ray = _first_hits(caster, centre, to / length[:, None])
+            first = np.full(len(lit), np.inf)
+            first[occ_ray] = np.linalg.norm(occ_pts - centre[occ_ray], axis=1)
+            visible = on_sensor & (first >= length - OCCLUSION_EPS_MM)
+            np.add.at(seen[:, camera], frame_of[lit[visible]], 1)
+            f, v = frame_of[lit[visible]], uv[visible, 1]
+            lo = np.full(n, np.inf)
+            hi = np.full(n, -np.inf)
+            np.minimum.at(lo, f, v)
+            np.maximum.at(hi, f, v)
+            got = np.isfinite(lo)
+            rows[got, camera, 0], rows[got, camera, 1] = lo[got], hi[got]
+    return Footprint(depth, in_range, seen, rows)
+
+
+def _first_hits(caster, origins, dirs):
+    """First hit of each ray: (points (m, 3), ray index (m,))."""
+    if len(origins) == 0:
+        return np.zeros((0, 3)), np.zeros(0, dtype=int)
+    locations, index_ray, _ = caster.intersects_location(origins, dirs, multiple_hits=False)
+    return locations, index_ray

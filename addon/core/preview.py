@@ -1,0 +1,104 @@
+"""The scan's picture: the cloud over the workpiece, each point coloured by its error.
+
+An orthographic view from above and in front; the workpiece mesh is drawn in grey
+(faces shaded by their angle to the view, back to front), then the points that the
+mesh does not hide, coloured by |error| on a fixed scale shown in a colour bar.
+Table points are drawn small and grey. The title gives the numbers.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import trimesh
+
+VIEW = np.array([0.55, -0.75, 0.65])  # direction from the part towards the viewer (table frame)
+
+
+def _view_basis(view: np.ndarray) -> np.ndarray:
+    back = view / np.linalg.norm(view)
+    right = np.cross([0.0, 0.0, 1.0], back)
+    right /= np.linalg.norm(right)
+    up = np.cross(back, right)
+    return np.stack([right, up, back])  # rows: screen x, screen y, towards the viewer
+
+
+def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: np.ndarray | None,
+                   on_part: np.ndarray, title: str, size=(900, 640), scale_um: float | None = None) -> np.ndarray:
+    """BGR uint8 image. points (n, 3) mm table frame; error_um (n,) or None; on_part (n,) bool."""
+    W, H = size
+    bar_w = 90
+    img = np.full((H, W, 3), 255, np.uint8)
+    B = _view_basis(VIEW)
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    ref = np.asarray(mesh.vertices) if mesh is not None and len(mesh.vertices) else pts
+    if len(ref) == 0:
+        cv2.putText(img, title + " (no points)", (12, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
+        return img
+    lo, hi = ref.min(axis=0), ref.max(axis=0)
+    centre = (lo + hi) / 2
+    span = np.linalg.norm(hi - lo) * 1.15 + 1e-9
+    px = min(W - bar_w - 20, H - 60) / span
+    offset = np.array([(W - bar_w) / 2, (H + 30) / 2])
+
+    def to_screen(P):
+        q = (P - centre) @ B.T
+        return np.column_stack([offset[0] + q[:, 0] * px, offset[1] - q[:, 1] * px]), q[:, 2]
+
+    depth_map = np.full((H, W), -np.inf, np.float32)
+    if mesh is not None and len(mesh.faces):
+        v2, vz = to_screen(np.asarray(mesh.vertices))
+        faces = np.asarray(mesh.faces)
+        normals = np.asarray(mesh.face_normals) @ B.T
+        shade = np.clip(0.35 + 0.6 * normals[:, 2], 0.2, 0.95)
+        fz = vz[faces].mean(axis=1)
+        for f in np.argsort(fz):  # back to front
+            if normals[f, 2] <= 0:
+                continue
+            poly = np.round(v2[faces[f]]).astype(np.int32)
+            g = int(255 * shade[f])
+            cv2.fillConvexPoly(img, poly, (g, g, g), cv2.LINE_AA)
+            cv2.fillConvexPoly(depth_map, poly, float(fz[f]))
+    p2, pz = to_screen(pts)
+    ij = np.round(p2).astype(int)
+    inside = (ij[:, 0] >= 0) & (ij[:, 0] < W) & (ij[:, 1] >= 0) & (ij[:, 1] < H)
+    visible = inside.copy()
+    # Points hidden behind the part's front faces are not drawn (2 mm slack).
+    visible[inside] = pz[inside] >= depth_map[ij[inside, 1], ij[inside, 0]] - 2.0
+    # The colour scale ends at the 95th percentile: a few edge outliers saturate at the
+    # top instead of washing every other point out.
+    top = scale_um if scale_um else (float(np.percentile(error_um[on_part], 95)) if error_um is not None
+                                     and on_part.any() else 1.0)
+    top = max(top, 1e-6)
+    order = np.argsort(pz)
+    for k in order:
+        if not visible[k]:
+            continue
+        x, y = ij[k]
+        if not on_part[k] or error_um is None:
+            img[y, x] = (150, 150, 150)
+            continue
+        c = _colour(min(error_um[k] / top, 1.0))
+        cv2.circle(img, (int(x), int(y)), 1, c, -1)
+    _colour_bar(img, W - bar_w + 10, 60, 22, H - 120, top)
+    cv2.putText(img, title, (12, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (20, 20, 20), 1, cv2.LINE_AA)
+    return img
+
+
+_LUT = cv2.applyColorMap(np.arange(256, dtype=np.uint8).reshape(-1, 1), cv2.COLORMAP_TURBO).reshape(256, 3)
+
+
+def _colour(t: float) -> tuple[int, int, int]:
+    b, g, r = _LUT[int(round(t * 255))]
+    return int(b), int(g), int(r)
+
+
+def _colour_bar(img, x, y, w, h, top_um: float) -> None:
+    for i in range(h):
+        img[y + i, x:x + w] = _colour(1.0 - i / max(h - 1, 1))
+    cv2.rectangle(img, (x, y), (x + w, y + h), (60, 60, 60), 1)
+    for frac in (0.0, 0.5, 1.0):
+        yy = int(y + (1 - frac) * h)
+        cv2.putText(img, f"{frac * top_um:.0f}", (x + w + 4, yy + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (30, 30, 30), 1,
+                    cv2.LINE_AA)
+    cv2.putText(img, "|error| um", (x - 14, y - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (30, 30, 30), 1, cv2.LINE_AA)

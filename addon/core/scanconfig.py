@@ -1,0 +1,275 @@
+"""Scan configs: one TOML file (``rigs/scenes/<name>.toml``) describes a whole scan.
+
+Sections (units in the key names; every key is checked, unknown keys are errors)::
+
+    name = "..."                      description = "..."
+    [robot]      rig (name or path), start_deg = [6 joint angles] (IK seed, optional)
+    [probe]      rig (name or path), [probe.mount] xyz_mm, yzz_deg (optional T_L^6 override)
+    [table]      a_mm, d_mm (Eq. 4 placement; defaults −500, −200)
+    [workpiece]  shape = plane|sphere|cylinder|step_block (+ its size keys) or file (+ scale),
+                 [workpiece.pose] xyz_mm, yzz_deg (placement in the table frame)
+    [[path]]     kind = "sweep": frames, from_mm, to_mm, beam, line, table_deg
+                 kind = "turntable": frames, probe_mm, beam, line, start_deg, turn_deg
+    [render]     engine, device, samples, pixel_filter, filter_width_px, bounces, ambient,
+                 laser (gobo|slit), laser_peak, resolution = [W, H] (the probe's optics on
+                 another sensor: W columns along the line, H rows along the triangulation)
+    [detect]     method (threshold|cog|gauss|steger), min_peak, second_peak_ratio, max_width_px
+    [triangulate] method (exact|paper), fuse (both cameras into one profile)
+    [leave_out]  render_band, skip_blind_cameras, hide_robot, chunk_frames, band_margin_px
+    [truth]      coverage_tolerance_mm
+
+Paths in the file (robot/probe rigs, workpiece files) are relative to the file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from . import scanpath
+from .cell import Cell
+from .config import Table, load_toml, resolve_rig
+from .detect import METHODS as DETECT_METHODS
+from .detect import DetectParams
+from .errors import ConfigError, InputError
+from .kinematics import Robot, load_robot
+from .probe import Probe, load_probe
+from .triangulate import TRIANGULATION_METHODS
+from .turntable import PAPER_A_R_MM, PAPER_D_R_MM, Turntable
+from .workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
+
+ENGINES = ("cycles", "eevee")
+DEVICES = ("CPU", "GPU")
+PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
+LASERS = ("gobo", "slit")
+PATH_KINDS = ("sweep", "turntable")
+MAX_FRAMES = 1_000_000
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    engine: str = "cycles"
+    device: str = "CPU"
+    samples: int = 1
+    pixel_filter: str = "BOX"
+    filter_width_px: float = 0.01
+    bounces: int = 0
+    ambient: float = 0.0
+    laser: str = "gobo"
+    laser_peak: float = 0.5
+
+
+@dataclass(frozen=True)
+class LeaveOut:
+    """render_band: render only the rows where the line can fall; skip_blind_cameras: do not
+    render a camera that sees no laser light on the whole path; hide_robot: leave the robot
+    (which the probe cameras cannot see) out of probe renders, unevaluated; chunk_frames:
+    frames per render call (one band each); band_margin_px: rows added above and below the band."""
+
+    render_band: bool = True
+    skip_blind_cameras: bool = True
+    hide_robot: bool = True
+    chunk_frames: int = 8
+    band_margin_px: int = 6
+
+
+@dataclass(frozen=True)
+class ScanConfig:
+    name: str
+    source: str
+    robot: Robot
+    probe: Probe
+    table: Turntable
+    workpiece: Workpiece
+    waypoints: scanpath.Waypoints
+    q_start: np.ndarray | None = None
+    render: RenderOptions = field(default_factory=RenderOptions)
+    detect_method: str = "gauss"
+    detect: DetectParams = field(default_factory=lambda: DetectParams(saturation=np.inf))
+    triangulate_method: str = "exact"
+    fuse: bool = True
+    leave_out: LeaveOut = field(default_factory=LeaveOut)
+    coverage_tolerance_mm: float = 1.0
+    description: str = ""
+
+    @property
+    def cell(self) -> Cell:
+        """The robot carrying this probe (its mount as the tool) and the table."""
+        return Cell(self.robot.with_tool(self.probe.mount), self.table)
+
+    def with_overrides(self, *, engine=None, samples=None, resolution=None, detect=None, frames=None) -> "ScanConfig":
+        """A copy with command-line overrides applied; ``frames`` is a slice of the path."""
+        cfg = self
+        render = cfg.render
+        if engine is not None:
+            if engine not in ENGINES:
+                raise InputError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
+            render = replace(render, engine=engine, laser="slit" if engine == "eevee" else render.laser)
+        if samples is not None:
+            if not 1 <= samples <= 65536:
+                raise InputError(f"--samples must be in [1, 65536], got {samples}")
+            render = replace(render, samples=samples)
+        cfg = replace(cfg, render=render)
+        if resolution is not None:
+            W, H = resolution
+            cfg = replace(cfg, probe=cfg.probe.with_resolution(H, W))
+        if detect is not None:
+            if detect not in DETECT_METHODS:
+                raise InputError(f"--detect {detect!r} is not one of: {', '.join(DETECT_METHODS)}")
+            cfg = replace(cfg, detect_method=detect)
+        if frames is not None:
+            picked = np.arange(len(cfg.waypoints))[frames]
+            if picked.size == 0:
+                raise InputError(f"--frames selects no frames of the {len(cfg.waypoints)} in the path")
+            cfg = replace(cfg, waypoints=cfg.waypoints.select(picked))
+        return cfg
+
+
+def _rig_path(base: Path, value: str) -> str:
+    """A rig given as a path is relative to the config file; a bare name is a bundled rig."""
+    if "/" in value or "\\" in value or value.endswith(".toml"):
+        p = Path(value)
+        return str(p if p.is_absolute() else (base / p))
+    return value
+
+
+def load_scan_config(name_or_path: str | Path) -> ScanConfig:
+    """Read and check a scan config; every problem is a ConfigError naming file, key and allowed values."""
+    path = resolve_rig("scenes", name_or_path)
+    top = load_toml(path)
+    base = path.parent
+    name = top.string("name", default=path.stem)
+    description = top.string("description", default="")
+
+    rt = top.table("robot")
+    try:
+        robot = load_robot(_rig_path(base, rt.string("rig")))
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: robot.rig: {exc}") from None
+    q_start = np.radians(rt.numbers("start_deg", 6, lo=-720, hi=720)) if rt.has("start_deg") else None
+    rt.finish()
+
+    pt = top.table("probe")
+    try:
+        probe = load_probe(_rig_path(base, pt.string("rig")))
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: probe.rig: {exc}") from None
+    if pt.has("mount"):
+        probe = replace(probe, mount=pt.pose("mount"))
+    pt.finish()
+
+    tt = top.table("table", default={})
+    table = Turntable(tt.number("a_mm", default=PAPER_A_R_MM, lo=-1e5, hi=1e5),
+                      tt.number("d_mm", default=PAPER_D_R_MM, lo=-1e5, hi=1e5))
+    tt.finish()
+
+    workpiece = _workpiece(top.table("workpiece"), base)
+    waypoints = _paths(top, table)
+    render, resolution = _render(top.table("render", default={}))
+    if resolution is not None:
+        probe = probe.with_resolution(resolution[1], resolution[0])
+    detect_method, detect = _detect(top.table("detect", default={}))
+    tri = top.table("triangulate", default={})
+    tri_method = tri.string("method", default="exact", choices=TRIANGULATION_METHODS)
+    fuse = tri.boolean("fuse", default=True)
+    tri.finish()
+    lo = top.table("leave_out", default={})
+    leave_out = LeaveOut(lo.boolean("render_band", default=True), lo.boolean("skip_blind_cameras", default=True),
+                         lo.boolean("hide_robot", default=True), lo.integer("chunk_frames", default=8, lo=1, hi=10000),
+                         lo.integer("band_margin_px", default=6, lo=0, hi=10000))
+    lo.finish()
+    truth = top.table("truth", default={})
+    cov = truth.number("coverage_tolerance_mm", default=1.0, lo=0.0, hi=1e3, lo_open=True)
+    truth.finish()
+    top.finish()
+    if render.engine == "eevee" and render.laser == "gobo":
+        raise ConfigError(f"{path}: render.laser: 'gobo' does not render in Eevee (it ignores light node trees); "
+                          "use laser = \"slit\" with engine = \"eevee\"")
+    return ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
+                      detect, tri_method, fuse, leave_out, cov, description)
+
+
+def _workpiece(t: Table, base: Path) -> Workpiece:
+    pose = t.pose("pose")
+    if t.has("file") == t.has("shape"):
+        raise t.error("shape", "give exactly one of shape (built-in: " + ", ".join(BUILTINS) + ") or file")
+    try:
+        if t.has("file"):
+            f = Path(t.string("file"))
+            scale = t.number("scale", default=0.0, lo=0.0) or None
+            wp = load_workpiece(f if f.is_absolute() else base / f, pose, scale)
+        else:
+            kind = t.string("shape", choices=list(BUILTINS))
+            params = {}
+            for key, default in BUILTINS[kind][1].items():
+                if t.has(key):
+                    params[key] = (tuple(t.number_list(key, lo=0.0, hi=1e4, lo_open=True))
+                                   if isinstance(default, tuple) else t.number(key, lo=0.0, hi=1e4, lo_open=True))
+            wp = builtin_workpiece(kind, pose, **params)
+    except InputError as exc:
+        raise t.error("shape" if t.has("shape") else "file", str(exc)) from None
+    t.finish()
+    return wp
+
+
+def _paths(top: Table, table: Turntable) -> scanpath.Waypoints:
+    parts = []
+    for i, p in enumerate(top.tables("path")):
+        kind = p.string("kind", choices=PATH_KINDS)
+        frames = p.integer("frames", lo=1, hi=MAX_FRAMES)
+        beam = p.numbers("beam", 3, default=list(scanpath.DOWN), lo=-1e6, hi=1e6)
+        line = p.numbers("line", 3, lo=-1e6, hi=1e6) if p.has("line") else None
+        try:
+            if kind == "sweep":
+                parts.append(scanpath.sweep(frames, p.numbers("from_mm", 3, lo=-1e5, hi=1e5),
+                                            p.numbers("to_mm", 3, lo=-1e5, hi=1e5), beam, line,
+                                            np.radians(p.number("table_deg", default=0.0, lo=-1e5, hi=1e5)), i))
+            else:
+                parts.append(scanpath.turntable(frames, p.numbers("probe_mm", 3, lo=-1e5, hi=1e5), beam, line,
+                                                np.radians(p.number("start_deg", default=0.0, lo=-1e5, hi=1e5)),
+                                                np.radians(p.number("turn_deg", default=360.0, lo=-1e5, hi=1e5)),
+                                                table, i))
+        except InputError as exc:
+            raise p.error("kind", str(exc)) from None
+        p.finish()
+    if not parts:
+        raise top.error("path", "at least one [[path]] is needed")
+    return scanpath.concatenate(parts)
+
+
+def _render(t: Table) -> tuple[RenderOptions, tuple[int, int] | None]:
+    opts = RenderOptions(
+        engine=t.string("engine", default="cycles", choices=ENGINES),
+        device=t.string("device", default="CPU", choices=DEVICES),
+        samples=t.integer("samples", default=1, lo=1, hi=65536),
+        pixel_filter=t.string("pixel_filter", default="BOX", choices=PIXEL_FILTERS),
+        filter_width_px=t.number("filter_width_px", default=0.01, lo=0.01, hi=10.0),
+        bounces=t.integer("bounces", default=0, lo=0, hi=64),
+        ambient=t.number("ambient", default=0.0, lo=0.0, hi=100.0),
+        laser=t.string("laser", default="gobo", choices=LASERS),
+        laser_peak=t.number("laser_peak", default=0.5, lo=0.0, hi=1e3, lo_open=True),
+    )
+    resolution = None
+    if t.has("resolution"):  # the same optics on another sensor: [W, H] = [columns, rows]
+        w, h = t.numbers("resolution", 2, lo=2, hi=100000)
+        if w != int(w) or h != int(h):
+            raise t.error("resolution", f"[{w:g}, {h:g}]: pixel counts must be whole numbers")
+        resolution = (int(w), int(h))
+    t.finish()
+    return opts, resolution
+
+
+def _detect(t: Table) -> tuple[str, DetectParams]:
+    method = t.string("method", default="gauss", choices=DETECT_METHODS)
+    defaults = DetectParams()
+    params = DetectParams(
+        min_peak=t.number("min_peak", default=defaults.min_peak, lo=0.0, hi=1e3),
+        second_peak_ratio=t.number("second_peak_ratio", default=defaults.second_peak_ratio, lo=0.0, hi=1.0,
+                                   lo_open=True),
+        max_width_px=t.number("max_width_px", default=defaults.max_width_px, lo=0.0, hi=1e4, lo_open=True),
+        saturation=np.inf,  # renders are linear float: nothing clips unless a sensor model says so
+    )
+    t.finish()
+    return method, params

@@ -1,0 +1,172 @@
+"""Scan paths: where the probe is in each frame, and the joint vectors that put it there.
+
+A path is a list of waypoints, one per frame: the probe pose in the table
+(workpiece) frame and the table angle. Kinds:
+
+- **sweep**: the probe moves in a straight line (table frame) with the table
+  still; its laser plane stands across the direction of motion.
+- **turntable**: the probe stays put in the world while the table turns through
+  ``turn_deg`` in N equal steps; the laser plane contains the table axis by
+  default, so each profile is a meridian of the part.
+- **multi-view**: several of these, one after the other, merged into one cloud.
+
+Orientation is given by two directions in the table frame: ``beam`` (the probe's
++Z, default straight down) and ``line`` (the probe's +Y, along the laser line).
+For a sweep the line defaults to across the motion; for a turntable path to the
+radial direction.
+
+:func:`solve_path` turns waypoints into joint vectors, each continuous with the
+one before (the closed form picks, for every waypoint, the solution nearest the
+previous one; the numeric solver is seeded with it), and reports unreachable
+waypoints and joint jumps by index.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .cell import Cell
+from .errors import InputError
+from .ik import ROT_TOL_RAD, all_branches, default_pos_tol, default_seed, wrap_to_limits
+from .ik_analytic import spherical_wrist_arm
+from .transforms import make_pose
+
+DOWN = (0.0, 0.0, -1.0)
+JUMP_LIMIT_RAD = np.radians(30.0)  # a joint moving more than this between neighbours is a flip
+
+
+@dataclass(frozen=True)
+class Waypoints:
+    """probe2table (n, 4, 4) mm; table_rad (n,); segment (n,) index of the path entry."""
+
+    probe2table: np.ndarray
+    table_rad: np.ndarray
+    segment: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.table_rad)
+
+    def select(self, index) -> "Waypoints":
+        return Waypoints(self.probe2table[index], self.table_rad[index], self.segment[index])
+
+
+def _unit(v, name: str) -> np.ndarray:
+    v = np.asarray(v, dtype=np.float64)
+    n = np.linalg.norm(v)
+    if v.shape != (3,) or not np.isfinite(n) or n < 1e-9:
+        raise InputError(f"{name} must be a non-zero direction [x, y, z], got {np.asarray(v).tolist()}")
+    return v / n
+
+
+def probe_orientation(beam, line) -> np.ndarray:
+    """(3, 3) rotation with +Z along ``beam`` and +Y along ``line`` (made perpendicular to the beam)."""
+    z = _unit(beam, "beam")
+    y = np.asarray(line, dtype=np.float64) - np.dot(line, z) * z
+    if np.linalg.norm(y) < 1e-9:
+        raise InputError(f"the laser line direction {np.asarray(line).tolist()} is parallel to the beam "
+                         f"{z.tolist()}; it must have a component across it")
+    y /= np.linalg.norm(y)
+    return np.column_stack([np.cross(y, z), y, z])
+
+
+def sweep(frames: int, from_mm, to_mm, beam=DOWN, line=None, table_rad: float = 0.0, segment: int = 0) -> Waypoints:
+    """Probe origin from ``from_mm`` to ``to_mm`` (table frame) in ``frames`` steps, laser plane across the motion."""
+    if frames < 1:
+        raise InputError(f"a sweep needs at least 1 frame, got {frames}")
+    a, b = np.asarray(from_mm, dtype=np.float64), np.asarray(to_mm, dtype=np.float64)
+    z = _unit(beam, "beam")
+    if line is None:
+        motion = b - a - np.dot(b - a, z) * z
+        if np.linalg.norm(motion) < 1e-9:
+            raise InputError("a sweep must move across the beam: from_mm and to_mm differ only along it")
+        line = np.cross(z, motion)  # the plane (line, beam) stands across the motion
+    R = probe_orientation(z, line)
+    pts = a + np.linspace(0.0, 1.0, frames)[:, None] * (b - a) if frames > 1 else a[None]
+    poses = np.stack([make_pose(R, p) for p in pts])
+    return Waypoints(poses, np.full(frames, float(table_rad)), np.full(frames, segment))
+
+
+def turntable(frames: int, probe_mm, beam=DOWN, line=None, start_rad: float = 0.0,
+              turn_rad: float = 2 * np.pi, table=None, segment: int = 0) -> Waypoints:
+    """Probe fixed in the world (placed at ``probe_mm`` in the table frame at the start angle);
+    the table turns by ``turn_rad`` in ``frames`` equal steps (end excluded for a full turn)."""
+    if frames < 1:
+        raise InputError(f"a turntable path needs at least 1 frame, got {frames}")
+    if table is None:
+        raise InputError("a turntable path needs the table placement")
+    p = np.asarray(probe_mm, dtype=np.float64)
+    z = _unit(beam, "beam")
+    if line is None:
+        radial = p - np.dot(p, z) * z
+        radial[2] = 0.0
+        line = radial if np.linalg.norm(radial) > 1e-6 else np.array([1.0, 0.0, 0.0])
+    start = make_pose(probe_orientation(z, line), p)
+    probe2base = table.table2base(start_rad) @ start
+    full_turn = abs(abs(turn_rad) - 2 * np.pi) < 1e-9
+    angles = start_rad + turn_rad * np.arange(frames) / (frames if full_turn else max(frames - 1, 1))
+    poses = table.base2table(angles) @ probe2base
+    return Waypoints(poses, angles, np.full(frames, segment))
+
+
+def concatenate(parts: list[Waypoints]) -> Waypoints:
+    return Waypoints(np.concatenate([p.probe2table for p in parts]), np.concatenate([p.table_rad for p in parts]),
+                     np.concatenate([p.segment for p in parts]))
+
+
+@dataclass
+class PathSolution:
+    """q (n, 6) rad; ok (n,); messages per waypoint; jumps: indices where a joint moved more
+    than JUMP_LIMIT_RAD from the previous waypoint; max_step_rad (n,) largest joint change."""
+
+    q: np.ndarray
+    ok: np.ndarray
+    messages: list
+    max_step_rad: np.ndarray
+    jumps: list = field(default_factory=list)
+
+    @property
+    def unreachable(self) -> list[int]:
+        return [int(i) for i in np.nonzero(~self.ok)[0]]
+
+
+def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
+    """Joint vectors for every waypoint, each nearest the previous one (no flips between neighbours)."""
+    robot = cell.robot
+    targets = cell.table.table2base(waypoints.table_rad) @ waypoints.probe2table
+    n = len(waypoints)
+    q_prev = default_seed(robot) if q_start is None else robot.check_q(q_start, "q_start")
+    arm, _ = spherical_wrist_arm(robot)
+    q = np.zeros((n, 6))
+    ok = np.zeros(n, dtype=bool)
+    messages = [""] * n
+    if arm is not None:
+        # Every branch of every waypoint at once, then walk along picking the nearest.
+        branch_q, inside, pos, rot, _ = all_branches(robot, arm, targets, np.tile(q_prev, (n, 1)))
+        good = inside & (pos <= default_pos_tol(robot)) & (rot <= ROT_TOL_RAD)
+        for i in range(n):
+            if good[i].any():
+                cand, _ = wrap_to_limits(robot, branch_q[i], q_prev[None])
+                cand = np.where(good[i][:, None], cand, np.inf)
+                k = int(np.argmin(np.linalg.norm(cand - q_prev, axis=1)))
+                q[i], ok[i], messages[i] = cand[k], True, "ok"
+                q_prev = q[i]
+            else:
+                res = robot.ik(targets[i], q_prev)
+                q[i], ok[i], messages[i] = res.q, res.success, res.message
+                if res.success:
+                    q_prev = res.q
+    else:
+        for i in range(n):
+            res = robot.ik(targets[i], q_prev)
+            q[i], ok[i], messages[i] = res.q, res.success, res.message
+            if res.success:
+                q_prev = res.q
+    step = np.r_[0.0, np.max(np.abs(np.diff(q, axis=0)), axis=1)] if n > 1 else np.zeros(n)
+    # Between path entries the robot repositions; only steps within one entry can be flips.
+    same = np.r_[False, waypoints.segment[1:] == waypoints.segment[:-1]]
+    step[~ok | ~same] = 0.0
+    jumps = [int(i) for i in np.nonzero((step > JUMP_LIMIT_RAD) & ok & np.r_[False, ok[:-1]])[0]]
+    return PathSolution(q, ok, messages, step, jumps)
+

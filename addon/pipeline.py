@@ -1,0 +1,369 @@
+"""One scan, end to end: config -> scene -> frames -> cloud -> report (UI operator and headless alike).
+
+Stages, each timed:
+
+1. plan: joint vectors for every waypoint (continuous, no flips); the laser fan
+   cast against the part and the table. Unreachable waypoints and waypoints whose
+   laser meets nothing inside the probe's range stop the scan here, before any
+   rendering, with their indices.
+2. scene: the Blender cell, the path keyframed.
+3. render: chunks of frames, one render call each. With ``leave_out.render_band``
+   only the rows where the line can fall are rendered: the rows the line held in
+   the previous frames, widened by a margin that follows how fast it moves; the
+   first frame, and any frame whose line touched the band's edge or thinned out,
+   is rendered at full height. A camera that sees no laser light anywhere on the
+   path (from the plan's ray casts) is not rendered at all.
+4. detect, triangulate (both cameras fused), move into the table frame (Eq. 8).
+5. measure against the ground truth: error of the points on the part, of the
+   points on the table (its top is the plane z = 0), and coverage of the part.
+6. write cloud.ply, report.json and preview.png, each atomically, all at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import cv2
+import numpy as np
+
+from .core import metrics
+from .core.cloud import CloudAccumulator, save_ply
+from .core.detect import LineCode, detect_line
+from .core.errors import ScannerError, UnreachablePose
+from .core.files import write_bytes_atomic
+from .core.footprint import laser_footprint
+from .core.preview import render_preview
+from .core.scanconfig import ScanConfig
+from .core.scanpath import solve_path
+from .core.triangulate import fuse_profiles, triangulate_profile
+from .core.turntable import TABLE_RADIUS_MM, table_top_mesh
+
+BAND_FULL_SHARE = 0.75     # a band this tall (share of the rows) is not worth cropping
+EDGE_PX = 1.5              # a line this close to the band's edge may run outside it
+LOST_COLUMNS = 0.02        # more than this share of a camera's columns lost since the last frame: re-render
+
+Progress = Callable[[str, int, int], None]
+
+
+@dataclass
+class Plan:
+    """q (n, 6); table_rad (n,); cameras to render; predicted_rows (n, 2): lowest and highest
+    sensor row of the line in each frame from the ray casts (NaN: none), rendered cameras only."""
+
+    q: np.ndarray
+    table_rad: np.ndarray
+    cameras: tuple[int, ...]
+    predicted_rows: np.ndarray
+    warnings: list = field(default_factory=list)
+
+
+@dataclass
+class ScanResult:
+    cloud: object
+    report: dict
+    files: dict
+
+
+def frame_ranges(indices) -> str:
+    """[0, 1, 2, 5, 7, 8] -> '0-2, 5, 7-8' (the first 12 runs)."""
+    idx = sorted(int(i) for i in indices)
+    runs, start = [], None
+    for a, b in zip(idx, idx[1:] + [None]):
+        start = a if start is None else start
+        if b != a + 1:
+            runs.append(f"{start}" if start == a else f"{start}-{a}")
+            start = None
+    more = f" and {len(runs) - 12} more runs" if len(runs) > 12 else ""
+    return ", ".join(runs[:12]) + more
+
+
+def plan_scan(config: ScanConfig) -> Plan:
+    """IK for the whole path and the laser footprint check; raises before anything renders."""
+    cell = config.cell
+    wp = config.waypoints
+    sol = solve_path(cell, wp, config.q_start)
+    if not sol.ok.all():
+        bad = sol.unreachable
+        raise UnreachablePose(f"{len(bad)} of {len(wp)} waypoints cannot be reached (frames {frame_ranges(bad)}); "
+                              f"first, frame {bad[0]}: {sol.messages[bad[0]]}")
+    warnings = []
+    if sol.jumps:
+        warnings.append(f"joint jumps over {math.degrees(max(sol.max_step_rad)):.0f}° between neighbouring "
+                        f"waypoints at frames {frame_ranges(sol.jumps)} (near a singularity or a limit)")
+    foot = laser_footprint(config.probe, wp.probe2table, [config.workpiece.mesh, table_top_mesh()])
+    if foot.empty_frames:
+        z0, z1 = config.probe.z_range_mm
+        raise ScannerError(f"{len(foot.empty_frames)} of {len(wp)} waypoints put no surface inside the probe's "
+                           f"range {z0:.0f}-{z1:.0f} mm (frames {frame_ranges(foot.empty_frames)}): "
+                           "move the path closer to or farther from the part")
+    cameras = foot.cameras_needed() if config.leave_out.skip_blind_cameras else (0, 1)
+    if not cameras:
+        raise ScannerError("neither camera sees the laser line anywhere on the path (hidden or off the sensors)")
+    with np.errstate(all="ignore"):
+        rows = foot.rows[:, list(cameras)]
+        predicted = np.column_stack([np.nanmin(rows[:, :, 0], axis=1), np.nanmax(rows[:, :, 1], axis=1)])
+    return Plan(sol.q, wp.table_rad, cameras, predicted, warnings)
+
+
+class _Band:
+    """The rows to render next: where the line was in the last frame, widened by a margin that
+    follows its motion, joined with where the plan's ray casts put it in the coming frames."""
+
+    def __init__(self, rows_px: int, margin_px: int, chunk: int, predicted: np.ndarray):
+        self.H, self.margin, self.chunk = rows_px, margin_px, chunk
+        self.predicted = predicted
+        self.last: tuple[float, float] | None = None
+        self.speed = 0.0
+
+    def rows(self, first: int, count: int) -> tuple[int, int] | None:
+        """Band for frames first..first+count−1 (0-based path indices); None: all rows."""
+        lo, hi = [], []
+        if self.last is not None:
+            m = self.margin + self.speed * count
+            lo.append(self.last[0] - m)
+            hi.append(self.last[1] + m)
+        pred = self.predicted[first:first + count]
+        if np.isfinite(pred).any():
+            lo.append(np.nanmin(pred[:, 0]) - self.margin)
+            hi.append(np.nanmax(pred[:, 1]) + self.margin)
+        if not lo:
+            return None
+        r0 = max(0, int(math.floor(min(lo))))
+        r1 = min(self.H, int(math.ceil(max(hi))) + 1)
+        return None if r1 - r0 >= BAND_FULL_SHARE * self.H else (r0, r1)
+
+    def update(self, extent: tuple[float, float] | None) -> None:
+        if extent is None:
+            self.last, self.speed = None, 0.0
+            return
+        if self.last is not None:
+            self.speed = max(abs(extent[0] - self.last[0]), abs(extent[1] - self.last[1]))
+        self.last = extent
+
+
+def _line_extent(lines) -> tuple[float, float] | None:
+    rows = np.concatenate([ln.row[ln.valid] for ln in lines if ln is not None] or [np.zeros(0)])
+    return (float(rows.min()), float(rows.max())) if rows.size else None
+
+
+def _needs_full_frame(lines, rows, previous_rows, rows_px: int, margin_px: int) -> bool:
+    """Whether a band render may have cut the line: it touches an inner edge of the band, or
+    columns lost it whose line, in the previous frame, sat outside or near the band's edge
+    (columns that lose the line well inside the band lost it for a real reason)."""
+    if rows is None:
+        return False
+    low_edge, high_edge = rows[0] > 0, rows[1] < rows_px
+    for cam, ln in enumerate(lines):
+        if ln is None:
+            continue
+        r = ln.row[ln.valid]
+        if r.size and ((low_edge and r.min() < rows[0] + EDGE_PX) or (high_edge and r.max() > rows[1] - 1 - EDGE_PX)):
+            return True
+        if np.any(ln.code == LineCode.EDGE):
+            return True
+        prev = previous_rows[cam]
+        if prev is None:
+            continue
+        lost = np.isfinite(prev) & ~ln.valid
+        near = ((low_edge & (prev < rows[0] + margin_px)) | (high_edge & (prev > rows[1] - 1 - margin_px)))
+        if np.sum(lost & near) > max(2, LOST_COLUMNS * len(ln.col)):
+            return True
+    return False
+
+
+def run_scan(config: ScanConfig, out_dir: str | Path | None, scene=None, progress: Progress | None = None,
+             write_outputs: bool = True) -> ScanResult:
+    """Scan as configured; write cloud.ply, report.json and preview.png into ``out_dir``.
+
+    ``scene``: build the cell there (the Blender UI passes its own); None resets
+    Blender to an empty scene first (headless). Nothing is written unless the whole
+    scan succeeds.
+    """
+    timing: dict[str, float] = {}
+    t_all = time.perf_counter()
+    report_progress = progress or (lambda stage, done, total: None)
+
+    t = time.perf_counter()
+    plan = plan_scan(config)  # every refusal comes before Blender is even loaded
+    timing["plan"] = time.perf_counter() - t
+
+    from .scene.cell import build_cell
+    from .scene.laser import laser_power_w
+    from .scene.render import RenderSettings
+    from .scene.session import new_scene
+
+    t = time.perf_counter()
+    if scene is None:
+        scene = new_scene(config.render.device)
+    probe = config.probe
+    sc = build_cell(scene, config.cell, probe, config.workpiece, config.render.laser,
+                    laser_power_w(probe, peak=config.render.laser_peak))
+    frames = sc.keyframe(plan.q, plan.table_rad)
+    r = config.render
+    settings = RenderSettings(engine=r.engine, device=r.device, samples=r.samples, pixel_filter=r.pixel_filter,
+                              filter_width_px=r.filter_width_px, bounces=r.bounces, ambient=r.ambient)
+    timing["scene"] = time.perf_counter() - t
+
+    n = len(frames)
+    acc = CloudAccumulator()
+    probe2table = config.cell.probe2table(plan.q, plan.table_rad)
+    band = _Band(probe.rows_px, config.leave_out.band_margin_px, config.leave_out.chunk_frames,
+                 plan.predicted_rows)
+    use_band = config.leave_out.render_band
+    stats = dict(columns=0, valid=0, rerendered=0, band_rows=[], codes={})
+    t_render = t_detect = t_tri = 0.0
+    done = 0
+    previous_rows: list = [None, None]
+    chunk = config.leave_out.chunk_frames
+    while done < n:
+        size = 1 if done == 0 and not np.isfinite(plan.predicted_rows[0]).all() else min(chunk, n - done)
+        first = frames.start + done
+        rows = band.rows(done, size) if use_band else None
+        t = time.perf_counter()
+        images = sc.render(first, first + size - 1, settings, plan.cameras, rows=rows,
+                           leave_out_robot=config.leave_out.hide_robot)
+        t_render += time.perf_counter() - t
+        t = time.perf_counter()
+        lines = [_detect_all(img, rows, config) for img in images]
+        t_detect += time.perf_counter() - t
+        # Frames whose line the band may have cut are rendered again at full height, in one call.
+        redo = []
+        for i in range(size):
+            if _needs_full_frame(lines[i], rows, previous_rows, probe.rows_px, config.leave_out.band_margin_px):
+                redo.append(i)
+            previous_rows = [None if ln is None else ln.row for ln in lines[i]]
+        if redo:
+            t = time.perf_counter()
+            full = sc.render(first + redo[0], first + redo[-1], settings, plan.cameras,
+                             leave_out_robot=config.leave_out.hide_robot)
+            t_render += time.perf_counter() - t
+            stats["rerendered"] += len(full)
+            t = time.perf_counter()
+            for i in redo:
+                lines[i] = _detect_all(full[i - redo[0]], None, config)
+            t_detect += time.perf_counter() - t
+        for i in range(size):
+            t = time.perf_counter()
+            acc.add(_profile(probe, lines[i], config), probe2table[done + i], done + i)
+            t_tri += time.perf_counter() - t
+            stats["valid"] += sum(int(ln.valid.sum()) for ln in lines[i] if ln is not None)
+            stats["columns"] += sum(len(ln.col) for ln in lines[i] if ln is not None)
+            for ln in lines[i]:
+                if ln is not None:
+                    for name, count in ln.counts().items():
+                        stats["codes"][name] = stats["codes"].get(name, 0) + count
+            stats["band_rows"].append(probe.rows_px if rows is None or i in redo else rows[1] - rows[0])
+            band.update(_line_extent(lines[i]))
+        previous_rows = [None if ln is None else ln.row for ln in lines[size - 1]]
+        done += size
+        report_progress("scan", done, n)
+    timing.update(render=t_render, detect=t_detect, triangulate=t_tri)
+
+    t = time.perf_counter()
+    cloud = acc.cloud()
+    quality, on_part, error_um = _measure(cloud, config)
+    timing["metrics"] = time.perf_counter() - t
+
+    scan_time = t_render + t_detect + t_tri
+    report = {
+        "config": {"name": config.name, "file": config.source, "robot": config.robot.name, "probe": probe.name,
+                   "sensor_px": [probe.cols_px, probe.rows_px], "workpiece": config.workpiece.source,
+                   "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
+                   "triangulate": config.triangulate_method, "fuse": config.fuse},
+        "frames": n,
+        "points": len(cloud),
+        "valid_fraction": stats["valid"] / max(stats["columns"], 1),
+        "column_codes": stats["codes"],
+        "cameras_rendered": list(plan.cameras),
+        "frames_rerendered_full": stats["rerendered"],
+        "mean_rows_rendered": float(np.mean(stats["band_rows"])),
+        "time_s": {k: round(v, 4) for k, v in timing.items()},
+        "profiles_per_s": n / scan_time if scan_time > 0 else float("inf"),
+        **quality,
+        "warnings": plan.warnings,
+        "software": {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__},
+    }
+    files = {}
+    if write_outputs and out_dir is not None:
+        t = time.perf_counter()
+        files = _write_outputs(Path(out_dir), cloud, report, config, on_part, error_um)
+        timing["write"] = time.perf_counter() - t
+        report["time_s"]["write"] = round(timing["write"], 4)
+    report["time_s"]["total"] = round(time.perf_counter() - t_all, 4)
+    if files:
+        write_bytes_atomic(files["report"], (json.dumps(report, indent=2) + "\n").encode())
+    return ScanResult(cloud, report, files)
+
+
+def _detect_all(images, rows, config: ScanConfig):
+    """Detections for each camera's image (None where the camera was not rendered), rows in full-image terms."""
+    out = []
+    for img in images:
+        if img is None:
+            out.append(None)
+            continue
+        line = detect_line(img, config.detect_method, config.detect)
+        if rows is not None:  # the image holds rows r0..r1−1 of the sensor
+            line.row = line.row + rows[0]
+            line.shape = (config.probe.rows_px, config.probe.cols_px)
+            # (A peak on the band's first or last row is coded EDGE; the caller re-renders
+            # such frames at full height, where only the sensor's own edges stay EDGE.)
+        out.append(line)
+    return out
+
+
+def _profile(probe, lines, config: ScanConfig):
+    profs = [triangulate_profile(probe, ln, cam, config.triangulate_method)
+             for cam, ln in enumerate(lines) if ln is not None]
+    if len(profs) == 2 and config.fuse:
+        return fuse_profiles(*profs)
+    if len(profs) == 2:
+        merged = profs[0].take(np.ones(len(profs[0]), bool))
+        other = profs[1]
+        merged.points = np.concatenate([merged.points, other.points])
+        for name in ("col", "camera", "angle_rad", "sigma_mm"):
+            setattr(merged, name, np.concatenate([getattr(merged, name), getattr(other, name)]))
+        return merged
+    return profs[0]
+
+
+def _measure(cloud, config: ScanConfig) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Error against the truth: points nearer the part count as the part's, the rest as the table's.
+
+    Returns (report entries, on_part (n,) bool, |error| (n,) µm to the part)."""
+    wp = config.workpiece
+    P = cloud.points
+    if len(P) == 0:
+        return ({"points_on_part": 0, "points_on_table": 0, "error_um": metrics.error_stats([]).as_dict(),
+                 "table_error_um": metrics.error_stats([]).as_dict(), "coverage": 0.0,
+                 "coverage_tolerance_mm": config.coverage_tolerance_mm}, np.zeros(0, bool), np.zeros(0))
+    d_part, s_part = metrics.distances(P, wp.truth)
+    radial = np.hypot(P[:, 0], P[:, 1])
+    d_table = np.where(radial <= TABLE_RADIUS_MM, np.abs(P[:, 2]), np.inf)
+    on_part = d_part <= d_table
+    part = metrics.error_stats(d_part[on_part], None if s_part is None else s_part[on_part])
+    table = metrics.error_stats(d_table[~on_part], P[~on_part, 2])
+    coverage = metrics.coverage(P[on_part], wp.mesh, config.coverage_tolerance_mm)
+    return ({"points_on_part": int(on_part.sum()), "points_on_table": int((~on_part).sum()),
+             "error_um": part.as_dict(), "table_error_um": table.as_dict(), "coverage": coverage,
+             "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3)
+
+
+def _write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, err) -> dict:
+    e = report["error_um"]
+    title = (f"{config.name}: {len(cloud)} points, RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
+             f"coverage {report['coverage'] * 100:.0f} %")
+    picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title)
+    ok, png = cv2.imencode(".png", picture)
+    if not ok:
+        raise ScannerError("could not encode the preview picture")
+    files = {"cloud": out / "cloud.ply", "report": out / "report.json", "preview": out / "preview.png"}
+    save_ply(cloud, files["cloud"])
+    write_bytes_atomic(files["preview"], png.tobytes())
+    return files

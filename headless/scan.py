@@ -1,0 +1,136 @@
+"""``python -m headless scan CONFIG`` and ``python -m headless demo``: run a scan, print a summary.
+
+Exit codes: 0 done; 2 the config or an option is wrong (one line on stderr, no
+files written); 3 the scan ran but its RMS error exceeds ``--max-rms-um``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+EXIT_QUALITY = 3
+
+
+def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
+    if not demo:
+        parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
+    parser.add_argument("--out", help="output folder (default: out/<config name>)")
+    parser.add_argument("--frames", help="part of the path, as A:B (Python slice, e.g. 0:40 or ::2)")
+    parser.add_argument("--engine", choices=("cycles", "eevee"), help="render engine (eevee uses the slit laser)")
+    parser.add_argument("--samples", type=int, help="samples per pixel")
+    parser.add_argument("--resolution", help="sensor size WxH (columns x rows), the probe's optics kept")
+    parser.add_argument("--detect", choices=("threshold", "cog", "gauss", "steger"), help="line detection method")
+    parser.add_argument("--max-rms-um", type=float, help="exit with code 3 when the part's RMS error is larger")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(run=run_demo if demo else run_scan_command)
+
+
+def parse_frames(text: str | None) -> slice | None:
+    if text is None:
+        return None
+    from addon.core.errors import InputError
+
+    parts = text.split(":")
+    try:
+        if len(parts) == 1:
+            i = int(parts[0])
+            return slice(i, i + 1)
+        if len(parts) in (2, 3):
+            return slice(*[int(p) if p.strip() else None for p in parts])
+    except ValueError:
+        pass
+    raise InputError(f"--frames {text!r}: expected A:B or A:B:STEP with whole numbers (e.g. 0:40)")
+
+
+def parse_resolution(text: str | None):
+    if text is None:
+        return None
+    from addon.core.errors import InputError
+
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--resolution {text!r}: expected WxH, e.g. 320x320") from None
+    if not (2 <= w <= 100000 and 2 <= h <= 100000):
+        raise InputError(f"--resolution {text!r}: both sizes must be in [2, 100000] pixels")
+    return w, h
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr (a line per 10 % when stderr is not a terminal)."""
+
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+        self.tty = sys.stderr.isatty()
+        self.start = time.perf_counter()
+        self.shown = -1
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if self.quiet:
+            return
+        frac = done / max(total, 1)
+        rate = done / max(time.perf_counter() - self.start, 1e-9)
+        if self.tty:
+            bar = "#" * int(30 * frac)
+            sys.stderr.write(f"\r{stage}: [{bar:<30}] {done}/{total} frames, {rate:.0f} frames/s")
+            if done >= total:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+        elif int(frac * 10) > self.shown:
+            self.shown = int(frac * 10)
+            print(f"{stage}: {done}/{total} frames", file=sys.stderr, flush=True)
+
+
+def run_scan_command(args: argparse.Namespace) -> int:
+    from addon.core.scanconfig import load_scan_config
+
+    config = load_scan_config(args.config)
+    return _run(args, config, args.out or str(Path("out") / Path(config.source).stem))
+
+
+def run_demo(args: argparse.Namespace) -> int:
+    from addon.core.scanconfig import load_scan_config
+
+    config = load_scan_config("demo")
+    return _run(args, config, args.out or "out/demo")
+
+
+def _run(args: argparse.Namespace, config, out: str) -> int:
+    from addon.pipeline import run_scan
+
+    config = config.with_overrides(engine=args.engine, samples=args.samples,
+                                   resolution=parse_resolution(args.resolution), detect=args.detect,
+                                   frames=parse_frames(args.frames))
+    if args.max_rms_um is not None and not args.max_rms_um > 0:
+        from addon.core.errors import InputError
+
+        raise InputError(f"--max-rms-um must be a positive number of micrometres, got {args.max_rms_um}")
+    print(f"scan: {config.name} ({len(config.waypoints)} frames, {config.robot.name}, {config.probe.name}, "
+          f"workpiece {config.workpiece.source})", flush=True)
+    t = time.perf_counter()
+    result = run_scan(config, out, progress=ProgressBar(args.quiet))
+    wall = time.perf_counter() - t
+    r = result.report
+    e = r["error_um"]
+    print(f"\n  points        {r['points']} ({r['points_on_part']} on the part, {r['points_on_table']} on the table), "
+          f"{r['valid_fraction'] * 100:.1f} % of sensor columns with a line")
+    print(f"  error         RMS {e['rms_um']:.1f} um, mean {e['mean_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
+          f"max {e['max_um']:.1f} um, bias {e['bias_um']:+.1f} um (part, against its exact shape)")
+    print(f"  coverage      {r['coverage'] * 100:.1f} % of the part within {r['coverage_tolerance_mm']:g} mm of a point")
+    ts = r["time_s"]
+    print(f"  time          {wall:.1f} s: plan {ts['plan']:.2f}, scene {ts['scene']:.2f}, render {ts['render']:.2f}, "
+          f"detect {ts['detect']:.2f}, triangulate {ts['triangulate']:.2f}, write {ts.get('write', 0):.2f}")
+    print(f"  speed         {r['profiles_per_s']:.1f} profiles/s (render + detect + triangulate); "
+          f"cameras {r['cameras_rendered']}, {r['mean_rows_rendered']:.0f} of {r['config']['sensor_px'][1]} rows "
+          f"rendered on average")
+    for w in r["warnings"]:
+        print(f"  warning       {w}")
+    for name, path in result.files.items():
+        print(f"  {name:<13} {path}")
+    if args.max_rms_um is not None and not e["rms_um"] <= args.max_rms_um:
+        print(f"error: RMS error {e['rms_um']:.1f} um exceeds --max-rms-um {args.max_rms_um:g}", file=sys.stderr)
+        return EXIT_QUALITY
+    return 0

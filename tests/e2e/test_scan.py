@@ -1,0 +1,168 @@
+"""Whole scans against exact ground truth, determinism, table invariance, and refusals.
+
+Error bounds, derived from the detection accuracy (not fitted to the results):
+
+- On rendered planes the gobo line is found to |mean| 0.003 px, RMS 0.011 px
+  (tests/scene/test_optics.py). The triangulation turns a row error into a point
+  error through the probe's sensitivity, 0.085–0.10 mm per 0.1 px across the
+  default probe's range (each point carries it: quality = mm per 0.1 px). So
+  detection alone accounts for RMS ≤ 0.011 px × 1.0 mm/px ≈ 11 µm; we allow 3× that.
+- The line has a width (σ = 0.6 mm on the part); on a convex surface of radius R its
+  lit strip curves away from the laser plane by up to σ²/(2R) on each side, which
+  pulls the measured point inward: 6 µm for R = 30 mm; we allow 2× that.
+- The sphere is rendered as flat facets whose sag is at most R/6400 (1.4 µm).
+- Grazing incidence and depth edges (where pixels mix two surfaces) are outside
+  this model; the bounds are checked where the beam meets the surface within 45°
+  of its normal and away from edges, and the whole cloud's p95 is bounded separately.
+"""
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from addon.core.scanconfig import load_scan_config
+from addon.pipeline import run_scan
+
+REPO = Path(__file__).resolve().parents[2]
+DETECTION_UM = 3 * 11.0
+SPHERE_BOUND_UM = DETECTION_UM + 2 * 0.6 ** 2 / (2 * 30.0) * 1e3 + 30.0 / 6400 * 1e3  # ≈ 46 µm
+PLANE_BOUND_UM = DETECTION_UM + 4.0  # ≈ 37 µm (4 µm: the measured bias on planes)
+
+
+@pytest.fixture(scope="module")
+def sphere_scan():
+    cfg = load_scan_config("demo").with_overrides(frames=slice(None, None, 6))  # 30 frames
+    return cfg, run_scan(cfg, None, write_outputs=False)
+
+
+def incidence_deg(points, centre):
+    n = points - centre
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return np.degrees(np.arccos(np.clip(n[:, 2], -1, 1)))  # the beam points straight down
+
+
+def test_sphere_error_within_the_derived_bound(sphere_scan):
+    cfg, res = sphere_scan
+    sphere = cfg.workpiece.truth
+    P = res.cloud.points
+    s = sphere.signed_distance(P)
+    on = np.abs(s) < 1.0
+    good = on & (incidence_deg(P, sphere.pose[:3, 3]) < 45)
+    assert good.sum() > 1000
+    rms = np.sqrt(np.mean(s[good] ** 2)) * 1e3
+    assert rms <= SPHERE_BOUND_UM, rms
+    assert res.report["error_um"]["p95_um"] <= 2 * SPHERE_BOUND_UM
+    assert res.report["valid_fraction"] > 0.8
+    assert res.report["points_on_part"] > 2000 and res.report["coverage"] > 0.1  # 30 profiles, 1 mm tolerance
+
+
+def test_report_has_the_figures(sphere_scan):
+    _, res = sphere_scan
+    r = res.report
+    for key in ("frames", "points", "valid_fraction", "time_s", "profiles_per_s", "error_um", "coverage",
+                "cameras_rendered", "mean_rows_rendered"):
+        assert key in r
+    for stage in ("plan", "scene", "render", "detect", "triangulate", "metrics", "total"):
+        assert r["time_s"][stage] >= 0
+    assert set(r["error_um"]) == {"n", "rms_um", "mean_um", "p95_um", "max_um", "bias_um"}
+    json.dumps(r)  # everything in it is plain JSON
+
+
+def tread_points(cfg, points):
+    """Points on the step block's treads, at least 2 mm from every edge."""
+    block = cfg.workpiece.truth
+    local = block.to_local(points)
+    boxes = block._boxes()
+    keep = np.zeros(len(points), bool)
+    for lo, hi in boxes:
+        keep |= ((local[:, 0] > lo[0] + 2) & (local[:, 0] < hi[0] - 2) & (np.abs(local[:, 1]) < hi[1] - 2)
+                 & (np.abs(local[:, 2] - hi[2]) < 1.0))
+    return keep
+
+
+def test_turning_the_table_between_scans_keeps_the_cloud_on_the_part():
+    base = load_scan_config("step_block").with_overrides(frames=slice(0, 60, 3))
+    turned = replace(base, waypoints=replace(base.waypoints, table_rad=base.waypoints.table_rad + np.radians(75)))
+    a = run_scan(base, None, write_outputs=False).cloud
+    b = run_scan(turned, None, write_outputs=False).cloud
+    for cloud in (a, b):
+        d = base.workpiece.truth.distance(cloud.points[tread_points(base, cloud.points)])
+        assert len(d) > 500 and np.sqrt(np.mean(d ** 2)) * 1e3 <= PLANE_BOUND_UM
+    # The robot moved quite differently, but in the table frame the two clouds coincide.
+    assert len(a) == len(b)
+    assert np.abs(a.points - b.points).max() < 1e-3
+
+
+def test_the_same_config_gives_the_same_cloud_twice():
+    cfg = load_scan_config("step_block").with_overrides(frames=slice(60, 100, 4))
+    a = run_scan(cfg, None, write_outputs=False).cloud
+    b = run_scan(cfg, None, write_outputs=False).cloud
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.frame, b.frame)
+
+
+def test_leaving_out_does_not_change_the_cloud():
+    cfg = load_scan_config("step_block").with_overrides(frames=slice(0, 100, 5))
+    lean = run_scan(cfg, None, write_outputs=False)
+    full = replace(cfg, leave_out=replace(cfg.leave_out, render_band=False, skip_blind_cameras=False, hide_robot=False))
+    everything = run_scan(full, None, write_outputs=False)
+    assert len(lean.cloud) == len(everything.cloud)
+    # With nothing left out the probe's pose comes through Blender's float32 bone chain
+    # and the table's Euler angle: sub-micrometre differences, a few more at depth edges.
+    d = np.linalg.norm(lean.cloud.points - everything.cloud.points, axis=1) * 1e3
+    assert np.median(d) < 1.0 and np.percentile(d, 99) < 2.0
+    assert lean.report["mean_rows_rendered"] < everything.report["mean_rows_rendered"]
+
+
+def cli(*args):
+    return subprocess.run([sys.executable, "-m", "headless", *args], cwd=REPO, capture_output=True, text=True)
+
+
+def test_cli_scan_writes_outputs_and_gates_on_rms(tmp_path):
+    out = tmp_path / "scan"
+    res = cli("scan", "step_block", "--frames", "0:100:10", "--out", str(out), "--max-rms-um", "0.001", "--quiet")
+    assert res.returncode == 3, res.stderr[-1500:]
+    assert "exceeds --max-rms-um" in res.stderr
+    assert {p.name for p in out.iterdir()} == {"cloud.ply", "report.json", "preview.png"}
+    report = json.loads((out / "report.json").read_text())
+    assert report["frames"] == 10
+    assert "RMS" in res.stdout and "profiles/s" in res.stdout
+
+
+@pytest.mark.parametrize(
+    "edit,fragment",
+    [
+        (lambda t: t.replace('rig = "puma560"', 'rig = "kuka"'), "robot.rig"),
+        (lambda t: t.replace("frames = 60", "frames = 0"), "path[1].frames"),
+        (lambda t: t + '\n[render]\nsampels = 4\n', "unknown key render.sampels"),
+        (lambda t: t.replace("[0.0, -35.0, 200.0]", "[900.0, -35.0, 200.0]"), "cannot be reached"),
+        (lambda t: t.replace("[-45.0, 0.0, 200.0]", "[-45.0, 0.0, 420.0]").replace("[45.0, 0.0, 200.0]",
+                                                                                  "[45.0, 0.0, 420.0]"),
+         "no surface inside the probe's range"),
+        (lambda t: t.replace("[workpiece]", "[workpiece]\nfile = 'part.stl'"), "exactly one of"),
+        (lambda t: "not = [toml", "not valid TOML"),
+    ],
+)
+def test_bad_configs_give_one_line_and_no_files(tmp_path, edit, fragment):
+    text = (REPO / "rigs" / "scenes" / "step_block.toml").read_text()
+    path = tmp_path / "bad.toml"
+    path.write_text(edit(text))
+    out = tmp_path / "out"
+    res = cli("scan", str(path), "--out", str(out), "--quiet")
+    assert res.returncode == 2, res.stdout + res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0], lines
+    assert "Traceback" not in res.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("option,fragment", [(("--frames", "9:x"), "--frames"), (("--resolution", "big"), "WxH"),
+                                              (("--samples", "0"), "--samples"), (("--frames", "500:600"), "no frames")])
+def test_bad_options(tmp_path, option, fragment):
+    res = cli("scan", "step_block", "--out", str(tmp_path / "o"), *option)
+    assert res.returncode == 2 and fragment in res.stderr and "Traceback" not in res.stderr
