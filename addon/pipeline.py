@@ -65,9 +65,14 @@ class Plan:
 
 @dataclass
 class ScanResult:
+    """cloud (table frame); report (the report.json content); files written; per point:
+    |error| to the part in µm and whether the point counts as the part's (else the table's)."""
+
     cloud: object
     report: dict
     files: dict
+    error_um: np.ndarray | None = None
+    on_part: np.ndarray | None = None
 
 
 def frame_ranges(indices) -> str:
@@ -185,73 +190,96 @@ def run_scan(config: ScanConfig, out_dir: str | Path | None, scene=None, progres
     Blender to an empty scene first (headless). Nothing is written unless the whole
     scan succeeds.
     """
-    timing: dict[str, float] = {}
-    t_all = time.perf_counter()
-    report_progress = progress or (lambda stage, done, total: None)
+    run = ScanRun(config, scene, progress)
+    while not run.step():
+        pass
+    return run.finish(out_dir if write_outputs else None)
 
-    t = time.perf_counter()
-    plan = plan_scan(config)  # every refusal comes before Blender is even loaded
-    timing["plan"] = time.perf_counter() - t
 
-    from .scene.cell import build_cell
-    from .scene.laser import laser_power_w
-    from .scene.render import RenderSettings
-    from .scene.session import new_scene
+class ScanRun:
+    """A scan in steps, for callers that must stay responsive (the Blender panel's modal
+    operator): construct (plans and builds; raises on refusal), call :meth:`step` until it
+    returns True (one chunk of frames each), then :meth:`finish`. Dropping the object
+    before :meth:`finish` discards everything; nothing has been written."""
 
-    t = time.perf_counter()
-    if scene is None:
-        scene = new_scene(config.render.device)
-    probe = config.probe
-    sc = build_cell(scene, config.cell, probe, config.workpiece, config.render.laser,
-                    laser_power_w(probe, peak=config.render.laser_peak))
-    frames = sc.keyframe(plan.q, plan.table_rad)
-    r = config.render
-    settings = RenderSettings(engine=r.engine, device=r.device, samples=r.samples, pixel_filter=r.pixel_filter,
-                              filter_width_px=r.filter_width_px, bounces=r.bounces, ambient=r.ambient)
-    timing["scene"] = time.perf_counter() - t
+    def __init__(self, config: ScanConfig, scene=None, progress: Progress | None = None):
+        self.config = config
+        self.timing: dict[str, float] = {}
+        self.t_all = time.perf_counter()
+        self.progress = progress or (lambda stage, done, total: None)
 
-    n = len(frames)
-    acc = CloudAccumulator()
-    probe2table = config.cell.probe2table(plan.q, plan.table_rad)
-    band = _Band(probe.rows_px, config.leave_out.band_margin_px, config.leave_out.chunk_frames,
-                 plan.predicted_rows)
-    use_band = config.leave_out.render_band
-    stats = dict(columns=0, valid=0, rerendered=0, band_rows=[], codes={})
-    t_render = t_detect = t_tri = 0.0
-    done = 0
-    previous_rows: list = [None, None]
-    chunk = config.leave_out.chunk_frames
-    while done < n:
-        size = 1 if done == 0 and not np.isfinite(plan.predicted_rows[0]).all() else min(chunk, n - done)
-        first = frames.start + done
-        rows = band.rows(done, size) if use_band else None
         t = time.perf_counter()
-        images = sc.render(first, first + size - 1, settings, plan.cameras, rows=rows,
-                           leave_out_robot=config.leave_out.hide_robot)
-        t_render += time.perf_counter() - t
+        self.plan = plan_scan(config)  # every refusal comes before Blender is even loaded
+        self.timing["plan"] = time.perf_counter() - t
+
+        from .scene.cell import build_cell
+        from .scene.laser import laser_power_w
+        from .scene.render import RenderSettings
+        from .scene.session import new_scene
+
+        t = time.perf_counter()
+        if scene is None:
+            scene = new_scene(config.render.device)
+        probe = config.probe
+        self.sc = build_cell(scene, config.cell, probe, config.workpiece, config.render.laser,
+                             laser_power_w(probe, peak=config.render.laser_peak))
+        self.frames = self.sc.keyframe(self.plan.q, self.plan.table_rad)
+        r = config.render
+        self.settings = RenderSettings(engine=r.engine, device=r.device, samples=r.samples,
+                                       pixel_filter=r.pixel_filter, filter_width_px=r.filter_width_px,
+                                       bounces=r.bounces, ambient=r.ambient)
+        self.timing["scene"] = time.perf_counter() - t
+        self.n = len(self.frames)
+        self.acc = CloudAccumulator()
+        self.probe2table = config.cell.probe2table(self.plan.q, self.plan.table_rad)
+        self.band = _Band(probe.rows_px, config.leave_out.band_margin_px, config.leave_out.chunk_frames,
+                          self.plan.predicted_rows)
+        self.stats = dict(columns=0, valid=0, rerendered=0, band_rows=[], codes={})
+        self.t_render = self.t_detect = self.t_tri = 0.0
+        self.done = 0
+        self.previous_rows: list = [None, None]
+
+    @property
+    def scene_cell(self):
+        return self.sc
+
+    def step(self) -> bool:
+        """Render, detect and triangulate the next chunk of frames; True when all are done."""
+        if self.done >= self.n:
+            return True
+        config, probe, plan, sc = self.config, self.config.probe, self.plan, self.sc
+        chunk = config.leave_out.chunk_frames
+        done = self.done
+        size = 1 if done == 0 and not np.isfinite(plan.predicted_rows[0]).all() else min(chunk, self.n - done)
+        first = self.frames.start + done
+        rows = self.band.rows(done, size) if config.leave_out.render_band else None
+        hide = config.leave_out.hide_robot
+        t = time.perf_counter()
+        images = sc.render(first, first + size - 1, self.settings, plan.cameras, rows=rows, leave_out_robot=hide)
+        self.t_render += time.perf_counter() - t
         t = time.perf_counter()
         lines = [_detect_all(img, rows, config) for img in images]
-        t_detect += time.perf_counter() - t
+        self.t_detect += time.perf_counter() - t
         # Frames whose line the band may have cut are rendered again at full height, in one call.
         redo = []
         for i in range(size):
-            if _needs_full_frame(lines[i], rows, previous_rows, probe.rows_px, config.leave_out.band_margin_px):
+            if _needs_full_frame(lines[i], rows, self.previous_rows, probe.rows_px, config.leave_out.band_margin_px):
                 redo.append(i)
-            previous_rows = [None if ln is None else ln.row for ln in lines[i]]
+            self.previous_rows = [None if ln is None else ln.row for ln in lines[i]]
         if redo:
             t = time.perf_counter()
-            full = sc.render(first + redo[0], first + redo[-1], settings, plan.cameras,
-                             leave_out_robot=config.leave_out.hide_robot)
-            t_render += time.perf_counter() - t
-            stats["rerendered"] += len(full)
+            full = sc.render(first + redo[0], first + redo[-1], self.settings, plan.cameras, leave_out_robot=hide)
+            self.t_render += time.perf_counter() - t
+            self.stats["rerendered"] += len(full)
             t = time.perf_counter()
             for i in redo:
                 lines[i] = _detect_all(full[i - redo[0]], None, config)
-            t_detect += time.perf_counter() - t
+            self.t_detect += time.perf_counter() - t
+        stats = self.stats
         for i in range(size):
             t = time.perf_counter()
-            acc.add(_profile(probe, lines[i], config), probe2table[done + i], done + i)
-            t_tri += time.perf_counter() - t
+            self.acc.add(_profile(probe, lines[i], config), self.probe2table[done + i], done + i)
+            self.t_tri += time.perf_counter() - t
             stats["valid"] += sum(int(ln.valid.sum()) for ln in lines[i] if ln is not None)
             stats["columns"] += sum(len(ln.col) for ln in lines[i] if ln is not None)
             for ln in lines[i]:
@@ -259,46 +287,51 @@ def run_scan(config: ScanConfig, out_dir: str | Path | None, scene=None, progres
                     for name, count in ln.counts().items():
                         stats["codes"][name] = stats["codes"].get(name, 0) + count
             stats["band_rows"].append(probe.rows_px if rows is None or i in redo else rows[1] - rows[0])
-            band.update(_line_extent(lines[i]))
-        previous_rows = [None if ln is None else ln.row for ln in lines[size - 1]]
-        done += size
-        report_progress("scan", done, n)
-    timing.update(render=t_render, detect=t_detect, triangulate=t_tri)
+            self.band.update(_line_extent(lines[i]))
+        self.previous_rows = [None if ln is None else ln.row for ln in lines[size - 1]]
+        self.done += size
+        self.progress("scan", self.done, self.n)
+        return self.done >= self.n
 
-    t = time.perf_counter()
-    cloud = acc.cloud()
-    quality, on_part, error_um = _measure(cloud, config)
-    timing["metrics"] = time.perf_counter() - t
-
-    scan_time = t_render + t_detect + t_tri
-    report = {
-        "config": {"name": config.name, "file": config.source, "robot": config.robot.name, "probe": probe.name,
-                   "sensor_px": [probe.cols_px, probe.rows_px], "workpiece": config.workpiece.source,
-                   "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
-                   "triangulate": config.triangulate_method, "fuse": config.fuse},
-        "frames": n,
-        "points": len(cloud),
-        "valid_fraction": stats["valid"] / max(stats["columns"], 1),
-        "column_codes": stats["codes"],
-        "cameras_rendered": list(plan.cameras),
-        "frames_rerendered_full": stats["rerendered"],
-        "mean_rows_rendered": float(np.mean(stats["band_rows"])),
-        "time_s": {k: round(v, 4) for k, v in timing.items()},
-        "profiles_per_s": n / scan_time if scan_time > 0 else float("inf"),
-        **quality,
-        "warnings": plan.warnings,
-        "software": {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__},
-    }
-    files = {}
-    if write_outputs and out_dir is not None:
+    def finish(self, out_dir: str | Path | None) -> ScanResult:
+        """Measure against the truth, build the report and (with ``out_dir``) write the files."""
+        config, probe, plan = self.config, self.config.probe, self.plan
+        timing = self.timing
+        timing.update(render=self.t_render, detect=self.t_detect, triangulate=self.t_tri)
         t = time.perf_counter()
-        files = _write_outputs(Path(out_dir), cloud, report, config, on_part, error_um)
-        timing["write"] = time.perf_counter() - t
-        report["time_s"]["write"] = round(timing["write"], 4)
-    report["time_s"]["total"] = round(time.perf_counter() - t_all, 4)
-    if files:
-        write_bytes_atomic(files["report"], (json.dumps(report, indent=2) + "\n").encode())
-    return ScanResult(cloud, report, files)
+        cloud = self.acc.cloud()
+        quality, on_part, error_um = _measure(cloud, config)
+        timing["metrics"] = time.perf_counter() - t
+        scan_time = self.t_render + self.t_detect + self.t_tri
+        r = config.render
+        report = {
+            "config": {"name": config.name, "file": config.source, "robot": config.robot.name, "probe": probe.name,
+                       "sensor_px": [probe.cols_px, probe.rows_px], "workpiece": config.workpiece.source,
+                       "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
+                       "triangulate": config.triangulate_method, "fuse": config.fuse},
+            "frames": self.n,
+            "points": len(cloud),
+            "valid_fraction": self.stats["valid"] / max(self.stats["columns"], 1),
+            "column_codes": self.stats["codes"],
+            "cameras_rendered": list(plan.cameras),
+            "frames_rerendered_full": self.stats["rerendered"],
+            "mean_rows_rendered": float(np.mean(self.stats["band_rows"])) if self.stats["band_rows"] else 0.0,
+            "time_s": {k: round(v, 4) for k, v in timing.items()},
+            "profiles_per_s": self.n / scan_time if scan_time > 0 else float("inf"),
+            **quality,
+            "warnings": plan.warnings,
+            "software": {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__},
+        }
+        files = {}
+        if out_dir is not None:
+            t = time.perf_counter()
+            files = _write_outputs(Path(out_dir), cloud, report, config, on_part, error_um)
+            timing["write"] = time.perf_counter() - t
+            report["time_s"]["write"] = round(timing["write"], 4)
+        report["time_s"]["total"] = round(time.perf_counter() - self.t_all, 4)
+        if files:
+            write_bytes_atomic(files["report"], (json.dumps(report, indent=2) + "\n").encode())
+        return ScanResult(cloud, report, files, error_um, on_part)
 
 
 def _detect_all(images, rows, config: ScanConfig):

@@ -10,6 +10,7 @@ Commands:
   bench render         N frames in one render call against N separate calls
   bench scan           profiles/s end to end, error, and what each leave-out saves
   overview             a picture of the cell and the two probe camera images
+  build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
 
 Errors the user can fix (bad rig file, bad value) print one line and exit 2.
 """
@@ -37,7 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="benchmarks that print figures and ratios")
     bench_sub = bench.add_subparsers(dest="bench", required=True, metavar="NAME")
-    from headless import overview
+    from headless import build_extension, overview
     from headless.bench import detect as bench_detect
     from headless.bench import kinematics as bench_kinematics
     from headless.bench import render as bench_render
@@ -45,6 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
     from headless.bench import triangulate as bench_triangulate
 
     overview.add_arguments(sub.add_parser("overview", help=overview.__doc__.split("\n")[0]))
+    build_extension.add_arguments(sub.add_parser("build-extension", help=build_extension.__doc__.split("\n")[0]))
     for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),
                          ("triangulate", bench_triangulate), ("render", bench_render), ("scan", bench_scan)):
         module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))

@@ -14,6 +14,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=int, default=720)
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--samples", type=int, default=24)
+    parser.add_argument("--scan", metavar="CONFIG",
+                        help="first run this scan through the Scanner panel's operator and show the imported "
+                             "cloud, framed on the table")
+    parser.add_argument("--frames", default="", help="with --scan: part of the path, as A:B (default all)")
     parser.set_defaults(run=run)
 
 
@@ -23,8 +27,37 @@ def run(args: argparse.Namespace) -> int:
     from headless import demo_cell
 
     scene = new_scene()
+    if args.scan:
+        return _with_scan(args, scene, render_overview)
     sc = demo_cell.build(scene, args.robot, args.probe, args.workpiece)
     frames = demo_cell.sweep(sc, 3, table_angle_rad=0.5)
     path = render_overview(sc, Path(args.out), args.width, args.height, args.samples, frame=frames.start + 1)
+    print(f"wrote {path}")
+    return 0
+
+
+def _with_scan(args, scene, render_overview) -> int:
+    """The Scanner panel's result: scan with its operator, then picture the cloud on the table."""
+    import bpy
+
+    import addon.ui as ui
+    from addon.core.scanconfig import load_scan_config
+    from addon.scene.cell import SceneCell
+
+    ui.register()
+    try:
+        s = scene.scanner
+        s.scan_config = "FILE"
+        s.scan_file = str(load_scan_config(args.scan).source)
+        bpy.ops.scanner.scan(frames=args.frames)
+        cfg = load_scan_config(args.scan)
+        sc = SceneCell.attach(scene, cfg.cell, cfg.probe, cfg.workpiece)
+        cloud = bpy.data.objects["Scan cloud"]
+        cloud.modifiers["Points"].node_group.nodes["Mesh to Points"].inputs["Radius"].default_value = 0.0009
+        focus = [o for o in sc.root.all_objects if o.name == "Turntable"]
+        scene.frame_set(scene.frame_end)
+        path = render_overview(sc, Path(args.out), args.width, args.height, args.samples, focus=focus)
+    finally:
+        ui.unregister()
     print(f"wrote {path}")
     return 0

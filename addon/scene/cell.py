@@ -32,6 +32,9 @@ from .turntable import add_turntable, add_workpiece, set_table_angle
 from .units import from_blender
 
 
+RESULTS = "Scan results"
+
+
 @dataclass
 class SceneCell:
     """Handles on the Blender objects of a built cell, and the core models behind them."""
@@ -50,6 +53,25 @@ class SceneCell:
     table: bpy.types.Object
     workpiece_object: bpy.types.Object | None
     extras: dict = field(default_factory=dict)
+
+    @classmethod
+    def attach(cls, scene, cell: Cell, probe: Probe, workpiece: Workpiece | None, name: str = "Scanner Cell"
+               ) -> "SceneCell | None":
+        """Handles on a cell built earlier (e.g. by the panel before a file save), or None."""
+        root = bpy.data.collections.get(name)
+        if root is None or root.name not in scene.collection.children:
+            return None
+        objs = {o.name: o for o in root.all_objects}
+        robot_col = root.children.get("Robot")
+        need = ("Robot", "Probe frame", "ProbeCam_L", "ProbeCam_R", "Laser", "Turntable")
+        if robot_col is None or any(k not in objs for k in need):
+            return None
+        wp = next((o for n, o in objs.items() if n.startswith("Workpiece ") and "twin" not in n), None)
+        laser = [objs["Laser"]] + ([objs["Laser slit"]] if "Laser slit" in objs else [])
+        cell = replace(cell, robot=cell.robot.with_tool(probe.mount))
+        return cls(scene, cell, probe, workpiece, "slit" if "Laser slit" in objs else "gobo", root, robot_col,
+                   objs["Robot"], objs["Probe frame"], [objs["ProbeCam_L"], objs["ProbeCam_R"]], laser,
+                   objs["Turntable"], wp)
 
     # -- posing -------------------------------------------------------------------
     def pose(self, q, table_angle_rad: float = 0.0) -> None:
@@ -86,6 +108,13 @@ class SceneCell:
         return rig.dh_frames(self.robot, self.cell.robot)
 
     # -- rendering ----------------------------------------------------------------
+    def results_collection(self) -> bpy.types.Collection:
+        """Where scan results (clouds) go: shown in the scene, never in the probe cameras' images."""
+        col = self.root.children.get(RESULTS)
+        if col is None:
+            col = _child_collection(self.root, RESULTS)
+        return col
+
     def render(self, first: int, last: int, settings: RenderSettings | None = None, cameras=(0, 1),
                out_dir=None, rows: tuple[int, int] | None = None, leave_out_robot: bool = True
                ) -> list[list[np.ndarray | None]]:
@@ -102,10 +131,18 @@ class SceneCell:
             raise InputError("Eevee ignores light node trees, so the gobo laser renders as a plain spot; "
                              "build the cell with laser='slit' to render with Eevee")
         configure(self.scene, self.probe, settings, self.cameras[0])
-        if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else
-            return render_animation(self.scene, first, last, cameras, out_dir, rows)
-        with self._without_rig(first, last):
-            return render_animation(self.scene, first, last, cameras, out_dir, rows)
+        results = self.root.children.get(RESULTS)
+        hidden = results.hide_render if results is not None else None
+        if results is not None:
+            results.hide_render = True  # an imported cloud is not part of what the probe sees
+        try:
+            if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else
+                return render_animation(self.scene, first, last, cameras, out_dir, rows)
+            with self._without_rig(first, last):
+                return render_animation(self.scene, first, last, cameras, out_dir, rows)
+        finally:
+            if results is not None:
+                results.hide_render = hidden
 
     @contextmanager
     def _without_rig(self, first: int, last: int):

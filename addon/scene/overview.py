@@ -38,8 +38,10 @@ def to_srgb8(img: np.ndarray) -> np.ndarray:
 
 
 def render_overview(sc: SceneCell, path: str | Path, width: int = 720, height: int = 480,
-                    samples: int = 24, frame: int | None = None) -> Path:
-    """Render the overview PNG for the current pose (or ``frame``) and write it atomically."""
+                    samples: int = 24, frame: int | None = None, focus: list | None = None) -> Path:
+    """Render the overview PNG for the current pose (or ``frame``) and write it atomically.
+
+    ``focus``: objects to frame (default: the whole cell)."""
     scene = sc.scene
     if frame is not None:
         scene.frame_set(frame)
@@ -47,7 +49,7 @@ def render_overview(sc: SceneCell, path: str | Path, width: int = 720, height: i
     # Some ambient light so the workpiece shows around the line.
     probe_imgs = sc.render(current, current, RenderSettings(ambient=0.12, samples=16, filter_width_px=1.0))[0]
 
-    lo, hi = _bounds([o for o in sc.root.all_objects])
+    lo, hi = _bounds(focus or [o for o in sc.root.all_objects])
     centre = (lo + hi) / 2
     radius = (hi - lo).length / 2
     cam_data = bpy.data.cameras.new("Overview")

@@ -1,11 +1,13 @@
 """Blender UI: properties, operators and the Scanner panel.
 
-Each module lists its classes in ``CLASSES``; this package registers them in
-order and unregisters them in reverse. (The panel itself arrives with the
-extension issue; until then the add-on registers nothing.)
+Each module lists its classes in ``CLASSES``; they are registered in order and
+unregistered in reverse, and the settings are attached to every scene as
+``scene.scanner``. Unregistering removes all of it, leaving nothing behind.
 """
 
-MODULES: tuple = ()
+from . import ops, panel, prefs, props
+
+MODULES = (props, ops, panel, prefs)
 
 
 def _classes():
@@ -18,10 +20,14 @@ def register() -> None:
 
     for cls in _classes():
         bpy.utils.register_class(cls)
+    bpy.types.Scene.scanner = bpy.props.PointerProperty(type=props.ScannerSettings)
 
 
 def unregister() -> None:
     import bpy
 
+    if hasattr(bpy.types.Scene, "scanner"):
+        del bpy.types.Scene.scanner
     for cls in reversed(list(_classes())):
-        bpy.utils.unregister_class(cls)
+        if getattr(cls, "is_registered", False):
+            bpy.utils.unregister_class(cls)

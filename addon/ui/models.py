@@ -1,0 +1,97 @@
+"""Core models from the panel's settings, and the cell's Blender objects found again by name."""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+import bpy
+
+from ..core.cell import Cell
+from ..core.errors import InputError
+from ..core.kinematics import load_robot
+from ..core.probe import Probe, load_probe
+from ..core.turntable import Turntable
+from ..core.workpiece import builtin_workpiece, load_workpiece
+from .props import FILE
+
+CELL_NAME = "Scanner Cell"
+CLOUD_NAME = "Scan cloud"
+# The extension's own package ("bl_ext.<repo>.<id>"); empty when these modules are used outside one.
+ROOT_PACKAGE = ".".join(__package__.split(".")[:-2])
+
+
+def _path(value: str, what: str) -> str:
+    if not value:
+        raise InputError(f"choose a {what} file first")
+    return bpy.path.abspath(value)
+
+
+def robot_from(s):
+    return load_robot(_path(s.robot_file, "robot") if s.robot == FILE else s.robot)
+
+
+def probe_from(s) -> Probe:
+    """The probe rig with the panel's optics (a, b, phi, gamma, sensor size); raises InputError when invalid."""
+    rig = load_probe(_path(s.probe_file, "probe") if s.probe == FILE else s.probe)
+    return replace(rig, a_mm=s.probe_a, b_mm=s.probe_b, phi_rad=s.probe_phi, gamma_rad=s.probe_gamma,
+                   rows_px=s.probe_rows, cols_px=s.probe_cols)
+
+
+def workpiece_from(s):
+    if s.workpiece == FILE:
+        return load_workpiece(_path(s.workpiece_file, "mesh"))
+    return builtin_workpiece(s.workpiece)
+
+
+def cell_from(s) -> Cell:
+    return Cell(robot_from(s), Turntable())
+
+
+def scene_cell(context):
+    """The built cell's handles, or None when no cell has been built in this scene."""
+    from ..scene.cell import SceneCell
+
+    s = context.scene.scanner
+    try:
+        return SceneCell.attach(context.scene, cell_from(s), probe_from(s), None, CELL_NAME)
+    except InputError:
+        return None
+
+
+def find_table(scene):
+    root = bpy.data.collections.get(CELL_NAME)
+    if root is None:
+        return None
+    return next((o for o in root.all_objects if o.name == "Turntable"), None)
+
+
+def find_robot(scene):
+    root = bpy.data.collections.get(CELL_NAME)
+    if root is None:
+        return None
+    return next((o for o in root.all_objects if o.name == "Robot"), None)
+
+
+def default_output_dir() -> Path:
+    """The extension's user folder when running as an extension, else a temporary folder."""
+    if ROOT_PACKAGE.startswith("bl_ext."):
+        return Path(bpy.utils.extension_path_user(ROOT_PACKAGE, path="scans", create=True))
+    folder = Path(tempfile.gettempdir()) / "laser_scanner_sim" / "scans"
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def output_dir(s, config_name: str) -> Path:
+    base = Path(bpy.path.abspath(s.output_dir)) if s.output_dir else default_output_dir()
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in config_name) or "scan"
+    return base / safe
+
+
+def status(context, text: str | None) -> None:
+    """Status-bar text (ignored where there is no window, e.g. headless)."""
+    if context.workspace is not None:
+        context.workspace.status_text_set(text)
+
+

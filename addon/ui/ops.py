@@ -1,0 +1,269 @@
+"""Operators behind the Scanner panel. Each can be called from scripts and tests through bpy.ops.
+
+Heavy imports (the pipeline, OpenCV, trimesh) happen inside ``execute``; errors
+the user can fix are reported in the status bar, and nothing changes then.
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+from bpy.props import StringProperty
+from bpy_extras.io_utils import ExportHelper
+
+from ..core.errors import ScannerError
+from . import models
+
+
+def _cell_built(context) -> bool:
+    return bpy.data.collections.get(models.CELL_NAME) is not None and models.find_robot(context.scene) is not None
+
+
+class SCANNER_OT_build_cell(bpy.types.Operator):
+    """Build (or rebuild) the scanning cell from the chosen robot, probe and workpiece"""
+
+    bl_idname = "scanner.build_cell"
+    bl_label = "Build Cell"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        from ..scene.cell import build_cell
+
+        s = context.scene.scanner
+        try:
+            sc = build_cell(context.scene, models.cell_from(s), models.probe_from(s), models.workpiece_from(s),
+                            s.laser, name=models.CELL_NAME)
+        except ScannerError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        sc.pose(np.zeros(6), s.table_angle)
+        self.report({"INFO"}, f"Built the cell: {sc.cell.robot.name}, {sc.probe.name}, {s.workpiece}")
+        return {"FINISHED"}
+
+
+class SCANNER_OT_load_probe(bpy.types.Operator):
+    """Copy the chosen probe rig's optics (a, b, phi, gamma, sensor) into the fields below"""
+
+    bl_idname = "scanner.load_probe"
+    bl_label = "Load from Rig"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        from ..core.probe import load_probe
+
+        s = context.scene.scanner
+        try:
+            p = load_probe(models._path(s.probe_file, "probe") if s.probe == models.FILE else s.probe)
+        except ScannerError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        s.probe_a, s.probe_b, s.probe_phi, s.probe_gamma = p.a_mm, p.b_mm, p.phi_rad, p.gamma_rad
+        s.probe_rows, s.probe_cols = p.rows_px, p.cols_px
+        return {"FINISHED"}
+
+
+class SCANNER_OT_go(bpy.types.Operator):
+    """Move the robot so the tool reaches the Cartesian target (inverse kinematics); nothing moves if it cannot"""
+
+    bl_idname = "scanner.go"
+    bl_label = "Go"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _cell_built(context)
+
+    def execute(self, context):
+        from ..core.euler import pose_from_xyz_yzz
+        from ..core.transforms import rigid_inverse
+        from ..scene import rig
+
+        s = context.scene.scanner
+        robot_obj = models.find_robot(context.scene)
+        try:
+            cell = models.cell_from(s)
+            probe = models.probe_from(s)
+            robot = cell.robot.with_tool(probe.mount)
+            target = pose_from_xyz_yzz(np.array(s.target_location), np.array(s.target_rotation))
+            tool = pose_from_xyz_yzz(np.array(s.tool_location), np.array(s.tool_rotation))
+            probe_target = target @ rigid_inverse(tool)  # the tool point sits at `tool` in the probe frame
+            from ..core.cell import Cell
+
+            res = Cell(robot, cell.table).ik(probe_target, rig.get_joints(robot_obj), relative_to=s.target_frame,
+                                             table_angle_rad=s.table_angle)
+        except ScannerError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        if not res.success:
+            self.report({"ERROR"}, f"Unreachable, the robot stays put: {res.message}")
+            return {"CANCELLED"}
+        rig.set_joints(robot_obj, res.q)
+        self.report({"INFO"}, "Reached: joints " + ", ".join(f"{math.degrees(v):.1f}" for v in res.q) + " deg")
+        return {"FINISHED"}
+
+
+class SCANNER_OT_render_views(bpy.types.Operator):
+    """Render what the two probe cameras see now and show the images (as in the paper's Fig. 4(c))"""
+
+    bl_idname = "scanner.render_views"
+    bl_label = "Render Probe Views"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        return _cell_built(context)
+
+    def execute(self, context):
+        from ..scene.render import RenderSettings
+
+        sc = models.scene_cell(context)
+        if sc is None:
+            self.report({"ERROR"}, "Build the cell first (the probe settings may be invalid)")
+            return {"CANCELLED"}
+        frame = context.scene.frame_current
+        images = sc.render(frame, frame, RenderSettings(ambient=0.08, samples=4, filter_width_px=1.0))[0]
+        for camera, img in enumerate(images):
+            name = f"Probe camera {camera}"
+            H, W = img.shape[:2]
+            target = bpy.data.images.get(name)
+            if target is None or tuple(target.size) != (W, H):
+                if target is not None:
+                    bpy.data.images.remove(target)
+                target = bpy.data.images.new(name, W, H, alpha=False, float_buffer=True)
+            rgba = np.dstack([img, np.ones((H, W), np.float32)])[::-1]  # Blender rows run bottom-up
+            target.pixels.foreach_set(rgba.ravel())
+            target.update()
+        for area in (context.screen.areas if context.screen else []):
+            if area.type == "IMAGE_EDITOR":
+                area.spaces.active.image = bpy.data.images["Probe camera 0"]
+                break
+        self.report({"INFO"}, "Rendered 'Probe camera 0' and 'Probe camera 1' (see the Image Editor)")
+        return {"FINISHED"}
+
+
+class SCANNER_OT_scan(bpy.types.Operator):
+    """Run the chosen scan: render, detect, triangulate, and bring the cloud into the scene (Esc cancels)"""
+
+    bl_idname = "scanner.scan"
+    bl_label = "Scan"
+    bl_options = {"REGISTER", "UNDO"}
+
+    frames: StringProperty(name="Frames", default="", description="Part of the path, as A:B (empty: all)")
+
+    _timer = None
+    _run = None
+
+    def _config(self, context):
+        from ..core.scanconfig import load_scan_config
+
+        s = context.scene.scanner
+        cfg = load_scan_config(models._path(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config)
+        if self.frames:
+            parts = [int(p) if p.strip() else None for p in self.frames.split(":")]
+            cfg = cfg.with_overrides(frames=slice(*parts))
+        return cfg
+
+    def _start(self, context):
+        from ..pipeline import ScanRun
+
+        self._run = ScanRun(self._config(context), scene=context.scene)
+
+    def _finish(self, context):
+        from ..scene.cloud_object import import_cloud
+
+        s = context.scene.scanner
+        run, self._run = self._run, None
+        result = run.finish(models.output_dir(s, run.config.name))
+        old = bpy.data.objects.get(models.CLOUD_NAME)
+        if old is not None:
+            bpy.data.objects.remove(old, do_unlink=True)
+        if s.import_cloud:
+            import_cloud(run.scene_cell.results_collection(), result.cloud, run.scene_cell.table, result.error_um,
+                         name=models.CLOUD_NAME, on_part=result.on_part)
+        e = result.report["error_um"]
+        self.report({"INFO"}, f"Scanned {result.report['points']} points, RMS {e['rms_um']:.1f} um; "
+                              f"files in {result.files['cloud'].parent}")
+
+    def execute(self, context):
+        try:
+            self._start(context)
+            while not self._run.step():
+                pass
+            self._finish(context)
+        except (ScannerError, ValueError) as exc:
+            self._run = None
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        try:
+            self._start(context)
+        except (ScannerError, ValueError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.01, window=context.window)
+        wm.progress_begin(0, self._run.n)
+        wm.modal_handler_add(self)
+        models.status(context, f"Scanning {self._run.n} frames... (Esc to cancel)")
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._stop(context)
+            self._run = None  # partial results are discarded: nothing was written or imported
+            self.report({"WARNING"}, "Scan cancelled; nothing was kept")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            done = self._run.step()
+        except ScannerError as exc:
+            self._stop(context)
+            self._run = None
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        context.window_manager.progress_update(self._run.done)
+        models.status(context, f"Scanning: {self._run.done}/{self._run.n} frames (Esc to cancel)")
+        if not done:
+            return {"RUNNING_MODAL"}
+        self._stop(context)
+        self._finish(context)
+        return {"FINISHED"}
+
+    def _stop(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        models.status(context, None)
+
+
+class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
+    """Save the scanned cloud (table frame, mm, with frame, camera and quality per point) as binary PLY"""
+
+    bl_idname = "scanner.export_ply"
+    bl_label = "Export PLY"
+    filename_ext = ".ply"
+    filter_glob: StringProperty(default="*.ply", options={"HIDDEN"})
+
+    @classmethod
+    def poll(cls, context):
+        return bpy.data.objects.get(models.CLOUD_NAME) is not None
+
+    def execute(self, context):
+        from ..core.cloud import save_ply
+        from ..scene.cloud_object import cloud_from_object
+
+        cloud = cloud_from_object(bpy.data.objects[models.CLOUD_NAME])
+        path = save_ply(cloud, self.filepath)
+        self.report({"INFO"}, f"Wrote {len(cloud)} points to {path}")
+        return {"FINISHED"}
+
+
+CLASSES = (SCANNER_OT_build_cell, SCANNER_OT_load_probe, SCANNER_OT_go, SCANNER_OT_render_views, SCANNER_OT_scan,
+           SCANNER_OT_export_ply)

@@ -1,0 +1,131 @@
+"""The Scanner panel in the 3D View's sidebar (tab "Scanner")."""
+
+from __future__ import annotations
+
+import bpy
+
+from ..core.errors import ScannerError
+from . import models
+
+
+class _ScannerPanel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Scanner"
+
+
+class SCANNER_PT_cell(_ScannerPanel, bpy.types.Panel):
+    bl_label = "Scanner Cell"
+
+    def draw(self, context):
+        s = context.scene.scanner
+        col = self.layout.column()
+        for prop, file_prop in (("robot", "robot_file"), ("probe", "probe_file"), ("workpiece", "workpiece_file")):
+            col.prop(s, prop)
+            if getattr(s, prop) == "FILE":
+                col.prop(s, file_prop, text="")
+        col.prop(s, "laser")
+        col.operator("scanner.build_cell", icon="OUTLINER_COLLECTION")
+
+
+class SCANNER_PT_joints(_ScannerPanel, bpy.types.Panel):
+    bl_label = "Joints"
+    bl_parent_id = "SCANNER_PT_cell"
+
+    def draw(self, context):
+        robot = models.find_robot(context.scene)
+        if robot is None:
+            self.layout.label(text="Build the cell first", icon="INFO")
+            return
+        col = self.layout.column(align=True)
+        for k in range(1, 7):
+            col.prop(robot, f'["q{k}"]', text=f"J{k}", slider=True)
+
+
+class SCANNER_PT_cartesian(_ScannerPanel, bpy.types.Panel):
+    bl_label = "Cartesian"
+    bl_parent_id = "SCANNER_PT_cell"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        s = context.scene.scanner
+        col = self.layout.column()
+        col.prop(s, "target_frame")
+        col.prop(s, "target_location")
+        col.prop(s, "target_rotation")
+        col.prop(s, "tool_location")
+        col.prop(s, "tool_rotation")
+        col.operator("scanner.go", icon="CON_KINEMATIC")
+
+
+class SCANNER_PT_probe(_ScannerPanel, bpy.types.Panel):
+    bl_label = "Probe"
+    bl_parent_id = "SCANNER_PT_cell"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        s = context.scene.scanner
+        col = self.layout.column(align=True)
+        for prop in ("probe_a", "probe_b", "probe_phi", "probe_gamma", "probe_rows", "probe_cols"):
+            col.prop(s, prop)
+        col.operator("scanner.load_probe", icon="IMPORT")
+        box = self.layout.box()
+        try:
+            p = models.probe_from(s)
+        except ScannerError as exc:
+            box.alert = True
+            for line in _wrap(str(exc), 46):
+                box.label(text=line)
+            return
+        z0, z1 = p.z_range_mm
+        l0, l1 = p.line_lengths_mm()
+        box.label(text=f"Range (Eq. 7): {z0:.1f} to {z1:.1f} mm")
+        box.label(text=f"Line length: {l0:.1f} mm near, {l1:.1f} mm far")
+        box.label(text=f"f = {p.f_px:.1f} px; rebuild the cell to apply")
+
+
+class SCANNER_PT_table(_ScannerPanel, bpy.types.Panel):
+    bl_label = "Table"
+    bl_parent_id = "SCANNER_PT_cell"
+
+    def draw(self, context):
+        self.layout.prop(context.scene.scanner, "table_angle")
+
+
+class SCANNER_PT_views(_ScannerPanel, bpy.types.Panel):
+    bl_label = "Probe Views"
+    bl_parent_id = "SCANNER_PT_cell"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        self.layout.operator("scanner.render_views", icon="RENDER_STILL")
+
+
+class SCANNER_PT_scan(_ScannerPanel, bpy.types.Panel):
+    bl_label = "Scan"
+
+    def draw(self, context):
+        s = context.scene.scanner
+        col = self.layout.column()
+        col.prop(s, "scan_config")
+        if s.scan_config == "FILE":
+            col.prop(s, "scan_file", text="")
+        col.prop(s, "output_dir")
+        col.prop(s, "import_cloud")
+        col.operator("scanner.scan", icon="PLAY")
+        col.operator("scanner.export_ply", icon="EXPORT")
+
+
+def _wrap(text: str, width: int) -> list[str]:
+    words, lines, line = text.split(), [], ""
+    for w in words:
+        if len(line) + len(w) + 1 > width and line:
+            lines.append(line)
+            line = w
+        else:
+            line = f"{line} {w}".strip()
+    return lines + ([line] if line else [])
+
+
+CLASSES = (SCANNER_PT_cell, SCANNER_PT_joints, SCANNER_PT_cartesian, SCANNER_PT_probe, SCANNER_PT_table,
+           SCANNER_PT_views, SCANNER_PT_scan)

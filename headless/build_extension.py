@@ -1,0 +1,123 @@
+"""``python -m headless build-extension``: the extension zips, one per platform.
+
+The manifest lists the wheels of every platform, pinned by file name. This
+downloads the wheels the requested platforms need into ``wheels/`` (not in git),
+stages the add-on with a manifest trimmed to those platforms, and builds and
+validates with Blender's own extension tool (``blender_ext.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import tomllib
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+WHEELS = REPO / "wheels"
+PLATFORMS = ("linux-x64", "windows-x64", "macos-arm64", "macos-x64")
+# What each platform's wheels are built for, as pip's --platform tags.
+PIP_TAGS = {
+    "linux-x64": ["manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_24_x86_64", "manylinux2014_x86_64",
+                  "manylinux_2_17_x86_64"],
+    "windows-x64": ["win_amd64"],
+    "macos-arm64": ["macosx_13_0_arm64", "macosx_12_0_arm64", "macosx_11_0_arm64"],
+    "macos-x64": ["macosx_13_0_x86_64", "macosx_10_14_x86_64", "macosx_10_9_x86_64"],
+}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--platforms", nargs="+", default=list(PLATFORMS), choices=PLATFORMS,
+                        help="platforms to build for (default: all four)")
+    parser.add_argument("--out", default="dist", help="folder for the zips (default dist/)")
+    parser.set_defaults(run=run)
+
+
+def blender_ext_tool() -> Path:
+    spec = importlib.util.find_spec("bpy")
+    if spec is None or not spec.origin:
+        sys.exit("error: bpy is not installed; run the set-up first (python3.11 -m headless.bootstrap test)")
+    return Path(spec.origin).parent / "5.0" / "scripts" / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
+
+
+def wheel_platform(filename: str) -> str | None:
+    """The Blender platform a wheel file is for; None for pure-Python wheels (all platforms)."""
+    tag = filename[:-4].split("-")[-1]
+    if tag == "any":
+        return None
+    if "manylinux" in tag or "linux" in tag:
+        return "linux-x64"
+    if "win_amd64" in tag:
+        return "windows-x64"
+    if "macosx" in tag:
+        return "macos-arm64" if tag.endswith("arm64") else "macos-x64"
+    raise SystemExit(f"error: cannot tell the platform of wheel {filename}")
+
+
+def requirement_of(filename: str) -> str:
+    name, version = filename.split("-")[:2]
+    return f"{name.replace('_', '-')}=={version}"
+
+
+def fetch(wheel: str, platform: str | None) -> Path:
+    """Make sure ``wheels/<wheel>`` exists, downloading that exact file if needed."""
+    target = WHEELS / wheel
+    if target.is_file():
+        return target
+    WHEELS.mkdir(exist_ok=True)
+    cmd = [sys.executable, "-m", "pip", "download", "--disable-pip-version-check", "--no-deps", "--only-binary=:all:",
+           "--python-version", "3.11", "--implementation", "cp", "-d", str(WHEELS), requirement_of(wheel)]
+    for tag in PIP_TAGS.get(platform or "linux-x64", []):
+        cmd += ["--platform", tag]
+    print(f"[wheels] downloading {wheel}", flush=True)
+    if subprocess.call(cmd) != 0 or not target.is_file():
+        raise SystemExit(f"error: could not download {wheel} (pip {' '.join(cmd[3:])})")
+    return target
+
+
+def staged_manifest(text: str, platforms: list[str], wheels: list[str]) -> str:
+    """The manifest with only the given platforms and wheels."""
+    text = re.sub(r"(?ms)^platforms\s*=\s*\[.*?\]", "platforms = [" + ", ".join(f'"{p}"' for p in platforms) + "]", text)
+    return re.sub(r"(?ms)^wheels\s*=\s*\[.*?\]", "wheels = [\n" + "".join(f'  "./wheels/{w}",\n' for w in wheels) + "]",
+                  text)
+
+
+def build(platforms: list[str], out: Path) -> list[Path]:
+    manifest_text = (REPO / "blender_manifest.toml").read_text()
+    manifest = tomllib.loads(manifest_text)
+    wheels = [Path(w).name for w in manifest.get("wheels", [])]
+    needed = [w for w in wheels if wheel_platform(w) in (None, *platforms)]
+    for w in needed:
+        fetch(w, wheel_platform(w))
+    tool = blender_ext_tool()
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="scanner-ext-") as tmp:
+        stage = Path(tmp) / manifest["id"]
+        stage.mkdir()
+        shutil.copy2(REPO / "__init__.py", stage / "__init__.py")
+        for folder in ("addon", "rigs"):
+            shutil.copytree(REPO / folder, stage / folder, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        (stage / "wheels").mkdir()
+        for w in needed:
+            shutil.copy2(WHEELS / w, stage / "wheels" / w)
+        (stage / "blender_manifest.toml").write_text(staged_manifest(manifest_text, platforms, needed))
+        for step in (["validate", str(stage)],
+                     ["build", "--source-dir", str(stage), "--output-dir", str(out)]
+                     + (["--split-platforms"] if len(platforms) > 1 else [])):
+            res = subprocess.run([sys.executable, str(tool), *step], capture_output=True, text=True)
+            if res.returncode != 0:
+                raise SystemExit(f"error: blender_ext {step[0]} failed:\n{res.stdout}{res.stderr}")
+    zips = sorted(out.glob(f"{manifest['id']}-{manifest['version']}*.zip"))
+    return zips
+
+
+def run(args: argparse.Namespace) -> int:
+    zips = build(list(args.platforms), Path(args.out))
+    for z in zips:
+        print(f"built {z} ({z.stat().st_size / 1e6:.0f} MB)")
+    return 0

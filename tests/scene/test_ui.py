@@ -1,0 +1,157 @@
+"""The Scanner panel's operators, called through bpy.ops with the UI registered."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import addon.ui as ui
+from addon.core.euler import pose_from_xyz_yzz
+from addon.core.kinematics import load_robot
+from addon.core.probe import load_probe
+from addon.core.turntable import Turntable
+from addon.scene import rig
+from addon.scene.units import from_blender
+
+
+@pytest.fixture
+def panel(scene):
+    ui.register()
+    yield scene
+    ui.unregister()
+
+
+def robot_obj():
+    return bpy.data.objects["Robot"]
+
+
+def test_build_cell_and_joint_sliders_pose_the_rig(panel):
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    robot = load_robot("adept_viper_s650").with_tool(load_probe("default").mount)
+    q = np.radians([20, 50, -70, 10, 40, -30])
+    for k in range(6):
+        robot_obj()[f"q{k + 1}"] = float(q[k])  # what the sliders write
+    robot_obj().update_tag()
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(rig.dh_frames(robot_obj(), robot), robot.link_frames(q), atol=1e-3)
+
+
+def test_go_reaches_the_cartesian_target_relative_to_the_table(panel):
+    bpy.ops.scanner.build_cell()
+    s = panel.scanner
+    s.table_angle = math.radians(40)
+    s.target_frame = "table"
+    s.target_location = (15.0, -5.0, 150.0)
+    s.target_rotation = (0.3, math.pi, 0.0)
+    assert bpy.ops.scanner.go() == {"FINISHED"}
+    probe2world = from_blender(bpy.data.objects["Probe frame"].matrix_world)
+    target = Turntable().table2base(math.radians(40)) @ pose_from_xyz_yzz([15, -5, 150], [0.3, math.pi, 0])
+    np.testing.assert_allclose(probe2world, target, atol=1e-3)
+
+
+def test_unreachable_target_reports_and_leaves_the_robot_still(panel):
+    bpy.ops.scanner.build_cell()
+    before = rig.get_joints(robot_obj()).copy()
+    panel.scanner.target_location = (5000.0, 0.0, 0.0)
+    with pytest.raises(RuntimeError, match="Unreachable"):
+        bpy.ops.scanner.go()
+    np.testing.assert_array_equal(rig.get_joints(robot_obj()), before)
+
+
+def test_invalid_probe_is_refused_and_shown(panel):
+    s = panel.scanner
+    s.probe_phi = math.radians(10)  # below gamma: no far limit
+    with pytest.raises(RuntimeError, match="φ − γ"):
+        bpy.ops.scanner.build_cell()
+    assert bpy.data.collections.get("Scanner Cell") is None
+    assert bpy.ops.scanner.load_probe() == {"FINISHED"}
+    assert s.probe_phi == pytest.approx(load_probe("default").phi_rad)
+
+
+def test_table_angle_turns_the_table(panel):
+    bpy.ops.scanner.build_cell()
+    panel.scanner.table_angle = 1.2
+    assert bpy.data.objects["Turntable"].rotation_euler[2] == pytest.approx(1.2)
+
+
+def test_probe_views_render_into_images(panel):
+    bpy.ops.scanner.build_cell()
+    s = panel.scanner
+    s.target_location = (0.0, 0.0, 60.0 + 150.0)
+    bpy.ops.scanner.go()
+    assert bpy.ops.scanner.render_views() == {"FINISHED"}
+    for camera in (0, 1):
+        img = bpy.data.images[f"Probe camera {camera}"]
+        assert tuple(img.size) == (160, 160)
+        px = np.empty(160 * 160 * 4, np.float32)
+        img.pixels.foreach_get(px)
+        px = px.reshape(160, 160, 4)
+        assert (px[..., 0] - px[..., 1]).max() > 0.2  # the red line is there
+
+
+def test_scan_imports_the_cloud_on_the_turntable_and_exports_ply(panel, tmp_path):
+    s = panel.scanner
+    s.scan_config = "step_block"
+    s.output_dir = str(tmp_path)
+    assert bpy.ops.scanner.scan(frames="0:100:10") == {"FINISHED"}
+    cloud = bpy.data.objects["Scan cloud"]
+    assert cloud.parent == bpy.data.objects["Turntable"]
+    n = len(cloud.data.vertices)
+    assert n > 1000
+    from addon.scene.cloud_object import cloud_from_object
+    from addon.core.workpiece import builtin_workpiece
+
+    points = cloud_from_object(cloud).points  # table frame
+    d = builtin_workpiece("step_block").truth.distance(points)
+    assert np.median(d) < 0.05  # on the part (or the table top, z = 0)
+    assert {p.name for p in next(tmp_path.iterdir()).iterdir()} == {"cloud.ply", "report.json", "preview.png"}
+    out = tmp_path / "exported.ply"
+    assert bpy.ops.scanner.export_ply(filepath=str(out)) == {"FINISHED"}
+    from addon.core.cloud import load_ply
+
+    assert len(load_ply(out)) == n
+    # The imported cloud stays out of the probe's images: a second scan sees exactly the same.
+    assert bpy.ops.scanner.scan(frames="0:100:10") == {"FINISHED"}
+    assert len(bpy.data.objects["Scan cloud"].data.vertices) == n
+
+
+def test_scan_refusal_leaves_no_cloud(panel, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text((__import__("pathlib").Path(__file__).parents[2] / "rigs/scenes/step_block.toml").read_text()
+                   .replace("[0.0, -35.0, 200.0]", "[900.0, -35.0, 200.0]"))
+    s = panel.scanner
+    s.scan_config = "FILE"
+    s.scan_file = str(bad)
+    with pytest.raises(RuntimeError, match="cannot be reached"):
+        bpy.ops.scanner.scan()
+    assert bpy.data.objects.get("Scan cloud") is None
+
+
+def test_a_scan_dropped_midway_keeps_nothing(scene, tmp_path):
+    from addon.core.scanconfig import load_scan_config
+    from addon.pipeline import ScanRun
+
+    run = ScanRun(load_scan_config("step_block"), scene)
+    run.step()
+    assert 0 < run.done < run.n
+    del run  # what the modal operator does on Esc
+    assert not any(tmp_path.iterdir())
+
+
+def test_poll_greys_out_what_cannot_run(panel):
+    assert not bpy.ops.scanner.go.poll()
+    assert not bpy.ops.scanner.render_views.poll()
+    assert not bpy.ops.scanner.export_ply.poll()
+    bpy.ops.scanner.build_cell()
+    assert bpy.ops.scanner.go.poll() and bpy.ops.scanner.render_views.poll()
+
+
+def test_register_unregister_register_leaves_no_residue(scene):
+    for _ in range(2):
+        ui.register()
+        assert hasattr(bpy.types.Scene, "scanner") and hasattr(bpy.types, "SCANNER_OT_scan")
+        ui.unregister()
+        assert not hasattr(bpy.types.Scene, "scanner")
+        assert not [name for name in dir(bpy.types) if name.startswith("SCANNER_")]
+    assert not bpy.app.handlers.frame_change_pre and not bpy.app.handlers.render_write
