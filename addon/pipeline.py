@@ -25,7 +25,7 @@ import json
 import math
 import platform
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -36,7 +36,7 @@ from .core import metrics
 from .core.cloud import CloudAccumulator, save_ply
 from .core.detect import LineCode, detect_line
 from .core.errors import ScannerError, UnreachablePose
-from .core.files import write_bytes_atomic
+from .core.files import write_bytes_atomic, write_png
 from .core.footprint import laser_footprint
 from .core.preview import render_preview
 from .core.scanconfig import ScanConfig
@@ -202,8 +202,10 @@ class ScanRun:
     returns True (one chunk of frames each), then :meth:`finish`. Dropping the object
     before :meth:`finish` discards everything; nothing has been written."""
 
-    def __init__(self, config: ScanConfig, scene=None, progress: Progress | None = None):
+    def __init__(self, config: ScanConfig, scene=None, progress: Progress | None = None, keep_images: bool = False):
         self.config = config
+        # keep_images: {frame index in the path: the two cameras' sensor images (band or full)}, for pictures
+        self.images: dict[int, list] | None = {} if keep_images else None
         self.timing: dict[str, float] = {}
         self.t_all = time.perf_counter()
         self.progress = progress or (lambda stage, done, total: None)
@@ -222,12 +224,10 @@ class ScanRun:
             scene = new_scene(config.render.device)
         probe = config.probe
         self.sc = build_cell(scene, config.cell, probe, config.workpiece, config.render.laser,
-                             laser_power_w(probe, peak=config.render.laser_peak))
+                             laser_power_w(probe, peak=config.render.laser_peak), material=config.material,
+                             roughness=config.roughness)
         self.frames = self.sc.keyframe(self.plan.q, self.plan.table_rad)
-        r = config.render
-        self.settings = RenderSettings(engine=r.engine, device=r.device, samples=r.samples,
-                                       pixel_filter=r.pixel_filter, filter_width_px=r.filter_width_px,
-                                       bounces=r.bounces, ambient=r.ambient)
+        self.settings = render_settings(config, RenderSettings)
         self.timing["scene"] = time.perf_counter() - t
         self.n = len(self.frames)
         self.acc = CloudAccumulator()
@@ -258,6 +258,7 @@ class ScanRun:
         images = sc.render(first, first + size - 1, self.settings, plan.cameras, rows=rows, leave_out_robot=hide)
         self.t_render += time.perf_counter() - t
         t = time.perf_counter()
+        images = [self._sense(pair, rows, done + i) for i, pair in enumerate(images)]
         lines = [_detect_all(img, rows, config) for img in images]
         self.t_detect += time.perf_counter() - t
         # Frames whose line the band may have cut are rendered again at full height, in one call.
@@ -273,8 +274,11 @@ class ScanRun:
             self.stats["rerendered"] += len(full)
             t = time.perf_counter()
             for i in redo:
-                lines[i] = _detect_all(full[i - redo[0]], None, config)
+                images[i] = self._sense(full[i - redo[0]], None, done + i)
+                lines[i] = _detect_all(images[i], None, config)
             self.t_detect += time.perf_counter() - t
+        if self.images is not None:
+            self.images.update({done + i: images[i] for i in range(size)})
         stats = self.stats
         for i in range(size):
             t = time.perf_counter()
@@ -293,6 +297,15 @@ class ScanRun:
         self.progress("scan", self.done, self.n)
         return self.done >= self.n
 
+    def _sense(self, pair, rows, index: int):
+        """What the real sensor makes of each camera's rendered light (unchanged for the ideal sensor)."""
+        sensor = self.config.sensor
+        if not sensor.changes_images:
+            return pair
+        row0 = 0 if rows is None else rows[0]
+        return [None if img is None else sensor.apply(img, self.config.probe, camera, index, row0)
+                for camera, img in enumerate(pair)]
+
     def finish(self, out_dir: str | Path | None) -> ScanResult:
         """Measure against the truth, build the report and (with ``out_dir``) write the files."""
         config, probe, plan = self.config, self.config.probe, self.plan
@@ -308,7 +321,9 @@ class ScanRun:
             "config": {"name": config.name, "file": config.source, "robot": config.robot.name, "probe": probe.name,
                        "sensor_px": [probe.cols_px, probe.rows_px], "workpiece": config.workpiece.source,
                        "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
-                       "triangulate": config.triangulate_method, "fuse": config.fuse},
+                       "triangulate": config.triangulate_method, "fuse": config.fuse,
+                       "sensor": "ideal" if config.sensor.ideal else _effects(config.sensor),
+                       "material": config.material},
             "frames": self.n,
             "points": len(cloud),
             "valid_fraction": self.stats["valid"] / max(self.stats["columns"], 1),
@@ -351,7 +366,46 @@ def _detect_all(images, rows, config: ScanConfig):
     return out
 
 
+def render_settings(config: ScanConfig, RenderSettings):
+    """Render settings for a config: its [render] table, adjusted for the sensor model."""
+    r = config.render
+    base = RenderSettings(engine=r.engine, device=r.device, samples=r.samples, pixel_filter=r.pixel_filter,
+                          filter_width_px=r.filter_width_px, bounces=r.bounces, ambient=r.ambient)
+    return with_sensor(base, config.sensor)
+
+
+def with_sensor(settings, sensor):
+    """``settings`` (a RenderSettings) with the sensor model's render-side effects: pixel
+    area integration (box filter of one pixel, enough samples to fill it) and motion
+    during the exposure (the shutter open for exposure × frame rate of each frame)."""
+    samples, pixel_filter, width = settings.samples, settings.pixel_filter, settings.filter_width_px
+    if sensor.integrate_pixels:
+        samples, pixel_filter, width = max(samples, 16), "BOX", 1.0
+    shutter = sensor.shutter_fraction if sensor.motion_blur else 0.0
+    if shutter > 0:
+        samples = max(samples, 16)
+    return replace(settings, samples=samples, pixel_filter=pixel_filter, filter_width_px=width,
+                   motion_blur_shutter=shutter)
+
+
+def _effects(sensor) -> list[str]:
+    names = ("integrate_pixels", "saturate", "noise", "speckle", "defocus", "motion_blur")
+    return [n for n in names if getattr(sensor, n)] + (["distortion"] if sensor.distortion else [])
+
+
 def _profile(probe, lines, config: ScanConfig):
+    sensor = config.sensor
+    if sensor.distortion and sensor.undistort:  # a calibrated probe removes its lens distortion
+        undone = []
+        for ln in lines:
+            if ln is None:
+                undone.append(None)
+                continue
+            ok = ln.valid
+            u, v = ln.col.astype(np.float64), ln.row.copy()
+            u[ok], v[ok] = sensor.undistort_pixels(probe, u[ok], v[ok])
+            undone.append(replace(ln, col=u, row=v))
+        lines = undone
     profs = [triangulate_profile(probe, ln, cam, config.triangulate_method)
              for cam, ln in enumerate(lines) if ln is not None]
     if len(profs) == 2 and config.fuse:
@@ -393,10 +447,7 @@ def _write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, 
     title = (f"{config.name}: {len(cloud)} points, RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
              f"coverage {report['coverage'] * 100:.0f} %")
     picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title)
-    ok, png = cv2.imencode(".png", picture)
-    if not ok:
-        raise ScannerError("could not encode the preview picture")
     files = {"cloud": out / "cloud.ply", "report": out / "report.json", "preview": out / "preview.png"}
     save_ply(cloud, files["cloud"])
-    write_bytes_atomic(files["preview"], png.tobytes())
+    write_png(files["preview"], picture)
     return files

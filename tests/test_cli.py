@@ -82,6 +82,26 @@ def test_render_bench_runs_small():
     assert "one animation call, both cameras" in out.stdout and "frames/s" in out.stdout
 
 
+def test_realism_bench_runs_small():
+    out = run_cli("bench", "realism", "--scenes", "step_block", "--frames", "2", "--noise-frames", "2")
+    assert out.returncode == 0, out.stderr[-2000:]
+    for row in ("ideal", "pixel integration", "speckle", "motion blur", "all of the above", "line level"):
+        assert row in out.stdout, row
+    assert "Traceback" not in out.stderr
+
+
+def test_realism_figure_shows_both_sensors(tmp_path):
+    out = run_cli("realism-figure", "--frame", "3", "--out", str(tmp_path / "f.png"))
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "Ideal sensor" in out.stdout and "Realistic sensor" in out.stdout
+    import cv2
+
+    picture = cv2.imread(str(tmp_path / "f.png"))
+    assert picture.shape[1] == 2 * 160 * 4 + 16  # two views side by side
+    bad = run_cli("realism-figure", "--frame", "1000", "--out", str(tmp_path / "g.png"))
+    assert bad.returncode == 2 and "--frame must be in" in bad.stderr and not (tmp_path / "g.png").exists()
+
+
 def test_demo_scan_runs_and_summarises(tmp_path):
     out = run_cli("demo", "--frames", "::15", "--out", str(tmp_path / "demo"), "--quiet")
     assert out.returncode == 0, out.stderr[-2000:]

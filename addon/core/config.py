@@ -87,6 +87,10 @@ class Table:
     def error(self, key: str, message: str) -> ConfigError:
         return ConfigError(f"{self.file}: {self.key_path(key)}: {message}")
 
+    def table_error(self, message: str) -> ConfigError:
+        """An error about the table as a whole (e.g. two keys that do not fit together)."""
+        return ConfigError(f"{self.file}: [{self.prefix.rstrip('.') or 'top level'}]: {message}")
+
     def _get(self, key: str, default: Any) -> Any:
         self._used.add(key)
         if key in self.data:
@@ -102,7 +106,11 @@ class Table:
     def number(self, key: str, default: Any = _MISSING, *, lo: float | None = None,
                hi: float | None = None, lo_open: bool = False, hi_open: bool = False,
                nonzero: bool = False) -> float:
-        """A finite number in [lo, hi] (or open ends); ints and floats accepted, bools not."""
+        """A finite number in [lo, hi] (or open ends); ints and floats accepted, bools not.
+        An absent key gives ``default`` unchecked (so None can mean "derive it")."""
+        if key not in self.data and default is not _MISSING:
+            self._used.add(key)
+            return default
         value = self._get(key, default)
         return self._check_number(key, value, lo, hi, lo_open, hi_open, nonzero)
 
@@ -154,7 +162,10 @@ class Table:
 
     def number_list(self, key: str, default: Any = _MISSING, *, lo: float | None = None,
                     hi: float | None = None, lo_open: bool = False, min_len: int = 1) -> np.ndarray:
-        """A list of at least ``min_len`` finite numbers, each in [lo, hi]."""
+        """A list of at least ``min_len`` finite numbers, each in [lo, hi] (a default is taken as is)."""
+        if key not in self.data and default is not _MISSING:
+            self._used.add(key)
+            return np.asarray(default, dtype=np.float64)
         value = self._get(key, default)
         if not isinstance(value, (list, tuple)) or len(value) < min_len:
             raise self.error(key, f"{_describe(value)}: expected a list of at least {min_len} number(s)")

@@ -28,6 +28,18 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
     return path
 
 
+def write_png(path: str | Path, bgr) -> Path:
+    """Encode a BGR uint8 picture as PNG and write it atomically."""
+    import cv2
+
+    from .errors import ScannerError
+
+    ok, png = cv2.imencode(".png", bgr)
+    if not ok:
+        raise ScannerError(f"could not encode the picture for {path}")
+    return write_bytes_atomic(path, png.tobytes())
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

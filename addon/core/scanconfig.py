@@ -7,6 +7,7 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
     [probe]      rig (name or path), [probe.mount] xyz_mm, yzz_deg (optional T_L^6 override)
     [table]      a_mm, d_mm (Eq. 4 placement; defaults −500, −200)
     [workpiece]  shape = plane|sphere|cylinder|step_block (+ its size keys) or file (+ scale),
+                 material = grey|dark|glossy|mirror, roughness (glossy),
                  [workpiece.pose] xyz_mm, yzz_deg (placement in the table frame)
     [[path]]     kind = "sweep": frames, from_mm, to_mm, beam, line, table_deg
                  kind = "turntable": frames, probe_mm, beam, line, start_deg, turn_deg
@@ -16,6 +17,12 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
     [detect]     method (threshold|cog|gauss|steger), min_peak, second_peak_ratio, max_width_px
     [triangulate] method (exact|paper), fuse (both cameras into one profile)
     [leave_out]  render_band, skip_blind_cameras, hide_robot, chunk_frames, band_margin_px
+    [sensor]     the realistic sensor (all off by default): integrate_pixels, saturate, noise,
+                 speckle, defocus, distortion = [k1, k2, p1, p2(, k3)], undistort, motion_blur, and
+                 exposure_ms, auto_exposure, target_peak, gain, bit_depth, full_well_e,
+                 electrons_per_unit, read_noise_e, dark_offset_dn, prnu, sensor_width_mm,
+                 pixel_pitch_um, f_number, focus_mm, wavelength_nm, frame_rate_hz, seed
+                 (see addon.core.sensor)
     [truth]      coverage_tolerance_mm
 
 Paths in the file (robot/probe rigs, workpiece files) are relative to the file.
@@ -36,6 +43,7 @@ from .detect import DetectParams
 from .errors import ConfigError, InputError
 from .kinematics import Robot, load_robot
 from .probe import Probe, load_probe
+from .sensor import SensorModel
 from .triangulate import TRIANGULATION_METHODS
 from .turntable import PAPER_A_R_MM, PAPER_D_R_MM, Turntable
 from .workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
@@ -45,6 +53,7 @@ DEVICES = ("CPU", "GPU")
 PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
 LASERS = ("gobo", "slit")
 PATH_KINDS = ("sweep", "turntable")
+MATERIALS = ("grey", "dark", "glossy", "mirror")
 MAX_FRAMES = 1_000_000
 
 
@@ -93,11 +102,30 @@ class ScanConfig:
     leave_out: LeaveOut = field(default_factory=LeaveOut)
     coverage_tolerance_mm: float = 1.0
     description: str = ""
+    sensor: SensorModel = field(default_factory=SensorModel)
+    material: str = "grey"
+    roughness: float = 0.2
 
     @property
     def cell(self) -> Cell:
         """The robot carrying this probe (its mount as the tool) and the table."""
         return Cell(self.robot.with_tool(self.probe.mount), self.table)
+
+    def with_realism(self, sensor: SensorModel, material: str | None = None, roughness: float | None = None,
+                     ambient: float | None = None) -> "ScanConfig":
+        """A copy with this sensor model (and, if given, workpiece surface and ambient light).
+        A sensor that clips makes the detector flag lines that reach full scale."""
+        if material is not None and material not in MATERIALS:
+            raise InputError(f"material {material!r} is not one of: {', '.join(MATERIALS)}")
+        if roughness is not None and not 0.0 <= roughness <= 1.0:
+            raise InputError(f"roughness must be in [0, 1], got {roughness}")
+        if ambient is not None and not 0.0 <= ambient <= 1e3:
+            raise InputError(f"ambient must be in [0, 1000], got {ambient}")
+        detect = replace(self.detect, saturation=1.0) if sensor.clips else self.detect
+        render = self.render if ambient is None else replace(self.render, ambient=float(ambient))
+        return replace(self, sensor=sensor, detect=detect, render=render,
+                       material=self.material if material is None else material,
+                       roughness=self.roughness if roughness is None else float(roughness))
 
     def with_overrides(self, *, engine=None, samples=None, resolution=None, detect=None, frames=None) -> "ScanConfig":
         """A copy with command-line overrides applied; ``frames`` is a slice of the path."""
@@ -165,7 +193,10 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
                       tt.number("d_mm", default=PAPER_D_R_MM, lo=-1e5, hi=1e5))
     tt.finish()
 
-    workpiece = _workpiece(top.table("workpiece"), base)
+    wt = top.table("workpiece")
+    material = wt.string("material", default="grey", choices=MATERIALS)
+    roughness = wt.number("roughness", default=0.2, lo=0.0, hi=1.0)
+    workpiece = _workpiece(wt, base)
     waypoints = _paths(top, table)
     render, resolution = _render(top.table("render", default={}))
     if resolution is not None:
@@ -180,6 +211,7 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
                          lo.boolean("hide_robot", default=True), lo.integer("chunk_frames", default=8, lo=1, hi=10000),
                          lo.integer("band_margin_px", default=6, lo=0, hi=10000))
     lo.finish()
+    sensor = _sensor(top.table("sensor", default={}))
     truth = top.table("truth", default={})
     cov = truth.number("coverage_tolerance_mm", default=1.0, lo=0.0, hi=1e3, lo_open=True)
     truth.finish()
@@ -187,8 +219,9 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     if render.engine == "eevee" and render.laser == "gobo":
         raise ConfigError(f"{path}: render.laser: 'gobo' does not render in Eevee (it ignores light node trees); "
                           "use laser = \"slit\" with engine = \"eevee\"")
-    return ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
-                      detect, tri_method, fuse, leave_out, cov, description)
+    cfg = ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
+                     detect, tri_method, fuse, leave_out, cov, description)
+    return cfg.with_realism(sensor, material, roughness)
 
 
 def _workpiece(t: Table, base: Path) -> Workpiece:
@@ -273,3 +306,30 @@ def _detect(t: Table) -> tuple[str, DetectParams]:
     )
     t.finish()
     return method, params
+
+
+def _sensor(t: Table) -> SensorModel:
+    """[sensor]: each effect a switch (all off: the ideal sensor), with its parameters."""
+    d = SensorModel()
+    kw = {}
+    for key in ("integrate_pixels", "saturate", "noise", "speckle", "defocus", "undistort", "motion_blur",
+                "auto_exposure"):
+        kw[key] = t.boolean(key, default=getattr(d, key))
+    for key, lo in (("exposure_ms", 0.0), ("target_peak", 0.0), ("gain", 0.0), ("full_well_e", 0.0),
+                    ("electrons_per_unit", 0.0), ("sensor_width_mm", 0.0), ("f_number", 0.0),
+                    ("wavelength_nm", 0.0), ("frame_rate_hz", 0.0)):
+        kw[key] = t.number(key, default=getattr(d, key), lo=lo, hi=1e7, lo_open=True)
+    for key in ("read_noise_e", "dark_offset_dn", "prnu"):
+        kw[key] = t.number(key, default=getattr(d, key), lo=0.0, hi=1e7)
+    for key in ("pixel_pitch_um", "focus_mm"):  # absent: derived from the probe (see SensorModel)
+        kw[key] = t.number(key, default=None, lo=0.0, hi=1e7, lo_open=True)
+    kw["bit_depth"] = t.integer("bit_depth", default=d.bit_depth, lo=8, hi=16)
+    kw["seed"] = t.integer("seed", default=d.seed, lo=0, hi=2 ** 31 - 1)
+    kw["distortion"] = tuple(float(k) for k in t.number_list("distortion", default=(), lo=-10.0, hi=10.0,
+                                                             min_len=4))
+    try:
+        model = SensorModel(**kw)
+    except InputError as exc:
+        raise t.table_error(str(exc)) from None
+    t.finish()
+    return model

@@ -19,6 +19,7 @@ from mathutils import Matrix
 
 from ..core.cell import Cell
 from ..core.errors import InputError
+from ..core.transforms import rigid_inverse
 from ..core.probe import Probe
 from ..core.workpiece import Workpiece
 from . import rig
@@ -116,8 +117,8 @@ class SceneCell:
         return col
 
     def render(self, first: int, last: int, settings: RenderSettings | None = None, cameras=(0, 1),
-               out_dir=None, rows: tuple[int, int] | None = None, leave_out_robot: bool = True
-               ) -> list[list[np.ndarray | None]]:
+               out_dir=None, rows: tuple[int, int] | None = None, leave_out_robot: bool = True,
+               move_table: bool | None = None) -> list[list[np.ndarray | None]]:
         """Probe images for frames first..last in one render call ([frame][camera], float32 (H, W, 3)).
 
         ``rows`` = (r0, r1) renders and returns only those rows. The robot never
@@ -138,14 +139,16 @@ class SceneCell:
         try:
             if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else
                 return render_animation(self.scene, first, last, cameras, out_dir, rows)
-            with self._without_rig(first, last):
+            if move_table is None:  # Cycles does not motion-blur lights: with motion blur, move the part
+                move_table = settings.motion_blur_shutter > 0
+            with self._without_rig(first, last, move_table):
                 return render_animation(self.scene, first, last, cameras, out_dir, rows)
         finally:
             if results is not None:
                 results.hide_render = hidden
 
     @contextmanager
-    def _without_rig(self, first: int, last: int):
+    def _without_rig(self, first: int, last: int, move_table: bool = False):
         """Leave the robot out of probe renders.
 
         When the frames were keyframed with :meth:`keyframe`, the table and the
@@ -154,7 +157,9 @@ class SceneCell:
         on relative poses, and Cycles rebuilds the acceleration structure of every
         mesh that moves, each frame, so moving the probe is far cheaper than turning
         a dense workpiece. The rig is excluded from the view layer, not evaluated.
-        Otherwise the rig stays evaluated but is not rendered.
+        Otherwise the rig stays evaluated but is not rendered. With ``move_table`` the
+        probe stays at the origin and the table moves by the inverse pose instead (for
+        motion blur: Cycles blurs moving objects and cameras, but not moving lights).
         """
         path = self.extras.get("path")
         if path is None or not (path[0] <= first and last < path[0] + len(path[1])):
@@ -177,17 +182,28 @@ class SceneCell:
             table.animation_data.action = None
         table.matrix_basis.identity()
         pf.parent = None
-        pf.rotation_mode = "QUATERNION"
+        moving, poses = (table, rigid_inverse(probe2table)) if move_table else (pf, probe2table)
+        if move_table:
+            pf.matrix_basis.identity()
+            quats = np.array([Matrix(T[:3, :3].tolist()).to_quaternion()[:] for T in poses])
+        saved_mode = moving.rotation_mode
+        moving.rotation_mode = "QUATERNION"
         for i in range(3):
-            keyframe_values(pf, "location", frames, probe2table[:, i, 3] * 1e-3, index=i)
+            keyframe_values(moving, "location", frames, poses[:, i, 3] * 1e-3, index=i)
         for i in range(4):
-            keyframe_values(pf, "rotation_quaternion", frames, quats[:, i], index=i)
+            keyframe_values(moving, "rotation_quaternion", frames, quats[:, i], index=i)
         layer.exclude = True
         try:
             yield
         finally:
             layer.exclude = False
+            if move_table:
+                temp = table.animation_data.action
+                table.animation_data.action = None
+                if temp is not None and temp is not saved_table[0]:
+                    bpy.data.actions.remove(temp)
             pf.animation_data_clear()
+            moving.rotation_mode = saved_mode
             pf.rotation_mode = saved_pf[5]
             pf.parent, pf.parent_type, pf.parent_bone = saved_pf[0], saved_pf[1], saved_pf[2]
             pf.matrix_parent_inverse, pf.matrix_basis = saved_pf[3], saved_pf[4]
@@ -248,7 +264,8 @@ def add_probe(collection, probe: Probe, laser: str = "gobo", laser_power_w: floa
 
 
 def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Workpiece | None = None,
-               laser: str = "gobo", laser_power_w: float | None = None, name: str = "Scanner Cell") -> SceneCell:
+               laser: str = "gobo", laser_power_w: float | None = None, name: str = "Scanner Cell",
+               material: str = "grey", roughness: float = 0.2) -> SceneCell:
     """Build (or rebuild) the cell in ``scene``. The probe's mount becomes the robot's tool."""
     remove_cell(scene, name)
     cell = replace(cell, robot=cell.robot.with_tool(probe.mount))
@@ -263,7 +280,7 @@ def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Work
     rig.parent_to_bone(probe_frame, arm, rig.bone_name(6), cell.robot.fk(np.zeros(6)))
 
     table = add_turntable(table_col, cell.table)
-    wp = add_workpiece(table_col, workpiece, table) if workpiece is not None else None
+    wp = add_workpiece(table_col, workpiece, table, material, roughness) if workpiece is not None else None
     bpy.context.view_layer.update()
     return SceneCell(scene, cell, probe, workpiece, laser, root, robot_col, arm, probe_frame, cams, lasers,
                      table, wp)

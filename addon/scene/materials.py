@@ -41,3 +41,23 @@ def emission(name: str, rgb=(1.0, 1.0, 1.0), strength: float = 1.0) -> bpy.types
     em.inputs["Strength"].default_value = strength
     links.new(em.outputs["Emission"], out.inputs["Surface"])
     return mat
+
+
+def surface(kind: str = "grey", roughness: float = 0.2) -> bpy.types.Material:
+    """The workpiece's surface: grey (the paper's Lambertian grey), dark (a dull black part),
+    glossy (grey with a specular coat of the given roughness: reflections of the line need
+    bounces to show) or mirror (polished metal)."""
+    if kind == "grey":
+        return diffuse("Grey workpiece")
+    if kind == "dark":
+        return diffuse("Dark workpiece", (0.06, 0.06, 0.06))
+    name = f"{kind.title()} workpiece r{roughness:.2f}"
+    mat = bpy.data.materials.get(name)
+    if mat is not None:
+        return mat
+    mat = bpy.data.materials.new(name)
+    bsdf = mat.node_tree.nodes.get("Principled BSDF")
+    bsdf.inputs["Base Color"].default_value = (*(0.6,) * 3, 1.0) if kind == "glossy" else (0.9, 0.9, 0.9, 1.0)
+    bsdf.inputs["Roughness"].default_value = roughness if kind == "glossy" else 0.05
+    bsdf.inputs["Metallic"].default_value = 1.0 if kind == "mirror" else 0.0
+    return mat

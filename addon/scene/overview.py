@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 from mathutils import Vector
 
-from ..core.files import write_bytes_atomic
+from ..core.files import write_png
 from .cell import SceneCell
 from .render import RenderSettings, configure, render_animation, render_still
 
@@ -92,5 +92,4 @@ def render_overview(sc: SceneCell, path: str | Path, width: int = 720, height: i
     if right.shape[0] < height:
         right = np.vstack([right, np.zeros((height - right.shape[0], right.shape[1], 3), np.uint8)])
     picture = np.hstack([panes[0], right])
-    ok, png = cv2.imencode(".png", picture)
-    return write_bytes_atomic(path, png.tobytes())
+    return write_png(path, picture)

@@ -45,6 +45,7 @@ class RenderSettings:
     ambient: float = 0.0
     resolution: tuple[int, int] | None = None
     persistent_data: bool = True
+    motion_blur_shutter: float = 0.0  # fraction of a frame the shutter is open (0: no motion blur)
 
     def __post_init__(self) -> None:
         if self.engine not in ENGINES:
@@ -59,6 +60,8 @@ class RenderSettings:
             raise InputError(f"bounces must be in [0, 64], got {self.bounces}")
         if not 0 <= self.ambient <= 100:
             raise InputError(f"ambient must be in [0, 100], got {self.ambient}")
+        if not 0 <= self.motion_blur_shutter <= 1:
+            raise InputError(f"motion blur shutter must be in [0, 1] frames, got {self.motion_blur_shutter}")
 
 
 def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderSettings, camera_left: bpy.types.Object) -> str:
@@ -71,6 +74,10 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderSettings, ca
     r.use_border = False
     r.film_transparent = False
     r.use_persistent_data = settings.persistent_data
+    r.use_motion_blur = settings.motion_blur_shutter > 0
+    if r.use_motion_blur:
+        r.motion_blur_shutter = settings.motion_blur_shutter
+        r.motion_blur_position = "CENTER"
     device = "CPU"
     if settings.engine == "cycles":
         device = use_device(scene, settings.device)

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..core.turntable import Turntable, table_top_mesh
 from ..core.workpiece import Workpiece
-from .materials import diffuse
+from .materials import diffuse, surface
 from .meshes import mesh_object
 from .units import to_blender
 
@@ -27,7 +27,8 @@ def set_table_angle(obj: bpy.types.Object, theta_rad: float) -> None:
 TWIN_OFFSET_M = (0.0, 0.0, -1000.0)  # a kilometre below the cell: outside every view
 
 
-def add_workpiece(collection, workpiece: Workpiece, table_obj: bpy.types.Object) -> bpy.types.Object:
+def add_workpiece(collection, workpiece: Workpiece, table_obj: bpy.types.Object, material: str = "grey",
+                  roughness: float = 0.2) -> bpy.types.Object:
     """The workpiece mesh (already in table coordinates) as a child of the table, grey and diffuse.
 
     A second object shares its mesh, far outside every view. Cycles bakes the
@@ -36,7 +37,7 @@ def add_workpiece(collection, workpiece: Workpiece, table_obj: bpy.types.Object)
     scan (18 ms per frame for an 82k-face sphere); a mesh with two users keeps its
     own structure, built once (6 ms per frame). The twin is never hit by a ray.
     """
-    obj = mesh_object(f"Workpiece {workpiece.name}", workpiece.mesh, collection, diffuse("Grey workpiece"))
+    obj = mesh_object(f"Workpiece {workpiece.name}", workpiece.mesh, collection, surface(material, roughness))
     obj.parent = table_obj
     obj.matrix_parent_inverse.identity()
     obj.matrix_basis = to_blender(np.eye(4))

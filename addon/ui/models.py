@@ -12,6 +12,7 @@ from ..core.cell import Cell
 from ..core.errors import InputError
 from ..core.kinematics import load_robot
 from ..core.probe import Probe, load_probe
+from ..core.sensor import SensorModel
 from ..core.turntable import Turntable
 from ..core.workpiece import builtin_workpiece, load_workpiece
 from .props import FILE
@@ -37,6 +38,20 @@ def probe_from(s) -> Probe:
     rig = load_probe(_path(s.probe_file, "probe") if s.probe == FILE else s.probe)
     return replace(rig, a_mm=s.probe_a, b_mm=s.probe_b, phi_rad=s.probe_phi, gamma_rad=s.probe_gamma,
                    rows_px=s.probe_rows, cols_px=s.probe_cols)
+
+
+def sensor_from(s) -> SensorModel:
+    """The probe panel's sensor model (the ideal one unless "Realistic sensor" is ticked);
+    raises InputError when a setting is out of range."""
+    if not s.sensor_realistic:
+        return SensorModel()
+    return SensorModel(integrate_pixels=s.sensor_integrate_pixels, saturate=s.sensor_saturate, noise=s.sensor_noise,
+                       speckle=s.sensor_speckle, defocus=s.sensor_defocus, motion_blur=s.sensor_motion_blur,
+                       distortion=(s.sensor_k1, s.sensor_k2, 0.0, 0.0) if s.sensor_distortion else (),
+                       undistort=s.sensor_undistort, exposure_ms=s.sensor_exposure_ms,
+                       auto_exposure=s.sensor_auto_exposure, target_peak=s.sensor_target_peak, gain=s.sensor_gain,
+                       bit_depth=int(s.sensor_bit_depth), f_number=s.sensor_f_number, focus_mm=s.sensor_focus_mm or None,
+                       seed=s.sensor_seed)
 
 
 def workpiece_from(s):

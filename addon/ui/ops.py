@@ -34,7 +34,7 @@ class SCANNER_OT_build_cell(bpy.types.Operator):
         s = context.scene.scanner
         try:
             sc = build_cell(context.scene, models.cell_from(s), models.probe_from(s), models.workpiece_from(s),
-                            s.laser, name=models.CELL_NAME)
+                            s.laser, name=models.CELL_NAME, material=s.material, roughness=s.roughness)
         except ScannerError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -116,14 +116,24 @@ class SCANNER_OT_render_views(bpy.types.Operator):
         return _cell_built(context)
 
     def execute(self, context):
+        from ..pipeline import with_sensor
         from ..scene.render import RenderSettings
 
+        s = context.scene.scanner
         sc = models.scene_cell(context)
         if sc is None:
             self.report({"ERROR"}, "Build the cell first (the probe settings may be invalid)")
             return {"CANCELLED"}
+        try:
+            sensor = models.sensor_from(s)
+        except ScannerError as exc:
+            self.report({"ERROR"}, f"Sensor realism: {exc}")
+            return {"CANCELLED"}
         frame = context.scene.frame_current
-        images = sc.render(frame, frame, RenderSettings(ambient=0.08, samples=4, filter_width_px=1.0))[0]
+        settings = with_sensor(RenderSettings(ambient=s.ambient, samples=4, filter_width_px=1.0), sensor)
+        images = sc.render(frame, frame, settings)[0]
+        if sensor.changes_images:
+            images = [sensor.apply(img, sc.probe, camera, frame) for camera, img in enumerate(images)]
         for camera, img in enumerate(images):
             name = f"Probe camera {camera}"
             H, W = img.shape[:2]
@@ -163,6 +173,8 @@ class SCANNER_OT_scan(bpy.types.Operator):
         if self.frames:
             parts = [int(p) if p.strip() else None for p in self.frames.split(":")]
             cfg = cfg.with_overrides(frames=slice(*parts))
+        if s.scan_sensor == "PANEL":
+            cfg = cfg.with_realism(models.sensor_from(s), s.material, s.roughness, s.ambient)
         return cfg
 
     def _start(self, context):

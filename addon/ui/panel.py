@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import bpy
+import numpy as np
 
 from ..core.errors import ScannerError
 from . import models
@@ -24,6 +25,9 @@ class SCANNER_PT_cell(_ScannerPanel, bpy.types.Panel):
             col.prop(s, prop)
             if getattr(s, prop) == "FILE":
                 col.prop(s, file_prop, text="")
+        col.prop(s, "material")
+        if s.material == "glossy":
+            col.prop(s, "roughness")
         col.prop(s, "laser")
         col.operator("scanner.build_cell", icon="OUTLINER_COLLECTION")
 
@@ -84,6 +88,58 @@ class SCANNER_PT_probe(_ScannerPanel, bpy.types.Panel):
         box.label(text=f"f = {p.f_px:.1f} px; rebuild the cell to apply")
 
 
+class SCANNER_PT_sensor(_ScannerPanel, bpy.types.Panel):
+    bl_label = "Sensor Realism"
+    bl_parent_id = "SCANNER_PT_probe"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.scanner, "sensor_realistic", text="")
+
+    def draw(self, context):
+        s = context.scene.scanner
+        layout = self.layout
+        layout.active = s.sensor_realistic
+        col = layout.column(heading="Effects", align=True)
+        for prop in ("sensor_integrate_pixels", "sensor_saturate", "sensor_noise", "sensor_speckle",
+                     "sensor_defocus", "sensor_motion_blur", "sensor_distortion"):
+            col.prop(s, prop)
+        if s.sensor_distortion:
+            row = layout.row(align=True)
+            row.prop(s, "sensor_k1")
+            row.prop(s, "sensor_k2")
+            layout.prop(s, "sensor_undistort")
+        col = layout.column(align=True)
+        col.prop(s, "sensor_auto_exposure")
+        col.prop(s, "sensor_target_peak" if s.sensor_auto_exposure else "sensor_exposure_ms")
+        col.prop(s, "sensor_gain")
+        col.prop(s, "sensor_bit_depth")
+        col = layout.column(align=True)
+        col.prop(s, "sensor_f_number")
+        col.prop(s, "sensor_focus_mm")
+        col.prop(s, "sensor_seed")
+        layout.prop(s, "ambient")
+        if not s.sensor_realistic:
+            return
+        try:
+            sensor = models.sensor_from(s)
+            probe = models.probe_from(s)
+            ends = sensor.row_depths_mm(probe, np.array([probe.rows_px - 1.0, 0.0]))
+            near, far = sensor.blur_sigma_px(probe, ends)
+            grain = float(sensor.speckle_grain_px(probe, ends.mean()))
+        except ScannerError as exc:
+            box = layout.box()
+            box.alert = True
+            for line in _wrap(str(exc), 46):
+                box.label(text=line)
+            return
+        box = layout.box()
+        box.label(text=f"Lens: f = {sensor.focal_mm(probe):.1f} mm, pixels {sensor.pitch_um(probe):.1f} um")
+        box.label(text=f"Speckle grain: {grain:.2f} px")
+        box.label(text=f"Defocus sigma: {near:.2f} px near, {far:.2f} px far")
+        box.label(text=f"In focus at {sensor.focus_depth_mm(probe):.0f} mm")
+
+
 class SCANNER_PT_table(_ScannerPanel, bpy.types.Panel):
     bl_label = "Table"
     bl_parent_id = "SCANNER_PT_cell"
@@ -111,6 +167,7 @@ class SCANNER_PT_scan(_ScannerPanel, bpy.types.Panel):
         if s.scan_config == "FILE":
             col.prop(s, "scan_file", text="")
         col.prop(s, "output_dir")
+        col.prop(s, "scan_sensor")
         col.prop(s, "import_cloud")
         col.operator("scanner.scan", icon="PLAY")
         col.operator("scanner.export_ply", icon="EXPORT")
@@ -127,5 +184,5 @@ def _wrap(text: str, width: int) -> list[str]:
     return lines + ([line] if line else [])
 
 
-CLASSES = (SCANNER_PT_cell, SCANNER_PT_joints, SCANNER_PT_cartesian, SCANNER_PT_probe, SCANNER_PT_table,
-           SCANNER_PT_views, SCANNER_PT_scan)
+CLASSES = (SCANNER_PT_cell, SCANNER_PT_joints, SCANNER_PT_cartesian, SCANNER_PT_probe, SCANNER_PT_sensor,
+           SCANNER_PT_table, SCANNER_PT_views, SCANNER_PT_scan)

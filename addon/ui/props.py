@@ -14,6 +14,8 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
                        StringProperty)
 
 from ..core.config import available_rigs
+from ..core.scanconfig import MATERIALS
+from ..core.sensor import BIT_DEPTHS, SensorModel
 from ..core.workpiece import BUILTINS
 
 FILE = "FILE"
@@ -24,10 +26,15 @@ def _rig_items(kind: str, label: str):
         (FILE, "File...", f"A {label} file (TOML) chosen below")]
 
 
+_SENSOR = SensorModel()  # the panel's defaults are the core's
+
+
 # Enum items are built once: Blender keeps pointers to these strings.
 ROBOT_ITEMS = _rig_items("robots", "robot rig")
 PROBE_ITEMS = _rig_items("probes", "probe rig")
 SCENE_ITEMS = _rig_items("scenes", "scan config")
+MATERIAL_ITEMS = [(m, m.title(), f"{m.title()} surface") for m in MATERIALS]
+BIT_DEPTH_ITEMS = [(str(b), f"{b} bit", f"{b}-bit analogue-to-digital converter") for b in BIT_DEPTHS]
 WORKPIECE_ITEMS = [(k, k.replace("_", " ").title(), f"Built-in {k.replace('_', ' ')} with exact ground truth")
                    for k in BUILTINS] + [(FILE, "Mesh file...", "STL, OBJ, PLY or GLB (mm; GLB in metres)")]
 
@@ -50,6 +57,10 @@ class ScannerSettings(bpy.types.PropertyGroup):
     probe_file: StringProperty(name="Probe file", subtype="FILE_PATH", description="Probe rig file (TOML)")
     workpiece: EnumProperty(name="Workpiece", items=WORKPIECE_ITEMS, default="sphere")
     workpiece_file: StringProperty(name="Mesh file", subtype="FILE_PATH", description="Workpiece mesh")
+    material: EnumProperty(name="Material", items=MATERIAL_ITEMS, default="grey",
+                           description="Workpiece surface; glossy and mirror need render bounces to show reflections")
+    roughness: FloatProperty(name="Roughness", default=0.2, min=0.0, max=1.0,
+                             description="Glossy surface roughness (0: mirror-like)")
     laser: EnumProperty(name="Laser", items=[("gobo", "Gobo (Cycles)", "Spot light with a Gaussian slit gobo"),
                                              ("slit", "Slit (Cycles, Eevee)", "Point light behind a slit, as in the paper")],
                         default="gobo")
@@ -78,6 +89,43 @@ class ScannerSettings(bpy.types.PropertyGroup):
                             description="Sensor rows (H), along the triangulation direction")
     probe_cols: IntProperty(name="Columns", default=160, min=2, max=100000,
                             description="Sensor columns (W), along the laser line")
+    # -- sensor realism (off: the ideal sensor of the paper) --------------------------
+    sensor_realistic: BoolProperty(name="Realistic sensor", default=False,
+                                   description="Apply the sensor effects ticked below to the probe views "
+                                               "(and to scans, when the scan uses the panel's sensor)")
+    sensor_integrate_pixels: BoolProperty(name="Pixel integration", default=False,
+                                          description="Integrate light over each pixel's area (box filter)")
+    sensor_saturate: BoolProperty(name="Exposure and saturation", default=False,
+                                  description="Exposure, gain, full-well clipping and quantisation")
+    sensor_noise: BoolProperty(name="Noise", default=False,
+                               description="Shot noise, read noise, dark offset, fixed-pattern gain")
+    sensor_speckle: BoolProperty(name="Laser speckle", default=False,
+                                 description="Multiplicative speckle; grain size from aperture and wavelength")
+    sensor_defocus: BoolProperty(name="Defocus", default=False,
+                                 description="Blur from the lens aperture, by depth along the range")
+    sensor_motion_blur: BoolProperty(name="Motion blur", default=False,
+                                     description="The probe keeps moving while the shutter is open (scans)")
+    sensor_distortion: BoolProperty(name="Lens distortion", default=False,
+                                    description="Brown-Conrady radial distortion (removed by calibration)")
+    sensor_k1: FloatProperty(name="k1", default=-0.1, soft_min=-1.0, soft_max=1.0, description="Radial k1")
+    sensor_k2: FloatProperty(name="k2", default=0.0, soft_min=-1.0, soft_max=1.0, description="Radial k2")
+    sensor_undistort: BoolProperty(name="Calibrated", default=True,
+                                   description="Detections are undistorted before triangulation")
+    sensor_exposure_ms: FloatProperty(name="Exposure (ms)", default=_SENSOR.exposure_ms, min=1e-4, soft_max=20.0)
+    sensor_auto_exposure: BoolProperty(name="Auto-exposure", default=_SENSOR.auto_exposure,
+                                       description="Set the exposure so the line peak sits at the target level")
+    sensor_target_peak: FloatProperty(name="Target peak", default=_SENSOR.target_peak, min=0.01, max=1.0,
+                                      subtype="FACTOR", description="Auto-exposure: peak as a fraction of full scale")
+    sensor_gain: FloatProperty(name="Gain", default=_SENSOR.gain, min=1e-3, soft_max=16.0)
+    sensor_bit_depth: EnumProperty(name="Bit depth", items=BIT_DEPTH_ITEMS, default=str(_SENSOR.bit_depth))
+    sensor_f_number: FloatProperty(name="f-number", default=_SENSOR.f_number, min=0.5, soft_max=32.0,
+                                   description="Lens aperture: sets defocus and speckle grain")
+    sensor_focus_mm: FloatProperty(name="Focus (mm)", default=0.0, min=0.0, soft_max=1000.0,
+                                   description="Depth in focus along the camera axis (0: balanced over the "
+                                               "probe's range)")
+    sensor_seed: IntProperty(name="Seed", default=_SENSOR.seed, min=0, description="Noise and speckle seed")
+    ambient: FloatProperty(name="Ambient light", default=0.08, min=0.0, soft_max=1.0,
+                           description="Ambient light level in the probe views (fraction of the laser's full scale)")
     # -- table ------------------------------------------------------------------------
     table_angle: FloatProperty(name="Table angle", subtype="ANGLE", default=0.0, update=_table_angle_changed,
                                description="Rotary table angle theta_R")
@@ -87,6 +135,10 @@ class ScannerSettings(bpy.types.PropertyGroup):
     output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="",
                                description="Folder for cloud.ply, report.json, preview.png (empty: the "
                                            "extension's user folder)")
+    scan_sensor: EnumProperty(name="Sensor", items=[
+        ("CONFIG", "From the scan config", "Use the scan config's [sensor] table and material"),
+        ("PANEL", "From the probe panel", "Use the probe panel's realistic sensor, material and ambient light")],
+        default="CONFIG")
     import_cloud: BoolProperty(name="Import cloud", default=True, description="Bring the cloud into the scene")
 
 

@@ -90,6 +90,65 @@ def test_probe_views_render_into_images(panel):
         assert (px[..., 0] - px[..., 1]).max() > 0.2  # the red line is there
 
 
+def _view(camera: int) -> np.ndarray:
+    img = bpy.data.images[f"Probe camera {camera}"]
+    px = np.empty(img.size[0] * img.size[1] * 4, np.float32)
+    img.pixels.foreach_get(px)
+    return px.reshape(img.size[1], img.size[0], 4)
+
+
+def test_realistic_sensor_in_the_probe_section_changes_the_views(panel):
+    bpy.ops.scanner.build_cell()
+    s = panel.scanner
+    s.target_location = (0.0, 0.0, 60.0 + 150.0)
+    bpy.ops.scanner.go()
+    bpy.ops.scanner.render_views()
+    ideal = _view(0)
+    s.sensor_realistic = True
+    s.sensor_saturate = s.sensor_noise = True
+    s.sensor_bit_depth = "8"
+    s.sensor_exposure_ms = 4.0  # four times full scale at the line: it clips
+    assert bpy.ops.scanner.render_views() == {"FINISHED"}
+    real = _view(0)
+    dn = real[..., :3] * 255
+    np.testing.assert_allclose(dn, np.round(dn), atol=1e-3)  # 8-bit numbers
+    assert real[..., 0].max() == pytest.approx(1.0) and (real[..., 0] >= 1.0).sum() > 20  # clipped
+    bpy.ops.scanner.render_views()
+    np.testing.assert_array_equal(_view(0), real)  # seeded: the same noise again
+    s.sensor_seed += 1
+    bpy.ops.scanner.render_views()
+    assert (_view(0) != real).mean() > 0.3  # another seed, other noise, on most pixels
+    s.sensor_realistic = False  # the switch restores the ideal views exactly
+    bpy.ops.scanner.render_views()
+    np.testing.assert_array_equal(_view(0), ideal)
+
+
+def test_bad_sensor_settings_are_refused_with_the_reason(panel):
+    bpy.ops.scanner.build_cell()
+    s = panel.scanner
+    s.sensor_realistic = s.sensor_motion_blur = True
+    s.sensor_exposure_ms = 20.0  # longer than a frame at 100 frames/s
+    with pytest.raises(RuntimeError, match="longer than a frame"):
+        bpy.ops.scanner.render_views()
+
+
+def test_scan_can_take_the_panels_sensor_and_material(panel, tmp_path):
+    import json
+
+    s = panel.scanner
+    s.scan_config = "step_block"
+    s.output_dir = str(tmp_path)
+    s.sensor_realistic = s.sensor_saturate = s.sensor_speckle = True
+    s.material, s.ambient = "dark", 0.0
+    assert bpy.ops.scanner.scan(frames="0:100:25") == {"FINISHED"}
+    report = json.loads(next(tmp_path.glob("*/report.json")).read_text())
+    assert report["config"]["sensor"] == "ideal" and report["config"]["material"] == "grey"  # the config's
+    s.scan_sensor = "PANEL"
+    assert bpy.ops.scanner.scan(frames="0:100:25") == {"FINISHED"}
+    report = json.loads(next(tmp_path.glob("*/report.json")).read_text())
+    assert report["config"]["sensor"] == ["saturate", "speckle"] and report["config"]["material"] == "dark"
+
+
 def test_scan_imports_the_cloud_on_the_turntable_and_exports_ply(panel, tmp_path):
     s = panel.scanner
     s.scan_config = "step_block"
@@ -155,3 +214,53 @@ def test_register_unregister_register_leaves_no_residue(scene):
         assert not hasattr(bpy.types.Scene, "scanner")
         assert not [name for name in dir(bpy.types) if name.startswith("SCANNER_")]
     assert not bpy.app.handlers.frame_change_pre and not bpy.app.handlers.render_write
+
+
+class FakeLayout:
+    """Stands in for Blender's UILayout: records labels and checks every drawn property exists."""
+
+    def __init__(self, labels):
+        self.labels = labels
+        self.active = self.alert = True
+
+    def _sub(self, *args, **kwargs):
+        return FakeLayout(self.labels)
+
+    column = row = box = split = _sub
+
+    def prop(self, data, name, **kwargs):
+        if name.startswith('["'):
+            assert name[2:-2] in data.keys(), name
+        else:
+            assert hasattr(data, name), name
+
+    def label(self, text="", **kwargs):
+        self.labels.append(text)
+
+    def operator(self, idname, **kwargs):
+        group, name = idname.split(".")
+        assert hasattr(getattr(bpy.ops, group), name), idname
+
+
+def draw_all(context) -> list[str]:
+    from addon.ui.panel import CLASSES
+
+    labels = []
+    for cls in CLASSES:
+        for attr in ("draw_header", "draw"):
+            if hasattr(cls, attr):  # the unbound method on a stand-in panel that has only a layout
+                getattr(cls, attr)(type("Panel", (), {"layout": FakeLayout(labels)})(), context)
+    return labels
+
+
+def test_every_panel_draws_with_and_without_a_cell_and_realism(panel):
+    context = bpy.context
+    assert "Build the cell first" in draw_all(context)
+    bpy.ops.scanner.build_cell()
+    s = panel.scanner
+    assert not any("Speckle" in t for t in draw_all(context))
+    s.sensor_realistic = s.sensor_distortion = True
+    labels = draw_all(context)
+    assert any(t.startswith("Speckle grain") for t in labels) and any("In focus at" in t for t in labels)
+    s.sensor_focus_mm = 1.0  # inside the focal length: shown, not raised
+    assert "focal length" in " ".join(draw_all(context))

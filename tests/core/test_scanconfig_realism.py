@@ -1,0 +1,62 @@
+"""The [sensor] table and the workpiece surface in scan configs."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from addon.core.errors import ConfigError, InputError
+from addon.core.scanconfig import load_scan_config
+from addon.core.sensor import SensorModel
+
+REPO = Path(__file__).resolve().parents[2]
+STEP = (REPO / "rigs" / "scenes" / "step_block.toml").read_text()
+
+
+def config(tmp_path, extra: str = "", workpiece: str = ""):
+    path = tmp_path / "scan.toml"
+    path.write_text(STEP.replace("[workpiece]\n", "[workpiece]\n" + workpiece) + "\n" + extra)
+    return load_scan_config(path)
+
+
+def test_without_a_sensor_table_the_sensor_is_ideal(tmp_path):
+    cfg = config(tmp_path)
+    assert cfg.sensor == SensorModel() and cfg.sensor.ideal
+    assert cfg.detect.saturation == np.inf and cfg.material == "grey"
+
+
+def test_sensor_keys_reach_the_model(tmp_path):
+    cfg = config(tmp_path, "[sensor]\nsaturate = true\nnoise = true\nbit_depth = 10\nexposure_ms = 0.5\n"
+                           "distortion = [-0.05, 0.01, 0.0, 0.0]\nseed = 42\n",
+                 'material = "glossy"\nroughness = 0.05\n')
+    s = cfg.sensor
+    assert (s.saturate, s.noise, s.bit_depth, s.exposure_ms, s.seed) == (True, True, 10, 0.5, 42)
+    assert s.distortion == (-0.05, 0.01, 0.0, 0.0) and not s.speckle
+    assert cfg.detect.saturation == 1.0  # a clipping sensor: the detector flags full-scale lines
+    assert (cfg.material, cfg.roughness) == ("glossy", 0.05)
+
+
+@pytest.mark.parametrize("extra,workpiece,fragment", [
+    ("[sensor]\nbit_depth = 9\n", "", "[sensor]: bit_depth must be one of (8, 10, 12, 16)"),
+    ("[sensor]\nnosie = true\n", "", "unknown key sensor.nosie"),
+    ("[sensor]\nnosie = true\n", "", "distortion"),  # listed among the allowed keys
+    ("[sensor]\ndistortion = [0.1]\n", "", "sensor.distortion"),
+    ("[sensor]\nexposure_ms = 0\n", "", "sensor.exposure_ms"),
+    ("[sensor]\nmotion_blur = true\nexposure_ms = 20.0\n", "", "longer than a frame"),
+    ("[sensor]\nnoise = 1\n", "", "sensor.noise"),
+    ("", 'material = "chrome"\n', "grey, dark, glossy, mirror"),
+    ("", "roughness = 2.0\n", "workpiece.roughness"),
+])
+def test_bad_sensor_and_surface_keys_name_what_is_allowed(tmp_path, extra, workpiece, fragment):
+    with pytest.raises(ConfigError) as err:
+        config(tmp_path, extra, workpiece)
+    assert fragment in str(err.value) and str(err.value).startswith(str(tmp_path / "scan.toml"))
+
+
+def test_with_realism_swaps_sensor_surface_and_ambient(tmp_path):
+    cfg = config(tmp_path)
+    real = cfg.with_realism(SensorModel(saturate=True), "dark", None, 0.2)
+    assert real.detect.saturation == 1.0 and real.material == "dark" and real.render.ambient == 0.2
+    assert real.roughness == cfg.roughness and cfg.sensor.ideal  # the original is untouched
+    with pytest.raises(InputError, match="material"):
+        cfg.with_realism(SensorModel(), "chrome")
