@@ -36,6 +36,7 @@ from .core import metrics
 from .core.cloud import CloudAccumulator, save_ply
 from .core.detect import LineCode, detect_line
 from .core.errors import ScannerError, UnreachablePose
+from .core.profile_filter import filter_profile
 from .core.files import write_bytes_atomic, write_png
 from .core.footprint import laser_footprint
 from .core.preview import render_preview
@@ -356,7 +357,7 @@ def _detect_all(images, rows, config: ScanConfig):
         if img is None:
             out.append(None)
             continue
-        line = detect_line(img, config.detect_method, config.detect)
+        line = detect_line(img, config.detect_method, config.detect_params)
         if rows is not None:  # the image holds rows r0..r1−1 of the sensor
             line.row = line.row + rows[0]
             line.shape = (config.probe.rows_px, config.probe.cols_px)
@@ -406,7 +407,7 @@ def _profile(probe, lines, config: ScanConfig):
             u[ok], v[ok] = sensor.undistort_pixels(probe, u[ok], v[ok])
             undone.append(replace(ln, col=u, row=v))
         lines = undone
-    profs = [triangulate_profile(probe, ln, cam, config.triangulate_method)
+    profs = [filter_profile(triangulate_profile(probe, ln, cam, config.triangulate_method), config.profile_filter)
              for cam, ln in enumerate(lines) if ln is not None]
     if len(profs) == 2 and config.fuse:
         return fuse_profiles(*profs)

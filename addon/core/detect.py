@@ -13,9 +13,12 @@ Methods (``detect_line(image, method=...)``):
   resolution at best.
 - ``cog``: centre of gravity of the contrast above a fraction of the column's peak.
 - ``gauss``: three-point Gaussian fit (a parabola through the logarithms of the
-  peak sample and its two neighbours). The column profile is first smoothed along
-  the column with a Gaussian matched to the line's width: a Gaussian line stays
-  Gaussian under that smoothing, so the fit stays exact while noise averages out.
+  peak sample and its two neighbours): exact on a point-sampled Gaussian line.
+  For noisy images the column profile is first smoothed along the column with a
+  Gaussian matched to the line's width, which averages the noise out; on a line
+  only a pixel or two wide the sampled smoothing is no longer exactly Gaussian and
+  costs a few hundredths of a pixel, so noise-free images are better read unsmoothed
+  (``smoothing_px=0``).
 - ``steger``: Hessian ridge detection. OpenCV smooths the contrast with a
   Gaussian; the Hessian at each column's peak must show a ridge (strongly
   negative curvature across the line); the centre is where the derivative of the

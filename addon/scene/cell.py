@@ -132,20 +132,31 @@ class SceneCell:
             raise InputError("Eevee ignores light node trees, so the gobo laser renders as a plain spot; "
                              "build the cell with laser='slit' to render with Eevee")
         configure(self.scene, self.probe, settings, self.cameras[0])
-        results = self.root.children.get(RESULTS)
-        hidden = results.hide_render if results is not None else None
-        if results is not None:
-            results.hide_render = True  # an imported cloud is not part of what the probe sees
-        try:
+        with self._only_the_cell():
             if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else
                 return render_animation(self.scene, first, last, cameras, out_dir, rows)
             if move_table is None:  # Cycles does not motion-blur lights: with motion blur, move the part
                 move_table = settings.motion_blur_shutter > 0
             with self._without_rig(first, last, move_table):
                 return render_animation(self.scene, first, last, cameras, out_dir, rows)
+
+    @contextmanager
+    def _only_the_cell(self):
+        """Probe renders see the cell and nothing else: the scene's own objects (an artist's
+        lights, props, an imported cloud) are hidden from rendering meanwhile. The room's
+        light, when wanted, is the render settings' ambient."""
+        results = self.root.children.get(RESULTS)
+        mine = {o.name for o in self.root.all_objects}
+        if results is not None:
+            mine -= {o.name for o in results.all_objects}
+        hidden = [o for o in self.scene.objects if o.name not in mine and not o.hide_render]
+        for o in hidden:
+            o.hide_render = True
+        try:
+            yield
         finally:
-            if results is not None:
-                results.hide_render = hidden
+            for o in hidden:
+                o.hide_render = False
 
     @contextmanager
     def _without_rig(self, first: int, last: int, move_table: bool = False):

@@ -1,5 +1,6 @@
 """The cell: turntable carries the workpiece, paths render in one call, exactly as frame by frame."""
 
+import bpy
 import numpy as np
 import pytest
 
@@ -106,3 +107,23 @@ def test_rebuilding_replaces_the_cell(scene):
 def test_bad_render_settings(kwargs, fragment):
     with pytest.raises(InputError, match=fragment):
         RenderSettings(**kwargs)
+
+
+def test_the_scenes_own_objects_stay_out_of_probe_renders():
+    """An artist's scene (a bright lamp, a prop) must not change what the probe measures."""
+    from addon.core.scanconfig import load_scan_config
+    from addon.pipeline import run_scan
+    from addon.scene.session import new_scene
+
+    cfg = load_scan_config("step_block").with_overrides(frames=slice(0, 100, 25))
+    clean = run_scan(cfg, None, write_outputs=False).cloud
+    scene = new_scene()
+    lamp = bpy.data.objects.new("Studio lamp", bpy.data.lights.new("Studio lamp", "POINT"))
+    lamp.data.energy = 1000.0
+    lamp.location = (0.0, 0.0, 1.0)
+    scene.collection.objects.link(lamp)
+    bpy.ops.mesh.primitive_cube_add(size=0.02, location=(0.0, 0.06, 0.01))  # beside the part, on the table
+    prop = bpy.context.active_object
+    cluttered = run_scan(cfg, None, scene, write_outputs=False).cloud
+    np.testing.assert_array_equal(cluttered.points, clean.points)
+    assert not lamp.hide_render and not prop.hide_render  # given back as they were

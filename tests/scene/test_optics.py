@@ -22,7 +22,7 @@ from addon.scene.meshes import mesh_object
 from addon.scene.render import RenderSettings, configure, render_animation
 from addon.core.transforms import rot_x, rot_y, trans
 
-FLOAT = DetectParams(saturation=np.inf)  # float renders do not clip
+FLOAT = DetectParams(saturation=np.inf, smoothing_px=0.0)  # float renders do not clip, nor carry noise
 DISTANCES = (90.0, 150.0, 220.0)
 TILTS_DEG = ((0, 0), (30, 0), (0, 30), (-20, 25))  # about the probe's X, then Y
 
@@ -84,8 +84,9 @@ def test_gobo_laser_line_lies_where_the_core_predicts(scene):
     probe = load_probe("default")
     poses, images = render_planes(scene, probe, "gobo", RenderSettings(samples=1))
     d = deviations(probe, poses, images)
-    assert abs(d.mean()) <= 0.02, d.mean()
-    assert np.sqrt(np.mean(d ** 2)) <= 0.05, np.sqrt(np.mean(d ** 2))
+    # Measured: mean −0.0006 px, RMS 0.0016 px, worst 0.0036 px; bounds about 3× that.
+    assert abs(d.mean()) <= 0.002, d.mean()
+    assert np.sqrt(np.mean(d ** 2)) <= 0.005, np.sqrt(np.mean(d ** 2))
 
 
 def test_slit_laser_model_renders_a_line_at_the_predicted_place(scene):
