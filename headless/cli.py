@@ -10,6 +10,8 @@ Commands:
   bench render         N frames in one render call against N separate calls
   bench scan           profiles/s end to end, error, and what each leave-out saves
   bench realism        the realistic sensor effect by effect against the ideal mode
+  bench accuracy       error against run time, one setting at a time, with the Pareto front
+  bench stability      stiff and extreme cases, each with its expected and measured outcome
   overview             a picture of the cell and the two probe camera images
   realism-figure       one probe frame seen by the ideal and by the realistic sensor
   build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
@@ -41,11 +43,13 @@ def build_parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="benchmarks that print figures and ratios")
     bench_sub = bench.add_subparsers(dest="bench", required=True, metavar="NAME")
     from headless import build_extension, overview, realism_figure
+    from headless.bench import accuracy as bench_accuracy
     from headless.bench import detect as bench_detect
     from headless.bench import kinematics as bench_kinematics
     from headless.bench import realism as bench_realism
     from headless.bench import render as bench_render
     from headless.bench import scan as bench_scan
+    from headless.bench import stability as bench_stability
     from headless.bench import triangulate as bench_triangulate
 
     overview.add_arguments(sub.add_parser("overview", help=overview.__doc__.split("\n")[0]))
@@ -53,7 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     build_extension.add_arguments(sub.add_parser("build-extension", help=build_extension.__doc__.split("\n")[0]))
     for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),
                          ("triangulate", bench_triangulate), ("render", bench_render), ("scan", bench_scan),
-                         ("realism", bench_realism)):
+                         ("realism", bench_realism), ("accuracy", bench_accuracy),
+                         ("stability", bench_stability)):
         module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))
     return parser
 

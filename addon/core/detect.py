@@ -52,7 +52,7 @@ class LineCode(IntEnum):
     AMBIGUOUS = 3    # two separated peaks (e.g. a reflection): rejected, not averaged
     TOO_WIDE = 4     # wider than max_width_px: defocused, grazing, or not a laser line
     BAD_PIXELS = 5   # NaN or inf in the column
-    EDGE = 6         # the peak sits on the first or last row: cannot be localised
+    EDGE = 6         # the peak on the first or last row, or the line cut beside it: cannot be localised
 
 
 @dataclass(frozen=True)
@@ -64,6 +64,10 @@ class DetectParams:
         the exclusion band around it, makes the column AMBIGUOUS
     exclusion_px : half-width of that band (default: max(4, 2 × measured FWHM))
     max_width_px : wider lines (FWHM) are TOO_WIDE
+    max_width_ratio : columns wider than this many times the image's median line width
+        are TOO_WIDE (None: off). Where the surface turns away from the laser across the
+        line (grazing along the scan direction) the lit strip widens on the part and its
+        centre leaves the laser plane; its image widens with it.
     window_px : half-window around the peak used for widths and the centre of gravity
     cog_level : the centre of gravity uses contrast above this fraction of the peak
     saturation : level counted as clipped, as a fraction of full scale (default 1.0,
@@ -78,6 +82,7 @@ class DetectParams:
     second_peak_ratio: float = 0.25
     exclusion_px: float | None = None
     max_width_px: float = 25.0
+    max_width_ratio: float | None = None
     window_px: int = 8
     cog_level: float = 0.5
     saturation: float | None = None
@@ -184,12 +189,18 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
 
     width = _fwhm(C, r, peak, p.window_px)
     code[(code == 0) & ~(width <= p.max_width_px)] = LineCode.TOO_WIDE
+    code[(code == 0) & _wider_than_the_line(width, code, p)] = LineCode.TOO_WIDE
     code[(code == 0) & _saturated(C if rgb is None else rgb, r, p)] = LineCode.SATURATED
     code[(code == 0) & _second_peak(S, r, peak if S is C else S[r, cols], width, p)] = LineCode.AMBIGUOUS
 
+    rr = np.clip(r, 1, H - 2)
+    if method == "gauss":
+        # A neighbour with no light at all: the line is cut there (a depth edge), and
+        # the three-point fit has nothing to fit on that side.
+        cut = (S[rr - 1, cols] <= 0) | (S[rr + 1, cols] <= 0)
+        code[(code == 0) & cut] = LineCode.EDGE
     ok = code == 0
     row = np.full(W, np.nan)
-    rr = np.clip(r, 1, H - 2)
     if method == "gauss":
         row[ok] = rr[ok] + _log_parabola(S, rr, cols)[ok]
     elif method == "cog":
@@ -286,6 +297,13 @@ def _centre_of_gravity(C, r, peak, p: DetectParams) -> np.ndarray:
     total = w.sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         return (w * rows).sum(axis=0) / total
+
+
+def _wider_than_the_line(width: np.ndarray, code: np.ndarray, p: DetectParams) -> np.ndarray:
+    ok = (code == 0) & np.isfinite(width)
+    if p.max_width_ratio is None or ok.sum() < 8:
+        return np.zeros(len(width), bool)
+    return width > p.max_width_ratio * float(np.median(width[ok]))
 
 
 def _smoothing(C: np.ndarray, p: DetectParams) -> float:

@@ -25,6 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=int, default=2, help="runs of each variant; the median counts (default 2)")
     parser.add_argument("--hires-frames", type=int, default=24, help="frames of the 1280x1024 scenario (default 24)")
     parser.add_argument("--quick", action="store_true", help="fewer frames everywhere (for a smoke test)")
+    parser.add_argument("--readme", action="store_true", help="also put the table into README.md")
     parser.set_defaults(run=run)
 
 
@@ -86,4 +87,23 @@ def run(args: argparse.Namespace) -> int:
     print()
     print("Goal: >= 100 profiles/s at 160x160 on this 2-core machine. 'rows': mean sensor rows rendered per frame; "
           "'cams': cameras rendered.")
+    if args.readme:
+        from headless.bench import readme
+
+        readme.update("scan", to_markdown(rows, args))
     return 0
+
+
+def to_markdown(rows, args) -> str:
+    lines = [f"Measured with `python -m headless bench scan --repeats {args.repeats}`"
+             + (" --quick" if args.quick else "") + " (Cycles on the CPU of this 2-core machine; profiles per "
+             "second = frames / (render + detect + triangulate); ratio = time with that leave-out switched off ÷ "
+             "time with it on, side by side in one run):", "",
+             "| scenario | sensor | frames | profiles/s | RMS µm | p95 µm | rows rendered | cameras | band | robot "
+             "| camera skip |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for name, rep, rate, ratios, e in rows:
+        W, H = rep["config"]["sensor_px"]
+        lines.append(f"| {name} | {W}×{H} | {rep['frames']} | {rate:.1f} | {e['rms_um']:.1f} | {e['p95_um']:.1f} | "
+                     f"{rep['mean_rows_rendered']:.0f} of {H} | {len(rep['cameras_rendered'])} | "
+                     f"×{ratios['band']:.2f} | ×{ratios['robot']:.2f} | ×{ratios['cameras']:.2f} |")
+    return "\n".join(lines) + "\n"

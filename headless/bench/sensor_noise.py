@@ -90,3 +90,14 @@ def print_table(rows) -> None:
     for level, noise, rendered, synthetic, _ in rows:
         print(f"{level * 100:>10.0f}%{noise * 100:>14.2f}%{rendered:>13.4f}{synthetic:>14.4f}"
               f"{rendered / synthetic:>8.2f}")
+
+
+def to_markdown(rows, frames: int) -> str:
+    lines = [f"Measured with `python -m headless bench realism --only noise --noise-frames {frames}` "
+             f"(rendered line σ = {rows[0][4]:.2f} px):", "",
+             "| line level | noise at the peak | rendered + sensor (gauss) | synthetic, same noise | ratio |",
+             "|---|---|---|---|---|"]
+    for level, noise, rendered, synthetic, _ in rows:
+        lines.append(f"| {level * 100:.0f} % | {noise * 100:.2f} % | {rendered:.4f} px | {synthetic:.4f} px | "
+                     f"{rendered / synthetic:.2f} |")
+    return "\n".join(lines) + "\n"

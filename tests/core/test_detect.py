@@ -130,3 +130,27 @@ def test_bad_inputs_give_clear_errors(image, fragment):
 def test_unknown_method():
     with pytest.raises(InputError, match="not one of"):
         detect_line(np.zeros((5, 5)), "magic")
+
+
+def test_columns_much_wider_than_the_line_are_rejected_when_asked():
+    from addon.core.detect import DetectParams
+
+    W = 100
+    sigma = np.full(W, 0.8)
+    sigma[40:50] = 2.0  # a stretch where the line spreads (grazing across it)
+    img = np.concatenate([line_image(160, np.full(1, 70.3), s, integrate=False) for s in sigma], axis=1)
+    plain = detect_line(img, "gauss", DetectParams(saturation=np.inf, smoothing_px=0.0))
+    assert plain.valid.all()
+    picky = detect_line(img, "gauss", DetectParams(saturation=np.inf, smoothing_px=0.0, max_width_ratio=1.6))
+    assert np.array_equal(np.flatnonzero(~picky.valid), np.arange(40, 50))
+    assert (picky.code[40:50] == LineCode.TOO_WIDE).all()
+
+
+def test_a_line_cut_by_a_depth_edge_is_not_fitted():
+    from addon.core.detect import DetectParams
+
+    img = line_image(160, np.full(60, 70.2), 0.55, background=0.0, integrate=False)
+    img[71:, :30, 0] = 0.0  # the part ends just past the peak in the first 30 columns
+    line = detect_line(img, "gauss", DetectParams(saturation=np.inf, smoothing_px=0.0))
+    assert (line.code[:30] == LineCode.EDGE).all() and line.valid[30:].all()
+    assert np.abs(line.row[30:] - 70.2).max() < 1e-6  # the whole Gaussian is still exact
