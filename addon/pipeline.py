@@ -35,7 +35,7 @@ import numpy as np
 from .core import metrics
 from .core.cloud import CloudAccumulator, save_ply
 from .core.detect import LineCode, detect_line
-from .core.errors import ScannerError, UnreachablePose
+from .core.errors import InputError, ScannerError, UnreachablePose
 from .core.profile_filter import filter_profile
 from .core.files import write_bytes_atomic, write_png
 from .core.footprint import laser_footprint
@@ -203,7 +203,14 @@ class ScanRun:
     returns True (one chunk of frames each), then :meth:`finish`. Dropping the object
     before :meth:`finish` discards everything; nothing has been written."""
 
-    def __init__(self, config: ScanConfig, scene=None, progress: Progress | None = None, keep_images: bool = False):
+    def __init__(self, config: ScanConfig, scene=None, progress: Progress | None = None, keep_images: bool = False,
+                 *, plan: Plan | None = None, frames: range | None = None, scene_cell=None,
+                 threads: int | None = None):
+        """``plan``: the whole path's plan when it was made already (a farm's coordinator
+        plans once for all shards); ``frames``: the part of the path to scan (path
+        indices; the cloud keeps those indices); ``scene_cell``: a cell built earlier for
+        this config, reused (a farm worker builds once for all its shards); ``threads``:
+        render threads (None: all cores)."""
         self.config = config
         # keep_images: {frame index in the path: the two cameras' sensor images (band or full)}, for pictures
         self.images: dict[int, list] | None = {} if keep_images else None
@@ -212,8 +219,14 @@ class ScanRun:
         self.progress = progress or (lambda stage, done, total: None)
 
         t = time.perf_counter()
-        self.plan = plan_scan(config)  # every refusal comes before Blender is even loaded
+        self.plan = plan_scan(config) if plan is None else plan  # refusals come before Blender is loaded
         self.timing["plan"] = time.perf_counter() - t
+        total = len(self.plan.q)
+        frames = range(total) if frames is None else frames
+        if not (frames.step == 1 and 0 <= frames.start < frames.stop <= total):
+            raise InputError(f"frames {frames.start}..{frames.stop - 1} are not a part of the {total}-frame path")
+        a, b = frames.start, frames.stop
+        self.first = a
 
         from .scene.cell import build_cell
         from .scene.laser import laser_power_w
@@ -221,21 +234,27 @@ class ScanRun:
         from .scene.session import new_scene
 
         t = time.perf_counter()
-        if scene is None:
-            scene = new_scene(config.render.device)
         probe = config.probe
-        self.sc = build_cell(scene, config.cell, probe, config.workpiece, config.render.laser,
-                             laser_power_w(probe, peak=config.render.laser_peak), material=config.material,
-                             roughness=config.roughness)
-        self.frames = self.sc.keyframe(self.plan.q, self.plan.table_rad)
-        self.settings = render_settings(config, RenderSettings)
+        if scene_cell is None:
+            if scene is None:
+                scene = new_scene(config.render.device)
+            scene_cell = build_cell(scene, config.cell, probe, config.workpiece, config.render.laser,
+                                    laser_power_w(probe, peak=config.render.laser_peak), material=config.material,
+                                    roughness=config.roughness)
+        self.sc = scene_cell
+        # The frames either side are keyframed too, so that motion during the exposure
+        # (linear between keys) is the same whatever part of the path is scanned.
+        lo, hi = max(0, a - 1), min(total, b + 1)
+        keyed = self.sc.keyframe(self.plan.q[lo:hi], self.plan.table_rad[lo:hi])
+        self.frames = range(keyed.start + a - lo, keyed.start + b - lo)
+        self.settings = replace(render_settings(config, RenderSettings), threads=threads)
         self.timing["scene"] = time.perf_counter() - t
-        self.n = len(self.frames)
+        self.n = b - a
         self.acc = CloudAccumulator()
-        self.probe2table = config.cell.probe2table(self.plan.q, self.plan.table_rad)
+        self.probe2table = config.cell.probe2table(self.plan.q[a:b], self.plan.table_rad[a:b])
         self.band = _Band(probe.rows_px, config.leave_out.band_margin_px, config.leave_out.chunk_frames,
-                          self.plan.predicted_rows)
-        self.stats = dict(columns=0, valid=0, rerendered=0, band_rows=[], codes={})
+                          self.plan.predicted_rows[a:b])
+        self.stats = new_stats()
         self.t_render = self.t_detect = self.t_tri = 0.0
         self.done = 0
         self.previous_rows: list = [None, None]
@@ -251,7 +270,7 @@ class ScanRun:
         config, probe, plan, sc = self.config, self.config.probe, self.plan, self.sc
         chunk = config.leave_out.chunk_frames
         done = self.done
-        size = 1 if done == 0 and not np.isfinite(plan.predicted_rows[0]).all() else min(chunk, self.n - done)
+        size = 1 if done == 0 and not np.isfinite(plan.predicted_rows[self.first]).all() else min(chunk, self.n - done)
         first = self.frames.start + done
         rows = self.band.rows(done, size) if config.leave_out.render_band else None
         hide = config.leave_out.hide_robot
@@ -259,7 +278,8 @@ class ScanRun:
         images = sc.render(first, first + size - 1, self.settings, plan.cameras, rows=rows, leave_out_robot=hide)
         self.t_render += time.perf_counter() - t
         t = time.perf_counter()
-        images = [self._sense(pair, rows, done + i) for i, pair in enumerate(images)]
+        index = self.first + done  # path index of the chunk's first frame
+        images = [self._sense(pair, rows, index + i) for i, pair in enumerate(images)]
         lines = [_detect_all(img, rows, config) for img in images]
         self.t_detect += time.perf_counter() - t
         # Frames whose line the band may have cut are rendered again at full height, in one call.
@@ -275,15 +295,15 @@ class ScanRun:
             self.stats["rerendered"] += len(full)
             t = time.perf_counter()
             for i in redo:
-                images[i] = self._sense(full[i - redo[0]], None, done + i)
+                images[i] = self._sense(full[i - redo[0]], None, index + i)
                 lines[i] = _detect_all(images[i], None, config)
             self.t_detect += time.perf_counter() - t
         if self.images is not None:
-            self.images.update({done + i: images[i] for i in range(size)})
+            self.images.update({index + i: images[i] for i in range(size)})
         stats = self.stats
         for i in range(size):
             t = time.perf_counter()
-            self.acc.add(_profile(probe, lines[i], config), self.probe2table[done + i], done + i)
+            self.acc.add(_profile(probe, lines[i], config), self.probe2table[done + i], index + i)
             self.t_tri += time.perf_counter() - t
             stats["valid"] += sum(int(ln.valid.sum()) for ln in lines[i] if ln is not None)
             stats["columns"] += sum(len(ln.col) for ln in lines[i] if ln is not None)
@@ -309,45 +329,71 @@ class ScanRun:
 
     def finish(self, out_dir: str | Path | None) -> ScanResult:
         """Measure against the truth, build the report and (with ``out_dir``) write the files."""
-        config, probe, plan = self.config, self.config.probe, self.plan
-        timing = self.timing
-        timing.update(render=self.t_render, detect=self.t_detect, triangulate=self.t_tri)
+        self.timing.update(render=self.t_render, detect=self.t_detect, triangulate=self.t_tri)
+        return assemble(self.config, self.plan, self.acc.cloud(), self.stats, self.timing, out_dir, self.t_all)
+
+
+def new_stats() -> dict:
+    """Per-scan counters: sensor columns seen and kept, frames re-rendered at full height,
+    rows rendered per frame, and columns per detection code."""
+    return dict(columns=0, valid=0, rerendered=0, band_rows=[], codes={})
+
+
+def merge_stats(parts: list[dict]) -> dict:
+    """The counters of several parts of one scan (shards), added up."""
+    out = new_stats()
+    for st in parts:
+        out["columns"] += int(st["columns"])
+        out["valid"] += int(st["valid"])
+        out["rerendered"] += int(st["rerendered"])
+        out["band_rows"] += [int(v) for v in st["band_rows"]]
+        for name, count in st["codes"].items():
+            out["codes"][name] = out["codes"].get(name, 0) + int(count)
+    return out
+
+
+def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, out_dir: str | Path | None,
+             t_start: float, extra: dict | None = None) -> ScanResult:
+    """The scan's result from its cloud and counters: error against the truth, the report,
+    and (with ``out_dir``) cloud.ply, report.json and preview.png written atomically."""
+    probe = config.probe
+    timing = dict(timing)
+    t = time.perf_counter()
+    quality, on_part, error_um = _measure(cloud, config)
+    timing["metrics"] = time.perf_counter() - t
+    n = int(len(stats["band_rows"]))
+    scan_time = timing.get("render", 0.0) + timing.get("detect", 0.0) + timing.get("triangulate", 0.0)
+    r = config.render
+    report = {
+        "config": {"name": config.name, "file": config.source, "robot": config.robot.name, "probe": probe.name,
+                   "sensor_px": [probe.cols_px, probe.rows_px], "workpiece": config.workpiece.source,
+                   "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
+                   "triangulate": config.triangulate_method, "fuse": config.fuse,
+                   "sensor": "ideal" if config.sensor.ideal else _effects(config.sensor),
+                   "material": config.material},
+        "frames": n,
+        "points": len(cloud),
+        "valid_fraction": stats["valid"] / max(stats["columns"], 1),
+        "column_codes": stats["codes"],
+        "cameras_rendered": list(plan.cameras),
+        "frames_rerendered_full": stats["rerendered"],
+        "mean_rows_rendered": float(np.mean(stats["band_rows"])) if stats["band_rows"] else 0.0,
+        "time_s": {k: round(v, 4) for k, v in timing.items()},
+        "profiles_per_s": n / scan_time if scan_time > 0 else float("inf"),
+        **quality,
+        "warnings": plan.warnings,
+        "software": {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__},
+        **(extra or {}),
+    }
+    files = {}
+    if out_dir is not None:
         t = time.perf_counter()
-        cloud = self.acc.cloud()
-        quality, on_part, error_um = _measure(cloud, config)
-        timing["metrics"] = time.perf_counter() - t
-        scan_time = self.t_render + self.t_detect + self.t_tri
-        r = config.render
-        report = {
-            "config": {"name": config.name, "file": config.source, "robot": config.robot.name, "probe": probe.name,
-                       "sensor_px": [probe.cols_px, probe.rows_px], "workpiece": config.workpiece.source,
-                       "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
-                       "triangulate": config.triangulate_method, "fuse": config.fuse,
-                       "sensor": "ideal" if config.sensor.ideal else _effects(config.sensor),
-                       "material": config.material},
-            "frames": self.n,
-            "points": len(cloud),
-            "valid_fraction": self.stats["valid"] / max(self.stats["columns"], 1),
-            "column_codes": self.stats["codes"],
-            "cameras_rendered": list(plan.cameras),
-            "frames_rerendered_full": self.stats["rerendered"],
-            "mean_rows_rendered": float(np.mean(self.stats["band_rows"])) if self.stats["band_rows"] else 0.0,
-            "time_s": {k: round(v, 4) for k, v in timing.items()},
-            "profiles_per_s": self.n / scan_time if scan_time > 0 else float("inf"),
-            **quality,
-            "warnings": plan.warnings,
-            "software": {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__},
-        }
-        files = {}
-        if out_dir is not None:
-            t = time.perf_counter()
-            files = _write_outputs(Path(out_dir), cloud, report, config, on_part, error_um)
-            timing["write"] = time.perf_counter() - t
-            report["time_s"]["write"] = round(timing["write"], 4)
-        report["time_s"]["total"] = round(time.perf_counter() - self.t_all, 4)
-        if files:
-            write_bytes_atomic(files["report"], (json.dumps(report, indent=2) + "\n").encode())
-        return ScanResult(cloud, report, files, error_um, on_part)
+        files = _write_outputs(Path(out_dir), cloud, report, config, on_part, error_um)
+        report["time_s"]["write"] = round(time.perf_counter() - t, 4)
+    report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
+    if files:
+        write_bytes_atomic(files["report"], (json.dumps(report, indent=2) + "\n").encode())
+    return ScanResult(cloud, report, files, error_um, on_part)
 
 
 def _detect_all(images, rows, config: ScanConfig):
@@ -357,9 +403,8 @@ def _detect_all(images, rows, config: ScanConfig):
         if img is None:
             out.append(None)
             continue
-        line = detect_line(img, config.detect_method, config.detect_params)
-        if rows is not None:  # the image holds rows r0..r1−1 of the sensor
-            line.row = line.row + rows[0]
+        line = detect_line(img, config.detect_method, config.detect_params, 0 if rows is None else rows[0])
+        if rows is not None:  # the image holds rows r0..r1−1 of the sensor; its rows are the sensor's
             line.shape = (config.probe.rows_px, config.probe.cols_px)
             # (A peak on the band's first or last row is coded EDGE; the caller re-renders
             # such frames at full height, where only the sensor's own edges stay EDGE.)

@@ -12,6 +12,7 @@ Commands:
   bench realism        the realistic sensor effect by effect against the ideal mode
   bench accuracy       error against run time, one setting at a time, with the Pareto front
   bench stability      stiff and extreme cases, each with its expected and measured outcome
+  bench farm           sharded scans on a local Dask cluster: 1 against 2 workers
   overview             a picture of the cell and the two probe camera images
   realism-figure       one probe frame seen by the ideal and by the realistic sensor
   build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
@@ -45,6 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
     from headless import build_extension, overview, realism_figure
     from headless.bench import accuracy as bench_accuracy
     from headless.bench import detect as bench_detect
+    from headless.bench import farm as bench_farm
     from headless.bench import kinematics as bench_kinematics
     from headless.bench import realism as bench_realism
     from headless.bench import render as bench_render
@@ -58,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
     for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),
                          ("triangulate", bench_triangulate), ("render", bench_render), ("scan", bench_scan),
                          ("realism", bench_realism), ("accuracy", bench_accuracy),
-                         ("stability", bench_stability)):
+                         ("stability", bench_stability), ("farm", bench_farm)):
         module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))
     return parser
 

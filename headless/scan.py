@@ -24,6 +24,13 @@ def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
     parser.add_argument("--resolution", help="sensor size WxH (columns x rows), the probe's optics kept")
     parser.add_argument("--detect", choices=("threshold", "cog", "gauss", "steger"), help="line detection method")
     parser.add_argument("--max-rms-um", type=float, help="exit with code 3 when the part's RMS error is larger")
+    parser.add_argument("--workers", type=int, help="scan in shards on a local Dask cluster of N worker processes")
+    parser.add_argument("--scheduler", help="scan in shards on the Dask scheduler at tcp://HOST:PORT")
+    parser.add_argument("--shard-frames", type=int, help="frames per shard (default: about 4 shards per worker)")
+    parser.add_argument("--shard", type=int, metavar="K",
+                        help="compute only shard K in this process (a farm manager's task; needs --shard-frames)")
+    parser.add_argument("--merge", action="store_true",
+                        help="compute nothing: merge the shards in --out when all are there (needs --shard-frames)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(run=run_demo if demo else run_scan_command)
 
@@ -73,15 +80,16 @@ class ProgressBar:
             return
         frac = done / max(total, 1)
         rate = done / max(time.perf_counter() - self.start, 1e-9)
+        unit = "shards" if stage == "shards" else "frames"
         if self.tty:
             bar = "#" * int(30 * frac)
-            sys.stderr.write(f"\r{stage}: [{bar:<30}] {done}/{total} frames, {rate:.0f} frames/s")
+            sys.stderr.write(f"\r{stage}: [{bar:<30}] {done}/{total} {unit}, {rate:.1f} {unit}/s")
             if done >= total:
                 sys.stderr.write("\n")
             sys.stderr.flush()
         elif int(frac * 10) > self.shown:
             self.shown = int(frac * 10)
-            print(f"{stage}: {done}/{total} frames", file=sys.stderr, flush=True)
+            print(f"{stage}: {done}/{total} {unit}", file=sys.stderr, flush=True)
 
 
 def run_scan_command(args: argparse.Namespace) -> int:
@@ -111,7 +119,26 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
     print(f"scan: {config.name} ({len(config.waypoints)} frames, {config.robot.name}, {config.probe.name}, "
           f"workpiece {config.workpiece.source})", flush=True)
     t = time.perf_counter()
-    result = run_scan(config, out, progress=ProgressBar(args.quiet))
+    if (args.shard is not None or args.merge) and args.shard_frames is None:
+        from addon.core.errors import InputError
+
+        raise InputError("--shard and --merge need --shard-frames (the same for every task of the job)")
+    if args.shard is not None:
+        from headless.farm import run_one_shard
+
+        info = run_one_shard(config, out, args.shard_frames, args.shard)
+        print(f"  {info['describe']} of {info['of']}: {info['points']} points in {info['seconds']:.1f} s -> "
+              f"{info['path']}")
+        return 0
+    if args.workers is not None or args.scheduler is not None or args.shard_frames is not None or args.merge:
+        from headless.farm import run_farm
+
+        result = run_farm(config, out, workers=args.workers if args.workers is not None else 2,
+                          scheduler=args.scheduler, shard_frames=args.shard_frames,
+                          log=(lambda m: None) if args.quiet else (lambda m: print(m, flush=True)),
+                          progress=ProgressBar(args.quiet), merge_only=args.merge)
+    else:
+        result = run_scan(config, out, progress=ProgressBar(args.quiet))
     wall = time.perf_counter() - t
     r = result.report
     e = r["error_um"]
@@ -121,11 +148,17 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
           f"max {e['max_um']:.1f} um, bias {e['bias_um']:+.1f} um (part, against its exact shape)")
     print(f"  coverage      {r['coverage'] * 100:.1f} % of the part within {r['coverage_tolerance_mm']:g} mm of a point")
     ts = r["time_s"]
-    print(f"  time          {wall:.1f} s: plan {ts['plan']:.2f}, scene {ts['scene']:.2f}, render {ts['render']:.2f}, "
-          f"detect {ts['detect']:.2f}, triangulate {ts['triangulate']:.2f}, write {ts.get('write', 0):.2f}")
+    print(f"  time          {wall:.1f} s: plan {ts['plan']:.2f}, scene {ts.get('scene', 0):.2f}, "
+          f"render {ts.get('render', 0):.2f}, detect {ts.get('detect', 0):.2f}, "
+          f"triangulate {ts.get('triangulate', 0):.2f}, write {ts.get('write', 0):.2f}")
     print(f"  speed         {r['profiles_per_s']:.1f} profiles/s (render + detect + triangulate); "
           f"cameras {r['cameras_rendered']}, {r['mean_rows_rendered']:.0f} of {r['config']['sensor_px'][1]} rows "
           f"rendered on average")
+    if "farm" in r:
+        f = r["farm"]
+        rate = f"{f['profiles_per_s_wall']:.1f} profiles/s" if f["profiles_per_s_wall"] else "nothing to compute"
+        print(f"  farm          {f['shards']} shards ({f['computed']} computed, {f['reused']} reused), "
+              f"{f['wall_s']:.1f} s on the cluster: {rate}")
     for w in r["warnings"]:
         print(f"  warning       {w}")
     for name, path in result.files.items():

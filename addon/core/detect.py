@@ -152,8 +152,14 @@ def _prepare(image) -> tuple[np.ndarray, np.ndarray | None, float]:
 
 # -- main entry ---------------------------------------------------------------------------
 
-def detect_line(image, method: str = "gauss", params: DetectParams | None = None) -> LineDetection:
-    """Detect the laser line in every column of ``image``; see the module docstring."""
+def detect_line(image, method: str = "gauss", params: DetectParams | None = None,
+                row_offset: int = 0) -> LineDetection:
+    """Detect the laser line in every column of ``image``; see the module docstring.
+
+    ``row_offset``: the sensor row of the image's first row (a band render). Every
+    method finds an integer peak row and a sub-pixel offset from it, and reports
+    (peak + row_offset) + offset, so a band gives bit for bit the rows a full
+    frame gives. The result's ``shape`` is still the image's."""
     if method not in METHODS:
         raise InputError(f"detection method {method!r} is not one of: {', '.join(METHODS)}")
     p = params or DetectParams()
@@ -171,7 +177,7 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
             rgb = np.where(np.isfinite(rgb), rgb, np.float32(0.0))
 
     if method == "threshold":
-        return _detect_threshold(C, rgb, p, code)
+        return _detect_threshold(C, rgb, p, code, int(row_offset))
 
     sigma_s = _smoothing(C, p)
     if method == "steger":
@@ -201,12 +207,13 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
         code[(code == 0) & cut] = LineCode.EDGE
     ok = code == 0
     row = np.full(W, np.nan)
+    base = (rr + int(row_offset)).astype(np.float64)
     if method == "gauss":
-        row[ok] = rr[ok] + _log_parabola(S, rr, cols)[ok]
+        row[ok] = base[ok] + _log_parabola(S, rr, cols)[ok]
     elif method == "cog":
-        row[ok] = _centre_of_gravity(C, r, peak, p)[ok]
+        row[ok] = (r + int(row_offset)).astype(np.float64)[ok] + _centre_of_gravity(C, r, peak, p)[ok]
     else:
-        row[ok] = _steger(C, S, rr, sigma_s)[ok]
+        row[ok] = base[ok] + _steger(C, S, rr, sigma_s)[ok]
     code[ok & ~np.isfinite(row)] = LineCode.NO_LINE
     row[code != 0] = np.nan
     return LineDetection(cols, row, peak.astype(np.float64), width, code, method, (H, W))
@@ -288,15 +295,17 @@ def _log_parabola(C, r, cols) -> np.ndarray:
 
 
 def _centre_of_gravity(C, r, peak, p: DetectParams) -> np.ndarray:
+    """Sub-pixel offset of the centre of gravity from the peak row r."""
     half = p.window_px
     win = _window(C, r, half).astype(np.float64)
     H = C.shape[0]
-    rows = r[None, :] + np.arange(-half, half + 1)[:, None]
+    offsets = np.arange(-half, half + 1)[:, None]
+    rows = r[None, :] + offsets
     w = np.maximum(win - p.cog_level * peak[None, :], 0.0)
     w[(rows < 0) | (rows > H - 1)] = 0.0
     total = w.sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return (w * rows).sum(axis=0) / total
+        return (w * offsets).sum(axis=0) / total  # from the peak row
 
 
 def _wider_than_the_line(width: np.ndarray, code: np.ndarray, p: DetectParams) -> np.ndarray:
@@ -330,7 +339,8 @@ def _smooth_columns(C: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def _steger(C, S, r, sig: float) -> np.ndarray:
-    """Ridge centre per column: Hessian ridge test at the peak, then Newton on the smoothed profile."""
+    """Ridge centre per column, as an offset from the peak row r: Hessian ridge test at the
+    peak, then Newton on the smoothed profile."""
     H, W = C.shape
     cols = np.arange(W)
     cl, cr = np.clip(cols - 1, 0, W - 1), np.clip(cols + 1, 0, W - 1)
@@ -350,8 +360,8 @@ def _steger(C, S, r, sig: float) -> np.ndarray:
     # S(v) = Σ_k C[k]·g(v − k), with g the smoothing Gaussian.
     half = int(np.ceil(4 * sig)) + 2
     win = _window(C, r, half).astype(np.float64)
-    k = r[None, :] + np.arange(-half, half + 1)[:, None]
-    v = r.astype(np.float64)
+    k = np.arange(-half, half + 1, dtype=np.float64)[:, None]  # rows relative to the peak row
+    v = np.zeros(W)
     for _ in range(6):
         x = (v[None, :] - k) / sig
         g = np.exp(-0.5 * x * x)
@@ -360,11 +370,11 @@ def _steger(C, S, r, sig: float) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
             step = np.where(d2 < 0, -d1 / d2, 0.0)
         v = v + np.clip(step, -0.5, 0.5)
-    ok = ridge & (np.abs(v - r) <= 1.0)
-    return np.where(ok, v, np.nan)
+    ok = ridge & (np.abs(v) <= 1.0)
+    return np.where(ok, v, np.nan)  # from the peak row
 
 
-def _detect_threshold(C, rgb, p: DetectParams, code: np.ndarray) -> LineDetection:
+def _detect_threshold(C, rgb, p: DetectParams, code: np.ndarray, row_offset: int = 0) -> LineDetection:
     """The paper's method: HSV saturation threshold, centre of the lit run in each column."""
     H, W = C.shape
     cols = np.arange(W)
@@ -384,5 +394,5 @@ def _detect_threshold(C, rgb, p: DetectParams, code: np.ndarray) -> LineDetectio
     code[(code == 0) & (width > p.max_width_px)] = LineCode.TOO_WIDE
     r = _argmax_rows(C)
     code[(code == 0) & _saturated(C if rgb is None else rgb, r, p)] = LineCode.SATURATED
-    row = np.where(code == 0, 0.5 * (first + last), np.nan)
+    row = np.where(code == 0, 0.5 * ((first + row_offset) + (last + row_offset)), np.nan)
     return LineDetection(cols, row, peak.astype(np.float64), width, code, "threshold", (H, W))

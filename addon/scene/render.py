@@ -46,6 +46,7 @@ class RenderSettings:
     resolution: tuple[int, int] | None = None
     persistent_data: bool = True
     motion_blur_shutter: float = 0.0  # fraction of a frame the shutter is open (0: no motion blur)
+    threads: int | None = None        # render threads (None: as many as the machine has cores)
 
     def __post_init__(self) -> None:
         if self.engine not in ENGINES:
@@ -62,6 +63,8 @@ class RenderSettings:
             raise InputError(f"ambient must be in [0, 100], got {self.ambient}")
         if not 0 <= self.motion_blur_shutter <= 1:
             raise InputError(f"motion blur shutter must be in [0, 1] frames, got {self.motion_blur_shutter}")
+        if self.threads is not None and not (isinstance(self.threads, int) and 1 <= self.threads <= 1024):
+            raise InputError(f"render threads must be a whole number in [1, 1024] or None, got {self.threads!r}")
 
 
 def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderSettings, camera_left: bpy.types.Object) -> str:
@@ -74,6 +77,10 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderSettings, ca
     r.use_border = False
     r.film_transparent = False
     r.use_persistent_data = settings.persistent_data
+    if settings.threads is None:
+        r.threads_mode = "AUTO"
+    else:
+        r.threads_mode, r.threads = "FIXED", int(settings.threads)
     r.use_motion_blur = settings.motion_blur_shutter > 0
     if r.use_motion_blur:
         r.motion_blur_shutter = settings.motion_blur_shutter

@@ -147,12 +147,16 @@ def run(args: argparse.Namespace) -> int:
     if bad:
         raise InputError(f"--factors: unknown {', '.join(bad)}; allowed: {', '.join(table)}")
 
-    rows: list[Row] = []
+    # Every distinct setting once per round, the rounds one after another: a slow spell of
+    # this shared machine then lands on every setting alike, and the median sees through it.
+    jobs: list[tuple] = []       # (scene, factor, setting, changes, key, cfg, note), in table order
+    distinct: dict = {}          # key -> cfg, one per distinct measurement
+    base_keys = set()
     for scene in scenes:
         base = load_scan_config(SCENES[scene])
         step = max(1, len(base.waypoints) // args.frames)
         base = base.with_overrides(frames=slice(None, None, step))
-        done: dict[str, Row] = {}
+        base_keys.add((scene, setting_key(base)))
         for factor in wanted:
             for setting, changes in table[factor]:
                 cfg = variant(base, changes)
@@ -161,17 +165,26 @@ def run(args: argparse.Namespace) -> int:
                     eevee_step = max(1, len(cfg.waypoints) // args.eevee_frames)
                     cfg = cfg.with_overrides(frames=slice(None, None, eevee_step))
                     note = f"{len(cfg.waypoints)} frames"
-                key = setting_key(cfg)
-                if key in done:  # the same setting under another factor (e.g. the baseline)
-                    rows.append(replace(done[key], factor=factor, setting=setting))
-                    continue
-                ms, rep = measure(cfg, args.repeats)
-                e = rep["error_um"]
-                row = Row(scene, factor, setting, ms, e["rms_um"], e["p95_um"], e["max_um"], e["bias_um"],
-                          rep["coverage"], e["n"], rep["frames"], baseline=not changes, note=note)
-                done[key] = row
-                rows.append(row)
-                print(f"  {scene:<11}{factor:<20}{setting:<32}{ms:8.1f} ms  RMS {row.rms:9.1f} um", flush=True)
+                key = (scene, setting_key(cfg))
+                distinct.setdefault(key, cfg)
+                jobs.append((scene, factor, setting, changes, key, note))
+    times: dict = {key: [] for key in distinct}
+    reports: dict = {}
+    for rnd in range(args.repeats):
+        for k, (key, cfg) in enumerate(distinct.items()):
+            ms, rep = measure(cfg, 1)
+            times[key].append(ms)
+            reports.setdefault(key, rep)  # the error does not change between rounds (seeded, deterministic)
+            e = rep["error_um"]
+            print(f"  round {rnd + 1}/{args.repeats}  {k + 1:>3}/{len(distinct)}  {key[0]:<11}{ms:8.1f} ms  "
+                  f"RMS {e['rms_um']:9.1f} um", flush=True)
+    rows: list[Row] = []
+    for scene, factor, setting, changes, key, note in jobs:
+        rep = reports[key]
+        e = rep["error_um"]
+        rows.append(Row(scene, factor, setting, statistics.median(times[key]), e["rms_um"], e["p95_um"],
+                        e["max_um"], e["bias_um"], rep["coverage"], e["n"], rep["frames"],
+                        baseline=key in base_keys, note=note))
     mark_pareto(rows)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,205 @@
+"""Sharded scans on Dask distributed: a local cluster by default, or any running scheduler.
+
+The coordinator (this process) plans the whole path once (so every refusal comes
+before anything starts), cuts it into shards by frame range and sends each shard
+to a worker. A worker process imports bpy once, builds the cell once per scan and
+reuses it for every shard it gets; each shard renders, detects and triangulates
+its frames and writes one checksummed shard file (addon.core.shards) atomically.
+When all shards are there, the coordinator checks and merges them into the
+cloud, the report and the preview, exactly as a single process would.
+
+Shard files stay in ``<out>/shards``: running the same scan again skips the valid
+ones and computes only what is missing, truncated, altered or from another
+config, and says which. A worker that dies mid-shard leaves no file; Dask
+reschedules its shard on another worker.
+
+Local clusters listen on 127.0.0.1 only. Each of their N worker processes runs one
+task at a time (bpy is process-global) and renders with cores / N threads.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Callable
+
+from addon.core import shards
+from addon.core.errors import InputError
+
+# A worker process's cell, kept between shards of the same scan: {fingerprint: SceneCell}.
+_WORKER_CELL: dict = {}
+# For the fault-tolerance test: "INDEX:MARKER" makes the worker that starts shard INDEX
+# die after its first chunk, once (the marker file records that it happened).
+DIE_ENV = "SCANNER_FARM_DIE_IN_SHARD"
+
+
+def scan_fingerprint(config, plan) -> str:
+    """What decides the scan's result: the plan, the path, and every setting that reaches a pixel or a point."""
+    wp = config.workpiece
+    return shards.fingerprint([
+        shards.FORMAT, plan.q, plan.table_rad, plan.predicted_rows, tuple(plan.cameras),
+        config.waypoints.probe2table, config.probe, config.probe.mount, config.render, config.detect_method,
+        config.detect_params, config.triangulate_method, config.fuse, config.leave_out, config.sensor,
+        config.material, config.roughness, config.profile_filter, wp.mesh.vertices, wp.mesh.faces, wp.truth,
+        config.table, config.robot.base, config.robot.tool,
+    ])
+
+
+def _maybe_die(shard: shards.Shard) -> None:
+    spec = os.environ.get(DIE_ENV)
+    if not spec:
+        return
+    index, marker = spec.split(":", 1)
+    if int(index) == shard.index and not Path(marker).exists():
+        Path(marker).write_text(f"worker {os.getpid()} died in {shard.describe()}\n")
+        os._exit(17)
+
+
+def _clean_sys_path() -> None:
+    """A worker started by a process that had imported bpy inherits Blender's script folders
+    on sys.path, where a ``bpy`` package that only works inside Blender would shadow the bpy
+    module; drop them until the real bpy is imported (it puts them back itself)."""
+    import sys
+
+    if "bpy" not in sys.modules:
+        sys.path[:] = [p for p in sys.path if "/scripts/" not in p.replace("\\", "/") or "bpy" not in p]
+
+
+def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, threads: int | None = None) -> dict:
+    """On a worker: scan the shard's frames and write its file. Returns a short summary."""
+    _clean_sys_path()
+    from addon.pipeline import ScanRun
+
+    t = time.perf_counter()
+    cell = _WORKER_CELL.get(fingerprint)
+    run = ScanRun(config, plan=plan, frames=shard.frames, scene_cell=cell, threads=threads)
+    _WORKER_CELL.clear()
+    _WORKER_CELL[fingerprint] = run.scene_cell
+    finished = run.step()
+    _maybe_die(shard)  # (the fault-tolerance test's hook: a worker dying after its first chunk)
+    while not finished:
+        finished = run.step()
+    run.timing.update(render=run.t_render, detect=run.t_detect, triangulate=run.t_tri)
+    cloud = run.acc.cloud()
+    shards.write(path, shard, cloud, run.stats, run.timing, fingerprint)
+    return {"shard": shard.index, "points": len(cloud), "seconds": time.perf_counter() - t, "pid": os.getpid(),
+            "reused_cell": cell is not None}
+
+
+@contextmanager
+def cluster_client(workers: int, scheduler: str | None):
+    """A Dask client: on the scheduler at ``scheduler``, or on a local cluster of ``workers`` processes."""
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        client = Client(scheduler, timeout="30s")
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def check_scheduler(address: str) -> str:
+    if not (isinstance(address, str) and address.startswith(("tcp://", "tls://")) and ":" in address[6:]):
+        raise InputError(f"--scheduler {address!r}: expected an address like tcp://HOST:PORT")
+    return address
+
+
+def run_one_shard(config, out_dir: str | Path, shard_frames: int, index: int) -> dict:
+    """Compute shard ``index`` in this process, no Dask (one task of a render-farm manager's job)."""
+    from addon.pipeline import plan_scan
+
+    plan = plan_scan(config)
+    parts = shards.split(len(plan.q), shard_frames)
+    if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(parts):
+        raise InputError(f"--shard {index!r}: this scan has shards 0-{len(parts) - 1} at {shard_frames} frames each")
+    s = parts[index]
+    path = Path(out_dir) / "shards" / s.file_name()
+    info = run_shard(config, plan, s, str(path), scan_fingerprint(config, plan))
+    return {**info, "path": str(path), "describe": s.describe(), "of": len(parts)}
+
+
+def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | None = None,
+             shard_frames: int | None = None, log: Callable[[str], None] = print,
+             progress: Callable[[str, int, int], None] | None = None, merge_only: bool = False):
+    """Scan ``config`` in shards on Dask; returns the merged ScanResult (files written in ``out_dir``).
+    ``merge_only``: compute nothing; merge the shards when all are there and valid (the
+    last task of a render-farm job), else say which are missing or invalid."""
+    from addon.core.cloud import Cloud
+    from addon.pipeline import assemble, merge_stats, plan_scan
+
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 1024:
+        raise InputError(f"--workers must be a whole number in [1, 1024], got {workers!r}")
+    if scheduler is not None:
+        check_scheduler(scheduler)
+    progress = progress or (lambda stage, done, total: None)
+    t_all = time.perf_counter()
+    t = time.perf_counter()
+    plan = plan_scan(config)  # every refusal before any worker starts
+    t_plan = time.perf_counter() - t
+    fp = scan_fingerprint(config, plan)
+    n = len(plan.q)
+    size = shard_frames or shards.default_shard_frames(n, workers)
+    parts = shards.split(n, size)
+    folder = Path(out_dir) / "shards"
+    todo = []
+    for s in parts:
+        try:
+            shards.read(folder / s.file_name(), s, fp)
+        except shards.ShardInvalid as exc:
+            todo.append((s, str(exc)))
+    reused = len(parts) - len(todo)
+    log(f"farm: {n} frames in {len(parts)} shards of up to {size} frames; {reused} valid from an earlier run "
+        f"(skipped), {len(todo)} to compute")
+    if merge_only and todo:
+        from addon.core.errors import ScannerError
+
+        listed = "; ".join(f"{s.describe()}: {why}" for s, why in todo[:8])
+        raise ScannerError(f"{len(todo)} of {len(parts)} shards are not ready in {folder} ({listed}"
+                           f"{'; ...' if len(todo) > 8 else ''}); run them first")
+    for s, why in todo:
+        if why != "missing":
+            log(f"  recomputing {s.describe()}: {why}")
+    address, worker_addresses = None, []
+    t_farm = time.perf_counter()
+    if todo:
+        threads = None if scheduler else max(1, (os.cpu_count() or 1) // workers)
+        with cluster_client(workers, scheduler) as client:
+            from dask.distributed import as_completed
+
+            address = client.scheduler.address
+            worker_addresses = sorted(client.scheduler_info()["workers"])
+            log(f"farm: scheduler {address}, {len(worker_addresses)} workers")
+            futures = [client.submit(run_shard, config, plan, s, str(folder / s.file_name()), fp, threads,
+                                     key=f"scan-shard-{fp[:12]}-{s.index}", pure=False) for s, _ in todo]
+            done = 0
+            for fut in as_completed(futures):
+                info = fut.result()  # a shard that raised raises here, with the worker's message
+                done += 1
+                progress("shards", done, len(todo))
+                log(f"  shard {info['shard']} done: {info['points']} points in {info['seconds']:.1f} s "
+                    f"(worker pid {info['pid']}{', cell reused' if info['reused_cell'] else ''})")
+    wall = time.perf_counter() - t_farm
+    results = [shards.read(folder / s.file_name(), s, fp) for s in parts]  # checked again before merging
+    cloud = Cloud.concatenate([r.cloud for r in results])
+    stats = merge_stats([r.stats for r in results])
+    timing = {"plan": t_plan}
+    for r in results:
+        for k in ("scene", "render", "detect", "triangulate"):
+            timing[k] = timing.get(k, 0.0) + float(r.timing.get(k, 0.0))
+    extra = {"farm": {"workers": None if scheduler else workers, "scheduler": address or scheduler,
+                      "worker_addresses": worker_addresses, "shards": len(parts), "shard_frames": size, "computed": len(todo), "reused": reused,
+                      "wall_s": round(wall, 4), "profiles_per_s_wall": n / wall if wall > 0 and todo else None}}
+    return assemble(config, plan, cloud, stats, timing, out_dir, t_all, extra)

@@ -1,0 +1,97 @@
+"""Sharded scans on a local Dask cluster: the same cloud as one process, whatever happens."""
+
+import numpy as np
+import pytest
+
+from addon.core.scanconfig import load_scan_config
+from addon.pipeline import run_scan
+from headless import farm
+
+pytest.importorskip("distributed", reason="the farm needs dask.distributed (installed by the README's set-up)")
+
+
+@pytest.fixture(scope="module")
+def config():
+    return load_scan_config("step_block").with_overrides(frames=slice(None, None, 5))  # 20 frames
+
+
+@pytest.fixture(scope="module")
+def single(config):
+    return run_scan(config, None, write_outputs=False)
+
+
+def same_cloud(a, b):
+    for name in ("points", "frame", "camera", "quality"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+def test_two_workers_give_the_single_process_cloud_on_loopback_only(config, single, tmp_path):
+    lines = []
+    res = farm.run_farm(config, tmp_path / "out", workers=2, shard_frames=5, log=lines.append)
+    same_cloud(res.cloud, single.cloud)
+    f = res.report["farm"]
+    assert (f["shards"], f["computed"], f["reused"]) == (4, 4, 0)
+    assert f["scheduler"].startswith("tcp://127.0.0.1:")
+    assert len(f["worker_addresses"]) == 2 and all(a.startswith("tcp://127.0.0.1:") for a in f["worker_addresses"])
+    assert res.report["column_codes"] == single.report["column_codes"]
+    assert res.report["error_um"] == single.report["error_um"]
+    assert {p.name for p in (tmp_path / "out").iterdir()} == {"cloud.ply", "report.json", "preview.png", "shards"}
+    assert any("cell reused" in line for line in lines)  # a worker kept its scene between shards
+
+
+def test_a_worker_killed_mid_shard_loses_nothing(config, single, tmp_path, monkeypatch):
+    marker = tmp_path / "died.txt"
+    monkeypatch.setenv(farm.DIE_ENV, f"1:{marker}")  # the worker that starts shard 1 dies after its first chunk
+    res = farm.run_farm(config, tmp_path / "out", workers=2, shard_frames=5, log=lambda m: None)
+    assert marker.exists(), "the fault was not injected"
+    same_cloud(res.cloud, single.cloud)  # nothing lost, nothing twice
+    assert res.report["farm"]["computed"] == 4
+
+
+def test_damaged_shards_are_found_and_recomputed(config, single, tmp_path):
+    out = tmp_path / "out"
+    farm.run_farm(config, out, workers=1, shard_frames=5, log=lambda m: None)
+    files = sorted((out / "shards").iterdir())
+    assert len(files) == 4
+    files[0].write_bytes(files[0].read_bytes()[:200])                      # truncated
+    data = bytearray(files[2].read_bytes())
+    data[len(data) // 2] ^= 0xFF                                           # one byte flipped
+    files[2].write_bytes(bytes(data))
+    files[3].unlink()                                                      # missing
+    lines = []
+    res = farm.run_farm(config, out, workers=1, shard_frames=5, log=lines.append)
+    text = "\n".join(lines)
+    assert "1 valid from an earlier run (skipped), 3 to compute" in text
+    assert "recomputing shard 0 (frames 0-4): unreadable" in text
+    assert "recomputing shard 2 (frames 10-14)" in text
+    same_cloud(res.cloud, single.cloud)
+    # Everything valid now: a third run computes nothing and starts no cluster.
+    lines = []
+    again = farm.run_farm(config, out, workers=1, shard_frames=5, log=lines.append)
+    assert "4 valid from an earlier run (skipped), 0 to compute" in lines[0]
+    assert again.report["farm"]["scheduler"] is None
+    same_cloud(again.cloud, single.cloud)
+
+
+def test_a_farm_manager_can_run_one_shard_per_task_then_merge(single, tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from addon.core.cloud import load_ply
+
+    repo = Path(__file__).resolve().parents[2]
+    out = tmp_path / "job"
+    base = [sys.executable, "-m", "headless", "scan", "step_block", "--frames", "::5", "--out", str(out),
+            "--shard-frames", "10", "--quiet"]
+    early = subprocess.run(base + ["--merge"], cwd=repo, capture_output=True, text=True)
+    assert early.returncode == 2 and "2 of 2 shards are not ready" in early.stderr, early.stderr
+    for k in (1, 0):  # tasks may run in any order
+        task = subprocess.run(base + ["--shard", str(k)], cwd=repo, capture_output=True, text=True)
+        assert task.returncode == 0, task.stderr[-2000:]
+        assert f"shard {k} (frames {10 * k}-{10 * k + 9}) of 2" in task.stdout
+    merged = subprocess.run(base + ["--merge"], cwd=repo, capture_output=True, text=True)
+    assert merged.returncode == 0, merged.stderr[-2000:]
+    cloud = load_ply(out / "cloud.ply")
+    np.testing.assert_allclose(cloud.points, single.cloud.points, atol=1e-4)  # PLY holds float32
+    np.testing.assert_array_equal(cloud.frame, single.cloud.frame)
