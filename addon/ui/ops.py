@@ -14,6 +14,7 @@ from bpy.props import StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from ..core.errors import ScannerError
+from ..scene.render_state import RenderState, kept_render_settings
 from . import models
 
 
@@ -131,7 +132,8 @@ class SCANNER_OT_render_views(bpy.types.Operator):
             return {"CANCELLED"}
         frame = context.scene.frame_current
         settings = with_sensor(RenderSettings(ambient=s.ambient, samples=4, filter_width_px=1.0), sensor)
-        images = sc.render(frame, frame, settings)[0]
+        with kept_render_settings(context.scene):  # the scene's own render settings come back
+            images = sc.render(frame, frame, settings)[0]
         if sensor.changes_images:
             images = [sensor.apply(img, sc.probe, camera, frame) for camera, img in enumerate(images)]
         for camera, img in enumerate(images):
@@ -164,6 +166,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
 
     _timer = None
     _run = None
+    _state = None
 
     def _config(self, context):
         from ..core.scanconfig import load_scan_config
@@ -180,14 +183,27 @@ class SCANNER_OT_scan(bpy.types.Operator):
     def _start(self, context):
         from ..pipeline import ScanRun
 
-        self._run = ScanRun(self._config(context), scene=context.scene)
+        self._state = RenderState(context.scene)  # put back when the scan ends, however it ends
+        try:
+            self._run = ScanRun(self._config(context), scene=context.scene)
+        except BaseException:
+            self._restore()
+            raise
+
+    def _restore(self):
+        state, self._state = self._state, None
+        if state is not None:
+            state.restore()
 
     def _finish(self, context):
         from ..scene.cloud_object import import_cloud
 
         s = context.scene.scanner
         run, self._run = self._run, None
-        result = run.finish(models.output_dir(s, run.config.name))
+        try:
+            result = run.finish(models.output_dir(s, run.config.name))
+        finally:
+            self._restore()
         old = bpy.data.objects.get(models.CLOUD_NAME)
         if old is not None:
             bpy.data.objects.remove(old, do_unlink=True)
@@ -206,6 +222,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
             self._finish(context)
         except (ScannerError, ValueError) as exc:
             self._run = None
+            self._restore()
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         return {"FINISHED"}
@@ -247,6 +264,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
         return {"FINISHED"}
 
     def _stop(self, context):
+        self._restore()
         wm = context.window_manager
         if self._timer is not None:
             wm.event_timer_remove(self._timer)

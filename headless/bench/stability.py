@@ -382,6 +382,16 @@ def _summary(res) -> tuple[str, bool]:
     return text, finite_ok
 
 
+def _bounded_or_rejected(cfg, bound_um: float = 50.0) -> Outcome:
+    """Scan; pass when the points kept on the part are within ``bound_um`` RMS, or none
+    were kept (every column rejected and counted), and nothing is NaN."""
+    res = _scan(cfg)
+    text, fin = _summary(res)
+    e = res.report["error_um"]
+    ok = fin and (res.report["points_on_part"] == 0 or e["rms_um"] <= bound_um)
+    return Outcome(text, ok, dict(rms_um=e["rms_um"]))
+
+
 def _plate(tilt_deg: float, height_mm: float = 30.0, frames: int = 8, standoff_mm: float = 160.0, size=80.0):
     """The tilted-plane scene with the plate tilted about the line's direction (y) and one sweep."""
     from addon.core.scanconfig import load_scan_config
@@ -399,11 +409,7 @@ def _plate(tilt_deg: float, height_mm: float = 30.0, frames: int = 8, standoff_m
 @case("scene", "surface 5° from the laser plane (plate tilted 85°)",
       "bounded error on what is kept (RMS ≤ 50 µm), the rest rejected and counted", renders=True)
 def grazing_laser():
-    res = _scan(_plate(85.0))
-    text, fin = _summary(res)
-    e = res.report["error_um"]
-    ok = fin and (res.report["points_on_part"] == 0 or e["rms_um"] <= 50.0)
-    return Outcome(text, ok, dict(rms_um=e["rms_um"]))
+    return _bounded_or_rejected(_plate(85.0))
 
 
 @case("scene", "surface along one camera's rays (plate tilted 63°)",
@@ -509,11 +515,7 @@ def tiny_sphere():
     wp = builtin_workpiece("sphere", pose=pose_from_xyz_yzz([0.0, 0.0, 30.0], [0.0, 0.0, 0.0]), radius_mm=0.5)
     cfg = replace(cfg, workpiece=wp, waypoints=replace(cfg.waypoints, probe2table=cfg.waypoints.probe2table.copy()))
     cfg.waypoints.probe2table[:, 0, 3] = np.linspace(-0.6, 0.6, len(cfg.waypoints))
-    res = _scan(cfg)
-    text, fin = _summary(res)
-    e = res.report["error_um"]
-    ok = fin and (res.report["points_on_part"] == 0 or e["rms_um"] <= 50.0)
-    return Outcome(text, ok, dict(rms_um=e["rms_um"]))
+    return _bounded_or_rejected(cfg)
 
 
 @case("scene", "big part: plate 4.9 m square; 20 m refused",
@@ -537,23 +539,13 @@ def big_plate():
 @case("scene", "black part (albedo 0.06)",
       "lost columns rejected and counted; what is kept bounded (RMS ≤ 50 µm)", renders=True)
 def black_part():
-    cfg = _plate(20.0, frames=6).with_realism(_ideal(), "dark")
-    res = _scan(cfg)
-    text, fin = _summary(res)
-    e = res.report["error_um"]
-    ok = fin and (res.report["points_on_part"] == 0 or e["rms_um"] <= 50.0)
-    return Outcome(text, ok, dict(rms_um=e["rms_um"]))
+    return _bounded_or_rejected(_plate(20.0, frames=6).with_realism(_ideal(), "dark"))
 
 
 @case("scene", "mirror-like part (polished metal, no bounces)",
       "lost columns rejected and counted; what is kept bounded (RMS ≤ 50 µm)", renders=True)
 def mirror_part():
-    cfg = _plate(20.0, frames=6).with_realism(_ideal(), "mirror")
-    res = _scan(cfg)
-    text, fin = _summary(res)
-    e = res.report["error_um"]
-    ok = fin and (res.report["points_on_part"] == 0 or e["rms_um"] <= 50.0)
-    return Outcome(text, ok, dict(rms_um=e["rms_um"]))
+    return _bounded_or_rejected(_plate(20.0, frames=6).with_realism(_ideal(), "mirror"))
 
 
 @case("scene", "line 20× full scale on a clipping sensor",

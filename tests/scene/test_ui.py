@@ -90,6 +90,58 @@ def test_probe_views_render_into_images(panel):
         assert (px[..., 0] - px[..., 1]).max() > 0.2  # the red line is there
 
 
+def _artists_settings(scene):
+    """Render settings an artist might have, none of them the scanner's."""
+    r = scene.render
+    r.engine = "CYCLES"
+    r.resolution_x, r.resolution_y, r.resolution_percentage = 1920, 1080, 50
+    r.film_transparent = True
+    r.use_multiview = False
+    r.image_settings.file_format = "PNG"
+    scene.cycles.samples = 128
+    scene.cycles.light_sampling_threshold = 0.01
+    scene.view_settings.view_transform = "AgX"
+    world = bpy.data.worlds.new("Artist's sky")
+    if world.node_tree is None:  # worlds have node trees from the start in Blender 5
+        world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.7
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.3, 0.9, 1.0)
+    scene.world = world
+    cam = bpy.data.objects.new("Artist's camera", bpy.data.cameras.new("Artist's camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.frame_set(7)
+
+
+def _settings_of(scene):
+    r, bg = scene.render, scene.world.node_tree.nodes["Background"]
+    return dict(engine=r.engine, res=(r.resolution_x, r.resolution_y, r.resolution_percentage),
+                transparent=r.film_transparent, multiview=r.use_multiview, format=r.image_settings.file_format,
+                samples=scene.cycles.samples, threshold=round(scene.cycles.light_sampling_threshold, 6),
+                view=scene.view_settings.view_transform, world=scene.world.name,
+                sky=(round(bg.inputs["Strength"].default_value, 6), tuple(round(c, 6) for c in bg.inputs["Color"].default_value)),
+                camera=scene.camera.name, frame=scene.frame_current)
+
+
+def test_panel_renders_leave_the_scenes_own_render_settings_as_they_were(panel, tmp_path):
+    _artists_settings(panel)
+    before = _settings_of(panel)
+    bpy.ops.scanner.build_cell()
+    panel.scanner.target_location = (0.0, 0.0, 210.0)
+    bpy.ops.scanner.go()
+    assert bpy.ops.scanner.render_views() == {"FINISHED"}
+    assert _settings_of(panel) == before
+    s = panel.scanner
+    s.scan_config, s.output_dir = "step_block", str(tmp_path)
+    assert bpy.ops.scanner.scan(frames="0:100:25") == {"FINISHED"}
+    assert bpy.data.objects.get("Scan cloud") is not None  # it did render
+    assert _settings_of(panel) == before
+    # and a scan refused halfway through (a frame range outside the path) as well
+    with pytest.raises(RuntimeError):
+        bpy.ops.scanner.scan(frames="500:600")
+    assert _settings_of(panel) == before
+
+
 def _view(camera: int) -> np.ndarray:
     img = bpy.data.images[f"Probe camera {camera}"]
     px = np.empty(img.size[0] * img.size[1] * 4, np.float32)

@@ -1,0 +1,109 @@
+"""The scene's own render settings, put back after the scanner has rendered with its own.
+
+Probe renders need their own engine, resolution, samples, colour management,
+output format, multiview and world light (see render.configure). In a user's
+scene those settings belong to the artist: the panel's operators take a
+:class:`RenderState` before they render and restore it when they are done,
+whether they finish, fail or are cancelled.
+
+The snapshot is generic: every writable plain property (numbers, booleans,
+strings, enums, fixed-size arrays) of the structs the scanner writes to, plus
+the few pointers and collections it changes (the scene camera and world, the
+world's background, the stereo views, the view layers' Z pass, the frame).
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import bpy
+
+_PLAIN = {"BOOLEAN", "INT", "FLOAT", "STRING", "ENUM"}
+
+
+def _struct_values(struct) -> dict:
+    values = {}
+    for prop in struct.bl_rna.properties:
+        if prop.is_readonly or prop.type not in _PLAIN or prop.identifier == "rna_type":
+            continue
+        value = getattr(struct, prop.identifier)
+        if getattr(prop, "is_array", False):
+            value = tuple(value)
+        elif prop.type == "ENUM" and getattr(prop, "is_enum_flag", False):
+            value = set(value)
+        values[prop.identifier] = value
+    return values
+
+
+def _set_values(struct, values: dict) -> None:
+    for name, value in values.items():
+        try:
+            if getattr(struct, name) != value:
+                setattr(struct, name, value)
+        except (AttributeError, TypeError, ValueError):
+            pass  # a property that depends on another (e.g. an enum item only valid for one engine)
+
+
+class RenderState:
+    """What ``scene``'s render settings are now; :meth:`restore` puts them back."""
+
+    def __init__(self, scene: bpy.types.Scene):
+        self.scene = scene
+        r = scene.render
+        self.structs = [r, r.image_settings, scene.view_settings, scene.display_settings]
+        for name in ("cycles", "eevee"):
+            if hasattr(scene, name):
+                self.structs.append(getattr(scene, name))
+        self.values = [_struct_values(s) for s in self.structs]
+        self.camera = scene.camera
+        self.world = scene.world
+        self.background = self._background_values()
+        self.views = {v.name: (v.use, v.camera_suffix) for v in r.views}
+        self.z_pass = {layer.name: layer.use_pass_z for layer in scene.view_layers}
+        self.frame = scene.frame_current
+
+    def _background_values(self):
+        world = self.scene.world
+        bg = world.node_tree.nodes.get("Background") if world is not None and world.node_tree else None
+        if bg is None:
+            return None
+        return tuple(bg.inputs["Color"].default_value), bg.inputs["Strength"].default_value
+
+    def restore(self) -> None:
+        scene = self.scene
+        # Engine first: some settings only exist (or only accept a value) for one engine.
+        for struct, values in zip(self.structs, self.values):
+            if "engine" in values:
+                _set_values(struct, {"engine": values["engine"]})
+        for struct, values in zip(self.structs, self.values):
+            _set_values(struct, values)
+        scene.camera = self.camera if self.camera is None or self.camera.name in bpy.data.objects else None
+        world = scene.world
+        if self.background is not None and world is not None and world.node_tree:
+            bg = world.node_tree.nodes.get("Background")
+            if bg is not None:
+                bg.inputs["Color"].default_value, bg.inputs["Strength"].default_value = self.background
+        scene.world = self.world
+        views = scene.render.views
+        for view in list(views):
+            if view.name not in self.views:
+                views.remove(view)
+        for name, (use, suffix) in self.views.items():
+            view = views.get(name)
+            if view is not None:
+                view.use, view.camera_suffix = use, suffix
+        for layer in scene.view_layers:
+            if layer.name in self.z_pass:
+                layer.use_pass_z = self.z_pass[layer.name]
+        if scene.frame_current != self.frame:
+            scene.frame_set(self.frame)
+
+
+@contextmanager
+def kept_render_settings(scene: bpy.types.Scene):
+    """Render with the scanner's settings inside; the scene's own are back afterwards."""
+    state = RenderState(scene)
+    try:
+        yield state
+    finally:
+        state.restore()
