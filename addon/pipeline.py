@@ -171,7 +171,13 @@ def _needs_full_frame(lines, rows, previous_rows, rows_px: int, margin_px: int) 
         r = ln.row[ln.valid]
         if r.size and ((low_edge and r.min() < rows[0] + EDGE_PX) or (high_edge and r.max() > rows[1] - 1 - EDGE_PX)):
             return True
-        if np.any(ln.code == LineCode.EDGE):
+        # A peak on the band's first or last row may be the flank of a line the band cut;
+        # an edge elsewhere (the line cut by a depth edge of the part) is the scene's own.
+        if ln.peak_row is not None:
+            edge = ln.code == LineCode.EDGE
+            if np.any(edge & ((low_edge & (ln.peak_row <= rows[0])) | (high_edge & (ln.peak_row >= rows[1] - 1)))):
+                return True
+        elif np.any(ln.code == LineCode.EDGE):
             return True
         prev = previous_rows[cam]
         if prev is None:

@@ -133,15 +133,21 @@ def run_one_shard(config, out_dir: str | Path, shard_frames: int, index: int) ->
 
 def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | None = None,
              shard_frames: int | None = None, log: Callable[[str], None] = print,
-             progress: Callable[[str, int, int], None] | None = None, merge_only: bool = False):
+             progress: Callable[[str, int, int], None] | None = None, merge_only: bool = False,
+             render_threads: int | None = None):
     """Scan ``config`` in shards on Dask; returns the merged ScanResult (files written in ``out_dir``).
     ``merge_only``: compute nothing; merge the shards when all are there and valid (the
-    last task of a render-farm job), else say which are missing or invalid."""
+    last task of a render-farm job), else say which are missing or invalid.
+    ``render_threads``: Cycles threads per worker (default: on a local cluster, the
+    machine's cores shared out among the workers; on a scheduler, all of a worker's cores)."""
     from addon.core.cloud import Cloud
     from addon.pipeline import assemble, merge_stats, plan_scan
 
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 1024:
         raise InputError(f"--workers must be a whole number in [1, 1024], got {workers!r}")
+    if render_threads is not None and (isinstance(render_threads, bool) or not isinstance(render_threads, int)
+                                       or not 1 <= render_threads <= 1024):
+        raise InputError(f"render threads must be a whole number in [1, 1024], got {render_threads!r}")
     if scheduler is not None:
         check_scheduler(scheduler)
     progress = progress or (lambda stage, done, total: None)
@@ -175,14 +181,16 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     address, worker_addresses = None, []
     t_farm = time.perf_counter()
     if todo:
-        threads = None if scheduler else max(1, (os.cpu_count() or 1) // workers)
+        threads = render_threads or (None if scheduler else max(1, (os.cpu_count() or 1) // workers))
         with cluster_client(workers, scheduler) as client:
             from dask.distributed import as_completed
 
             address = client.scheduler.address
             worker_addresses = sorted(client.scheduler_info()["workers"])
             log(f"farm: scheduler {address}, {len(worker_addresses)} workers")
-            futures = [client.submit(run_shard, config, plan, s, str(folder / s.file_name()), fp, threads,
+            # The config (with its meshes) and the plan go to every worker once, not with every task.
+            config_f, plan_f = client.scatter([config, plan], broadcast=True, hash=False)
+            futures = [client.submit(run_shard, config_f, plan_f, s, str(folder / s.file_name()), fp, threads,
                                      key=f"scan-shard-{fp[:12]}-{s.index}", pure=False) for s, _ in todo]
             done = 0
             for fut in as_completed(futures):

@@ -100,6 +100,8 @@ class LineDetection:
     peak : (W,) float, peak laser contrast (fraction of full scale)
     width : (W,) float, full width at half maximum in pixels (NaN if unknown)
     code : (W,) uint8, a LineCode per column
+    peak_row : (W,) int, sensor row of each column's brightest pixel, whatever its code
+               (None where a detection was made up from given rows)
     """
 
     col: np.ndarray
@@ -109,6 +111,7 @@ class LineDetection:
     code: np.ndarray
     method: str
     shape: tuple[int, int]
+    peak_row: np.ndarray | None = None
 
     @property
     def valid(self) -> np.ndarray:
@@ -216,7 +219,7 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
         row[ok] = base[ok] + _steger(C, S, rr, sigma_s)[ok]
     code[ok & ~np.isfinite(row)] = LineCode.NO_LINE
     row[code != 0] = np.nan
-    return LineDetection(cols, row, peak.astype(np.float64), width, code, method, (H, W))
+    return LineDetection(cols, row, peak.astype(np.float64), width, code, method, (H, W), r + int(row_offset))
 
 
 # -- per-column pieces --------------------------------------------------------------------
@@ -395,4 +398,4 @@ def _detect_threshold(C, rgb, p: DetectParams, code: np.ndarray, row_offset: int
     r = _argmax_rows(C)
     code[(code == 0) & _saturated(C if rgb is None else rgb, r, p)] = LineCode.SATURATED
     row = np.where(code == 0, 0.5 * ((first + row_offset) + (last + row_offset)), np.nan)
-    return LineDetection(cols, row, peak.astype(np.float64), width, code, "threshold", (H, W))
+    return LineDetection(cols, row, peak.astype(np.float64), width, code, "threshold", (H, W), r + row_offset)

@@ -1,11 +1,15 @@
 """Sharded scans on a local Dask cluster: wall time with 1 and with 2 workers, side by side.
 
-Each scenario runs three times: in one process (no Dask), on a local cluster of
-one worker, and on one of two workers (cores / workers render threads each), from
-an empty shard folder each time. The farm times are wall-clock from starting the
-cluster to the last shard written (worker start-up and bpy import included);
-speed-up = time with 1 worker / time with 2. The clouds are checked to be
-identical to the single process's.
+Each scenario runs four times from an empty shard folder: in one process (no
+Dask, Cycles on every core), and on local clusters of one worker with one render
+thread, two workers with one render thread each, and one worker with as many
+render threads as the machine has cores. The farm's scaling is the speed-up from
+one worker to two at one thread each (what adding a node does); the last column
+compares two single-threaded workers with one worker using both cores (processes
+against threads on one machine). Farm times are wall-clock from starting the
+cluster to the last shard written: worker start-up (spawning, importing bpy,
+building the cell) included. Every cloud is checked to be identical to the
+single process's.
 """
 
 from __future__ import annotations
@@ -38,29 +42,33 @@ def scenarios(args):
 
 
 def run(args: argparse.Namespace) -> int:
+    import os
+
     from addon.core.errors import InputError
     from addon.pipeline import run_scan
     from headless.farm import run_farm
 
     if args.frames < 8 or args.hires_frames < 8:
         raise InputError("--frames and --hires-frames must be at least 8 (four shards per worker)")
+    cores = os.cpu_count() or 1
+    layouts = [(1, 1), (2, 1), (1, cores)]  # (workers, render threads each)
     rows = []
     for name, cfg in scenarios(args):
         t = time.perf_counter()
         single = run_scan(cfg, None, write_outputs=False)
         t_single = time.perf_counter() - t
         walls = {}
-        for workers in (1, 2):
+        for workers, threads in layouts:
             with tempfile.TemporaryDirectory() as out:
-                res = run_farm(cfg, out, workers=workers, log=lambda m: None)
-            walls[workers] = res.report["farm"]["wall_s"]
+                res = run_farm(cfg, out, workers=workers, render_threads=threads, log=lambda m: None)
+            walls[workers, threads] = res.report["farm"]["wall_s"]
             if not np.array_equal(res.cloud.points, single.cloud.points):
                 raise RuntimeError(f"{name}: the {workers}-worker cloud differs from the single process's")
-        n = len(cfg.waypoints)
-        rows.append((name, n, t_single, walls[1], walls[2]))
-        print(f"  {name}: one process {t_single:.1f} s, 1 worker {walls[1]:.1f} s, 2 workers {walls[2]:.1f} s",
-              flush=True)
-    md = to_markdown(rows)
+            print(f"  {name}: {workers} worker(s) x {threads} render thread(s): {walls[workers, threads]:.1f} s",
+                  flush=True)
+        rows.append((name, len(cfg.waypoints), t_single, walls[1, 1], walls[2, 1], walls[1, cores]))
+        print(f"  {name}: one process {t_single:.1f} s", flush=True)
+    md = to_markdown(rows, cores)
     print()
     print(md)
     if args.readme:
@@ -70,12 +78,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def to_markdown(rows) -> str:
-    lines = ["Measured with `python -m headless bench farm` (local cluster on this 2-core machine, Cycles on the "
-             "CPU; wall time from cluster start to the last shard, worker start-up included; clouds identical "
-             "to the single process's):", "",
-             "| scenario | frames | one process | 1 worker | 2 workers | speed-up 1 → 2 |",
-             "|---|---|---|---|---|---|"]
-    for name, n, single, one, two in rows:
-        lines.append(f"| {name} | {n} | {single:.1f} s | {one:.1f} s | {two:.1f} s | ×{one / two:.2f} |")
+def to_markdown(rows, cores: int) -> str:
+    lines = [f"Measured with `python -m headless bench farm` (local clusters on this {cores}-core machine, Cycles on "
+             "the CPU; farm times are wall-clock from starting the cluster to the last shard, worker start-up "
+             "included; every cloud identical to the single process's):", "",
+             f"| scenario | frames | one process, {cores} threads | 1 worker × 1 thread | 2 workers × 1 thread "
+             f"| speed-up 1 → 2 workers | 1 worker × {cores} threads | 2 workers against 1 worker × {cores} |",
+             "|---|---|---|---|---|---|---|---|"]
+    for name, n, single, one, two, one_all in rows:
+        lines.append(f"| {name} | {n} | {single:.1f} s | {one:.1f} s | {two:.1f} s | ×{one / two:.2f} "
+                     f"| {one_all:.1f} s | ×{one_all / two:.2f} |")
     return "\n".join(lines) + "\n"
