@@ -43,6 +43,7 @@ from .errors import InputError
 
 METHODS = ("threshold", "cog", "gauss", "steger")
 STEGER_MIN_SIGMA = 1.0
+NARROW_LINE_SIGMA_PX = 0.8  # below this line σ, auto smoothing is off (see _smoothing)
 
 
 class LineCode(IntEnum):
@@ -73,8 +74,10 @@ class DetectParams:
     saturation : level counted as clipped, as a fraction of full scale (default 1.0,
         i.e. 255 for uint8, 65535 for uint16, 1.0 for float images)
     smoothing_px : σ (pixels) of the smoothing used by ``gauss`` (along columns) and
-        ``steger`` (2-D). None: matched to the line, σ = median FWHM / 2.355 (at least
-        0.8); 0: no smoothing for ``gauss``
+        ``steger`` (2-D). None: matched to the line, σ = median FWHM / 2.355, or none for
+        a Gaussian line narrower than NARROW_LINE_SIGMA_PX; 0: no smoothing for ``gauss``
+    flat_top : the line's profile is flat-topped with hard edges (the slit laser): it
+        is always smoothed (at least 0.8 px), as a flat top has no peak to fit
     hsv_saturation, hsv_value : thresholds of the ``threshold`` method (0..1)
     """
 
@@ -87,6 +90,7 @@ class DetectParams:
     cog_level: float = 0.5
     saturation: float | None = None
     smoothing_px: float | None = None
+    flat_top: bool = False
     hsv_saturation: float = 0.3
     hsv_value: float = 0.05
 
@@ -319,7 +323,14 @@ def _wider_than_the_line(width: np.ndarray, code: np.ndarray, p: DetectParams) -
 
 
 def _smoothing(C: np.ndarray, p: DetectParams) -> float:
-    """σ of the matched smoothing: from the parameters, or from the median line width."""
+    """σ of the matched smoothing: from the parameters, or from the median line width.
+
+    A line narrower than NARROW_LINE_SIGMA_PX is read unsmoothed: smoothing it biases
+    the three-point fit towards pixel centres by more than it takes off the noise
+    (synthetic lines at 2 % noise, σ 0.6 px: 0.024 px smoothed, 0.022 px not; a
+    rendered sphere through a noisy sensor: 33 µm RMS smoothed, 13 µm not), while a
+    wider one gains from it (σ 1.5 px: 0.029 against 0.058 px). A flat-topped line
+    (``flat_top``) is always smoothed."""
     if p.smoothing_px is not None:
         return float(p.smoothing_px)
     # Every 8th column is plenty for a median width.
@@ -331,7 +342,12 @@ def _smoothing(C: np.ndarray, p: DetectParams) -> float:
         return 0.8
     w = _fwhm(C[:, lit], r[lit], peak[lit], p.window_px)
     w = w[np.isfinite(w)]
-    return max(0.8, float(np.median(w)) / 2.355) if w.size else 0.8
+    if not w.size:
+        return 0.8
+    sigma_line = float(np.median(w)) / 2.355
+    if p.flat_top:
+        return max(0.8, sigma_line)
+    return sigma_line if sigma_line >= NARROW_LINE_SIGMA_PX else 0.0
 
 
 def _smooth_columns(C: np.ndarray, sigma: float) -> np.ndarray:

@@ -16,7 +16,8 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
                  another sensor: W columns along the line, H rows along the triangulation)
     [detect]     method (threshold|cog|gauss|steger), min_peak, second_peak_ratio, max_width_px,
                  max_width_ratio (1.6: wider than that × the median width is rejected),
-                 smoothing_px (default: none on noise-free images, matched to the line otherwise)
+                 smoothing_px (default: none on noise-free images of the gobo line; otherwise matched
+                 to the line, none for lines under 0.8 px σ; the slit's flat top always smoothed)
     [triangulate] method (exact|paper), fuse (both cameras into one profile),
                  max_incidence_deg (65), edge_px (2): see addon.core.profile_filter
     [leave_out]  render_band, skip_blind_cameras, hide_robot, chunk_frames, band_margin_px
@@ -127,10 +128,13 @@ class ScanConfig:
         three-point fit is exact on a point-sampled Gaussian, while smoothing a line
         only a pixel or two wide biases it (33 against 0.9 µm RMS on the tilted plate).
         Noisy images (the sensor's noise or speckle) and the slit laser's flat-topped
-        line get the matched smoothing."""
+        line get the detector's automatic choice: the matched smoothing, except for lines
+        narrower than a pixel or so, which it reads unsmoothed too (see detect._smoothing)."""
         d = self.detect
+        if self.render.laser == "slit":
+            return replace(d, flat_top=True)
         noisy = self.sensor.noise or self.sensor.speckle
-        if d.smoothing_px is None and self.detect_method == "gauss" and self.render.laser == "gobo" and not noisy:
+        if d.smoothing_px is None and self.detect_method == "gauss" and not noisy:
             return replace(d, smoothing_px=0.0)
         return d
 

@@ -114,17 +114,18 @@ def scans(args: argparse.Namespace) -> str:
                 times.append(1.0 / rep["profiles_per_s"])
             e = rep["error_um"]
             rows.append((scene_name, label, e["rms_um"], e["p95_um"], 1 - rep["valid_fraction"],
-                         statistics.median(times), rep["frames"]))
+                         statistics.median(times), e["n"]))
             print(f"  {scene_name:<11}{label:<34}RMS {e['rms_um']:8.1f} um", flush=True)
     print()
     print("Realistic sensor: error on the part against the exact shape, rejected sensor columns, time per profile")
-    hdr = f"{'scene':<12}{'effect':<34}{'RMS um':>9}{'p95 um':>9}{'rejected':>10}{'ms/profile':>12}{'x ideal':>9}"
+    hdr = (f"{'scene':<12}{'effect':<34}{'points':>8}{'RMS um':>9}{'p95 um':>9}{'rejected':>10}{'ms/profile':>12}"
+           f"{'x ideal':>9}")
     print(hdr + "\n" + "-" * len(hdr))
     ideal = {}
-    for scene_name, label, rms, p95, rej, t, _ in rows:
+    for scene_name, label, rms, p95, rej, t, n in rows:
         if label == "ideal":
             ideal[scene_name] = t
-        print(f"{scene_name:<12}{label:<34}{rms:>9.1f}{p95:>9.1f}{rej * 100:>9.1f}%{t * 1e3:>12.1f}"
+        print(f"{scene_name:<12}{label:<34}{n:>8}{rms:>9.1f}{p95:>9.1f}{rej * 100:>9.1f}%{t * 1e3:>12.1f}"
               f"{t / ideal[scene_name]:>8.1f}x")
     return to_markdown(rows, ideal, args)
 
@@ -133,14 +134,17 @@ def to_markdown(rows, ideal: dict, args) -> str:
     lines = [f"Measured with `python -m headless bench realism --frames {args.frames} --repeats {args.repeats}` "
              "(Cycles on the CPU of this 2-core machine, all rows side by side in one run; error on the part "
              "against its exact shape; rejected = sensor columns without an accepted line):", "",
-             "| scene | effect | RMS µm | p95 µm | rejected | ms/profile | × ideal |", "|---|---|---|---|---|---|---|"]
+             "| scene | effect | points on the part | RMS µm | p95 µm | rejected | ms/profile | × ideal |",
+             "|---|---|---|---|---|---|---|---|"]
     last = None
-    for scene_name, label, rms, p95, rej, t, _ in rows:
+    for scene_name, label, rms, p95, rej, t, n in rows:
         shown = scene_name if scene_name != last else ""
         last = scene_name
         bold = label.startswith("all of the above")
         name = f"**{label}**" if bold else label
         fig = (lambda x: f"**{x:.1f}**") if bold else (lambda x: f"{x:.1f}")
-        lines.append(f"| {shown} | {name} | {fig(rms)} | {fig(p95)} | {rej * 100:.1f} % | {t * 1e3:.1f} | "
+        if n == 0:
+            fig = lambda x: "–"  # noqa: E731  (no point on the part: nothing to measure)
+        lines.append(f"| {shown} | {name} | {n} | {fig(rms)} | {fig(p95)} | {rej * 100:.1f} % | {t * 1e3:.1f} | "
                      f"{t / ideal[scene_name]:.1f} |")
     return "\n".join(lines) + "\n"

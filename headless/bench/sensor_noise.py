@@ -46,7 +46,7 @@ def compare(frames: int = 20, seed: int = 0) -> list[tuple]:
     """Rows (level, noise at the peak as a fraction of it, rendered error px, synthetic error px, σ px)."""
     from addon.core.detect import DetectParams, detect_line
     from addon.core.sensor import SensorModel
-    from addon.core.synthetic import line_image
+    from addon.core.synthetic import gaussian_profile, line_image
     from headless.bench.detect import curved_centres
 
     clean, probe = rendered_plane_line()
@@ -56,13 +56,19 @@ def compare(frames: int = 20, seed: int = 0) -> list[tuple]:
     cols = np.flatnonzero(ref.valid)
     peak_rows = np.argmax(clean[:, :, 0], axis=0)[cols]
     rng = np.random.default_rng(seed)
+    # The synthetic line's amplitude that makes its brightest pixel (line centred on a
+    # pixel) the level, as auto-exposure makes the rendered line's.
+    centre_pixel = float(gaussian_profile(np.zeros(1), np.zeros(1), sigma, True)[0])
     out = []
     for level in LEVELS:
         sensor = SensorModel(saturate=True, noise=True, auto_exposure=True, target_peak=level, seed=seed)
+        # Both detectors accept a line down to half the level: the threshold is not what is compared.
+        rendered_params = DetectParams(saturation=1.0, min_peak=0.5 * level)
+        synthetic_params = DetectParams(saturation=np.inf, min_peak=0.5 * level)
         errors, peaks, dark = [], [], []
         for k in range(frames):
             img = sensor.apply(clean, probe, 0, k)
-            line = detect_line(img, "gauss", DetectParams(saturation=1.0))
+            line = detect_line(img, "gauss", rendered_params)
             ok = line.valid[cols]
             errors.append(np.abs(line.row[cols] - ref.row[cols])[ok])
             peaks.append(img[peak_rows, cols, 0])
@@ -73,8 +79,10 @@ def compare(frames: int = 20, seed: int = 0) -> list[tuple]:
         synthetic = []
         for _ in range(frames):
             centres = curved_centres(probe.rows_px, probe.cols_px, rng)
-            syn = line_image(probe.rows_px, centres, sigma, peak=level, background=0.0, noise=noise, rng=rng)
-            line = detect_line(syn, "gauss", ideal)
+            amplitude = level / centre_pixel
+            syn = line_image(probe.rows_px, centres, sigma, peak=amplitude, background=0.0,
+                             noise=noise * level / amplitude, rng=rng)  # the same absolute noise as at the peak
+            line = detect_line(syn, "gauss", synthetic_params)
             synthetic.append(np.abs(line.row - centres)[line.valid])
         out.append((level, noise, float(np.concatenate(errors).mean()), float(np.concatenate(synthetic).mean()),
                     sigma))
