@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 SCENES = {"plane": "tilted_plane", "sphere": "demo", "step block": "step_block"}
-BUDGETS_MS = (15.0, 30.0, 100.0, 1000.0)
+BUDGETS_MS = (20.0, 50.0, 200.0, 1000.0)
 
 
 @dataclass
