@@ -173,11 +173,8 @@ def _needs_full_frame(lines, rows, previous_rows, rows_px: int, margin_px: int) 
             return True
         # A peak on the band's first or last row may be the flank of a line the band cut;
         # an edge elsewhere (the line cut by a depth edge of the part) is the scene's own.
-        if ln.peak_row is not None:
-            edge = ln.code == LineCode.EDGE
-            if np.any(edge & ((low_edge & (ln.peak_row <= rows[0])) | (high_edge & (ln.peak_row >= rows[1] - 1)))):
-                return True
-        elif np.any(ln.code == LineCode.EDGE):
+        on_band_edge = (low_edge & (ln.peak_row <= rows[0])) | (high_edge & (ln.peak_row >= rows[1] - 1))
+        if np.any((ln.code == LineCode.EDGE) & on_band_edge):
             return True
         prev = previous_rows[cam]
         if prev is None:
@@ -413,7 +410,7 @@ def _detect_all(images, rows, config: ScanConfig):
         if rows is not None:  # the image holds rows r0..r1−1 of the sensor; its rows are the sensor's
             line.shape = (config.probe.rows_px, config.probe.cols_px)
             # (A peak on the band's first or last row is coded EDGE; the caller re-renders
-            # such frames at full height, where only the sensor's own edges stay EDGE.)
+            # such frames at full height: see _needs_full_frame.)
         out.append(line)
     return out
 

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Callable
 
 from addon.core import shards
-from addon.core.errors import InputError
+from addon.core.errors import InputError, ScannerError, check_whole
 
 # A worker process's cell, kept between shards of the same scan: {fingerprint: SceneCell}.
 _WORKER_CELL: dict = {}
@@ -143,11 +143,9 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     from addon.core.cloud import Cloud
     from addon.pipeline import assemble, merge_stats, plan_scan
 
-    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 1024:
-        raise InputError(f"--workers must be a whole number in [1, 1024], got {workers!r}")
-    if render_threads is not None and (isinstance(render_threads, bool) or not isinstance(render_threads, int)
-                                       or not 1 <= render_threads <= 1024):
-        raise InputError(f"render threads must be a whole number in [1, 1024], got {render_threads!r}")
+    check_whole(workers, "--workers", 1, 1024)
+    if render_threads is not None:
+        check_whole(render_threads, "render threads", 1, 1024)
     if scheduler is not None:
         check_scheduler(scheduler)
     progress = progress or (lambda stage, done, total: None)
@@ -170,8 +168,6 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     log(f"farm: {n} frames in {len(parts)} shards of up to {size} frames; {reused} valid from an earlier run "
         f"(skipped), {len(todo)} to compute")
     if merge_only and todo:
-        from addon.core.errors import ScannerError
-
         listed = "; ".join(f"{s.describe()}: {why}" for s, why in todo[:8])
         raise ScannerError(f"{len(todo)} of {len(parts)} shards are not ready in {folder} ({listed}"
                            f"{'; ...' if len(todo) > 8 else ''}); run them first")

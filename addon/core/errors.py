@@ -31,3 +31,11 @@ class UnreachablePose(ScannerError):
     def __init__(self, message: str, result=None):
         super().__init__(message)
         self.result = result
+
+
+def check_whole(value, what: str, lo: int, hi: int) -> int:
+    """``value`` when it is a whole number (not a bool) in [lo, hi]; otherwise an
+    InputError that names ``what`` and the allowed range."""
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise InputError(f"{what} must be a whole number in [{lo}, {hi}], got {value!r}")
+    return value

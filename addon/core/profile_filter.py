@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, check_whole
 from .triangulate import Profile
 
 
@@ -40,8 +40,7 @@ class ProfileFilter:
     def __post_init__(self) -> None:
         if not (isinstance(self.max_incidence_deg, (int, float)) and 0 < self.max_incidence_deg <= 90):
             raise InputError(f"max_incidence_deg must be in (0, 90], got {self.max_incidence_deg!r}")
-        if not (isinstance(self.edge_px, int) and 0 <= self.edge_px <= 1000):
-            raise InputError(f"edge_px must be a whole number in [0, 1000], got {self.edge_px!r}")
+        check_whole(self.edge_px, "edge_px", 0, 1000)
 
     @property
     def off(self) -> bool:

@@ -14,6 +14,7 @@ import bpy
 import numpy as np
 
 from ..core.cloud import Cloud
+from .materials import bare_material
 from .units import M_PER_MM
 
 POINT_RADIUS_MM = 0.35
@@ -54,12 +55,8 @@ def _cloud_material() -> bpy.types.Material:
     mat = bpy.data.materials.get("Scanner cloud")
     if mat is not None:
         return mat
-    mat = bpy.data.materials.new("Scanner cloud")
+    mat, out = bare_material("Scanner cloud")
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    for n in list(nodes):
-        if n.bl_idname != "ShaderNodeOutputMaterial":
-            nodes.remove(n)
-    out = nodes.get("Material Output") or nodes.new("ShaderNodeOutputMaterial")
     attr = nodes.new("ShaderNodeAttribute")
     attr.attribute_type = "GEOMETRY"
     attr.attribute_name = "error_colour"

@@ -7,17 +7,24 @@ import bpy
 WORKPIECE_GREY = 0.6  # diffuse albedo of the "grey workpiece"
 
 
+def bare_material(name: str) -> tuple[bpy.types.Material, bpy.types.Node]:
+    """A new material called ``name`` whose node tree holds only its output node; returns
+    (material, output node) for the caller to wire its shader into."""
+    mat = bpy.data.materials.new(name)
+    nodes = mat.node_tree.nodes
+    for n in list(nodes):
+        if n.bl_idname != "ShaderNodeOutputMaterial":
+            nodes.remove(n)
+    return mat, nodes.get("Material Output") or nodes.new("ShaderNodeOutputMaterial")
+
+
 def diffuse(name: str, rgb=(WORKPIECE_GREY,) * 3) -> bpy.types.Material:
     """A pure Lambertian (Diffuse BSDF) material, created once by name."""
     mat = bpy.data.materials.get(name)
     if mat is not None:
         return mat
-    mat = bpy.data.materials.new(name)
+    mat, out = bare_material(name)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    for n in list(nodes):
-        if n.bl_idname != "ShaderNodeOutputMaterial":
-            nodes.remove(n)
-    out = nodes.get("Material Output") or nodes.new("ShaderNodeOutputMaterial")
     bsdf = nodes.new("ShaderNodeBsdfDiffuse")
     bsdf.inputs["Color"].default_value = (*rgb, 1.0)
     bsdf.inputs["Roughness"].default_value = 0.0
@@ -30,12 +37,8 @@ def emission(name: str, rgb=(1.0, 1.0, 1.0), strength: float = 1.0) -> bpy.types
     mat = bpy.data.materials.get(name)
     if mat is not None:
         return mat
-    mat = bpy.data.materials.new(name)
+    mat, out = bare_material(name)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    for n in list(nodes):
-        if n.bl_idname != "ShaderNodeOutputMaterial":
-            nodes.remove(n)
-    out = nodes.get("Material Output") or nodes.new("ShaderNodeOutputMaterial")
     em = nodes.new("ShaderNodeEmission")
     em.inputs["Color"].default_value = (*rgb, 1.0)
     em.inputs["Strength"].default_value = strength

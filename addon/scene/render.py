@@ -23,7 +23,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from ..core.errors import InputError
+from ..core.errors import InputError, check_whole
 from ..core.probe import Probe
 from .session import ENGINES, use_device
 
@@ -51,8 +51,7 @@ class RenderSettings:
     def __post_init__(self) -> None:
         if self.engine not in ENGINES:
             raise InputError(f"render engine {self.engine!r} is not one of: {', '.join(ENGINES)}")
-        if isinstance(self.samples, bool) or not isinstance(self.samples, int) or not 1 <= self.samples <= 65536:
-            raise InputError(f"samples must be a whole number in [1, 65536], got {self.samples!r}")
+        check_whole(self.samples, "samples", 1, 65536)
         if self.pixel_filter not in PIXEL_FILTERS:
             raise InputError(f"pixel filter {self.pixel_filter!r} is not one of: {', '.join(PIXEL_FILTERS)}")
         if not 0.01 <= self.filter_width_px <= 10:
@@ -63,8 +62,8 @@ class RenderSettings:
             raise InputError(f"ambient must be in [0, 100], got {self.ambient}")
         if not 0 <= self.motion_blur_shutter <= 1:
             raise InputError(f"motion blur shutter must be in [0, 1] frames, got {self.motion_blur_shutter}")
-        if self.threads is not None and not (isinstance(self.threads, int) and 1 <= self.threads <= 1024):
-            raise InputError(f"render threads must be a whole number in [1, 1024] or None, got {self.threads!r}")
+        if self.threads is not None:
+            check_whole(self.threads, "render threads (or None: all cores)", 1, 1024)
 
 
 def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderSettings, camera_left: bpy.types.Object) -> str:

@@ -91,8 +91,9 @@ def run(args: argparse.Namespace) -> int:
 
 def to_markdown(rows, cores: int, repeats: int) -> str:
     lines = [f"Measured with `python -m headless bench farm --repeats {repeats}` (local clusters on this {cores}-core "
-             "machine, Cycles on the CPU; medians of the repeats; farm times are wall-clock from starting the cluster to the last shard, worker start-up "
-             "included; every cloud identical to the single process's):", "",
+             "machine, Cycles on the CPU; medians of the repeats; farm times are wall-clock from starting the "
+             "cluster to the last shard, worker start-up included; every cloud identical to the single "
+             "process's):", "",
              f"| scenario | frames | one process, {cores} threads | 1 worker × 1 thread | 2 workers × 1 thread "
              f"| speed-up 1 → 2 workers | 1 worker × {cores} threads | 2 workers against 1 worker × {cores} |",
              "|---|---|---|---|---|---|---|---|"]

@@ -142,9 +142,12 @@ def to_markdown(rows, ideal: dict, args) -> str:
         last = scene_name
         bold = label.startswith("all of the above")
         name = f"**{label}**" if bold else label
-        fig = (lambda x: f"**{x:.1f}**") if bold else (lambda x: f"{x:.1f}")
-        if n == 0:
-            fig = lambda x: "–"  # noqa: E731  (no point on the part: nothing to measure)
-        lines.append(f"| {shown} | {name} | {n} | {fig(rms)} | {fig(p95)} | {rej * 100:.1f} % | {t * 1e3:.1f} | "
+        lines.append(f"| {shown} | {name} | {n} | {_figure(rms, n, bold)} | {_figure(p95, n, bold)} | {rej * 100:.1f} % | {t * 1e3:.1f} | "
                      f"{t / ideal[scene_name]:.1f} |")
     return "\n".join(lines) + "\n"
+
+
+def _figure(x: float, points: int, bold: bool) -> str:
+    if points == 0:
+        return "–"  # no point on the part: nothing to measure
+    return f"**{x:.1f}**" if bold else f"{x:.1f}"
