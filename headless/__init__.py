@@ -1,5 +1,5 @@
 """Headless command line for the laser scanner simulator: ``python -m headless``.
 
 This package file stays import-light: ``headless.bootstrap`` must run on a bare
-CPython 3.11 before any dependency is installed.
+any Python 3 before any dependency is installed (it then finds CPython 3.13).
 """

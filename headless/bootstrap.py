@@ -1,24 +1,35 @@
 """Set up ``.venv`` from the lock file, then run a command inside it.
 
-Usage (from the repository root, with CPython 3.11)::
+Usage (from the repository root, with any Python 3; set-up finds CPython 3.13)::
 
-    python3.11 -m headless.bootstrap demo            # set up, then: python -m headless demo
-    python3.11 -m headless.bootstrap test [ARGS]     # set up, then: python -m pytest [ARGS]
-    python3.11 -m headless.bootstrap ANY ARGS        # set up, then: python -m headless ANY ARGS
+    python3 -m headless.bootstrap demo            # set up, then: python -m headless demo
+    python3 -m headless.bootstrap test [ARGS]     # set up, then: python -m pytest [ARGS]
+    python3 -m headless.bootstrap ANY ARGS        # set up, then: python -m headless ANY ARGS
+    python3 -m headless.bootstrap blender-env 4.5 # set up a bare bpy of that Blender, print its python
+
+The pipeline runs on Blender 5.2 LTS (bpy 5.2.x), which is built for CPython 3.13
+only. Started with another interpreter, set-up looks for a CPython 3.13 (on PATH,
+then in pyenv's and the usual install folders) and runs itself again under it; with
+none, it stops with one line naming what it needs.
 
 Set-up creates ``.venv`` and installs ``requirements.txt`` into it. A stamp file in
 ``.venv`` records a hash of the lock file and the interpreter, so a second run on a
 machine that is already set up skips straight to the command. An interrupted install
 leaves no stamp and is repeated on the next run.
 
+``blender-env`` makes the bare Blender environments that tests/extension installs the
+built extension into (``.venv-blender/<version>``: bpy and what bpy itself needs,
+nothing of the project's), one per supported Blender release, each with its own
+interpreter and lock (``headless/locks/blender-<version>.txt``).
+
 This module uses the standard library only: it runs before anything is installed.
 """
 
 from __future__ import annotations
 
+import glob
 import hashlib
 import os
-import shutil
 import subprocess
 import sys
 import venv
@@ -28,69 +39,154 @@ REPO = Path(__file__).resolve().parent.parent
 VENV = REPO / ".venv"
 LOCK = REPO / "requirements.txt"
 STAMP = VENV / ".installed-lock.sha256"
-REQUIRED_PYTHON = (3, 11)  # bpy 5.0.1 wheels exist for CPython 3.11 only
+REQUIRED_PYTHON = (3, 13)  # bpy 5.2 LTS wheels exist for CPython 3.13 only
+
+# The bare Blender environments of tests/extension: Blender release -> its CPython.
+BLENDER_ENVS = {"4.5": (3, 11), "5.2": (3, 13)}
+BLENDER_ENV_ROOT = REPO / ".venv-blender"
+LOCKS = Path(__file__).resolve().parent / "locks"
 
 # pytest's exit code when it collected no tests at all.
 PYTEST_NO_TESTS = 5
 
 
-def venv_python() -> Path:
+def venv_python(venv_dir: Path = None) -> Path:
+    venv_dir = VENV if venv_dir is None else venv_dir
     if os.name == "nt":
-        return VENV / "Scripts" / "python.exe"
-    return VENV / "bin" / "python"
+        return venv_dir / "Scripts" / "python.exe"
+    return venv_dir / "bin" / "python"
 
 
-def lock_digest() -> str:
-    h = hashlib.sha256()
-    h.update(LOCK.read_bytes())
-    h.update(sys.version.encode())
-    return h.hexdigest()
+def _identify(python: str) -> tuple[tuple[int, int], str] | None:
+    """The (major, minor) an interpreter reports and its real executable (not a pyenv
+    shim), or None where it does not run (a shim for a version not selected fails)."""
+    try:
+        out = subprocess.run([python, "-c", "import sys; print(sys.version_info[0], sys.version_info[1], "
+                                            "sys.implementation.name, sys.executable)"],
+                             capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    parts = out.stdout.strip().split(" ", 3)
+    if out.returncode != 0 or len(parts) != 4 or parts[2] != "cpython":
+        return None
+    return (int(parts[0]), int(parts[1])), parts[3]
+
+
+def find_python(version: tuple[int, int]) -> str | None:
+    """A CPython of ``version`` on this machine: ``pythonX.Y`` on PATH, then pyenv's and
+    the usual install folders. None if there is none that runs."""
+    if sys.version_info[:2] == version and sys.implementation.name == "cpython":
+        return sys.executable
+    name = "python%d.%d" % version
+    candidates = []
+    for folder in os.environ.get("PATH", "").split(os.pathsep):
+        if folder:
+            candidates.append(os.path.join(folder, name))
+    pyenv_root = os.environ.get("PYENV_ROOT") or os.path.expanduser("~/.pyenv")
+    candidates += sorted(glob.glob(os.path.join(pyenv_root, "versions", "%d.%d*" % version, "bin", name)),
+                         reverse=True)
+    candidates += [f"/usr/local/bin/{name}", f"/usr/bin/{name}", f"/opt/homebrew/bin/{name}"]
+    seen = set()
+    for cand in candidates:
+        if cand in seen or not os.path.isfile(cand):
+            continue
+        seen.add(cand)
+        found = _identify(cand)
+        if found and found[0] == version:
+            return found[1]
+    return None
 
 
 def ensure_python() -> None:
-    """Re-run under python3.11 when started with another interpreter."""
+    """Re-run under CPython 3.13 when started with another interpreter."""
     if sys.version_info[:2] == REQUIRED_PYTHON:
         return
-    want = "python%d.%d" % REQUIRED_PYTHON
-    other = shutil.which(want)
+    want = "%d.%d" % REQUIRED_PYTHON
+    other = find_python(REQUIRED_PYTHON)
     if other and os.environ.get("_SCANNER_BOOTSTRAP_REEXEC") != "1":
         os.environ["_SCANNER_BOOTSTRAP_REEXEC"] = "1"
         sys.exit(subprocess.call([other, "-m", "headless.bootstrap", *sys.argv[1:]], cwd=REPO))
-    sys.exit(
-        f"error: this project needs CPython {REQUIRED_PYTHON[0]}.{REQUIRED_PYTHON[1]} "
-        f"(bpy 5.0.1 is built for it only); found {sys.version.split()[0]} and no "
-        f"'{want}' on PATH. Install it (e.g. 'pyenv install 3.11') and run "
-        f"'{want} -m headless.bootstrap ...'."
-    )
+    sys.exit(f"error: this project needs CPython {want} (bpy 5.2 LTS is built for it only); found "
+             f"{sys.version.split()[0]} and no python{want} on PATH or in pyenv: install CPython {want} "
+             f"(e.g. 'pyenv install {want}') and run the same command again")
+
+
+def _digest(lock: Path, python_version: str) -> str:
+    h = hashlib.sha256()
+    h.update(lock.read_bytes())
+    h.update(python_version.encode())
+    return h.hexdigest()
+
+
+def lock_digest() -> str:
+    return _digest(LOCK, sys.version)
 
 
 def ensure_venv() -> None:
-    digest = lock_digest()
-    if venv_python().exists() and STAMP.exists() and STAMP.read_text().strip() == digest:
+    _ensure_env(VENV, LOCK, STAMP, sys.executable, sys.version,
+                "the first time downloads about 600 MB, mostly bpy")
+
+
+def _shown(path: Path) -> Path:
+    """A path as the user would type it from the repository root."""
+    return path.relative_to(REPO) if path.is_relative_to(REPO) else path
+
+
+def _ensure_env(venv_dir: Path, lock: Path, stamp: Path, python: str, python_version: str, size_hint: str) -> None:
+    digest = _digest(lock, python_version)
+    py = venv_python(venv_dir)
+    if py.exists() and stamp.exists() and stamp.read_text().strip() == digest:
         return
-    if not venv_python().exists():
-        print(f"[setup] creating {VENV.relative_to(REPO)} with Python {sys.version.split()[0]}", flush=True)
-        venv.EnvBuilder(with_pip=True, clear=True).create(VENV)
-    print(
-        "[setup] installing the pinned packages from requirements.txt "
-        "(the first time downloads about 500 MB, mostly bpy)",
-        flush=True,
-    )
-    STAMP.unlink(missing_ok=True)
-    cmd = [str(venv_python()), "-m", "pip", "install", "--disable-pip-version-check",
-           "--progress-bar", "off", "-r", str(LOCK)]
+    where = _shown(venv_dir)
+    if not py.exists():
+        print(f"[setup] creating {where} with Python {python_version.split()[0]}", flush=True)
+        if python == sys.executable:
+            venv.EnvBuilder(with_pip=True, clear=True).create(venv_dir)
+        else:
+            rc = subprocess.call([python, "-m", "venv", "--clear", str(venv_dir)], cwd=REPO)
+            if rc != 0:
+                sys.exit(f"error: creating {where} with {python} failed (exit code {rc})")
+    print(f"[setup] installing the pinned packages of {_shown(lock)} into {where} ({size_hint})",
+          flush=True)
+    stamp.unlink(missing_ok=True)
+    cmd = [str(py), "-m", "pip", "install", "--disable-pip-version-check", "--progress-bar", "off",
+           "-r", str(lock)]
     rc = subprocess.call(cmd, cwd=REPO)
     if rc != 0:
-        sys.exit(f"error: installing requirements.txt into .venv failed (pip exit code {rc}); "
+        sys.exit(f"error: installing {_shown(lock)} into {where} failed (pip exit code {rc}); "
                  "fix the cause above and run the same command again")
-    STAMP.write_text(digest + "\n")
+    stamp.write_text(digest + "\n")
     print("[setup] done", flush=True)
+
+
+def ensure_blender_env(release: str) -> Path:
+    """The interpreter of the bare bpy environment for a Blender release ("4.5", "5.2"),
+    set up on first use and cached under ``.venv-blender/<release>``."""
+    if release not in BLENDER_ENVS:
+        sys.exit(f"error: no bare environment for Blender {release!r}; supported: {', '.join(BLENDER_ENVS)}")
+    version = BLENDER_ENVS[release]
+    python = find_python(version)
+    if python is None:
+        want = "%d.%d" % version
+        sys.exit(f"error: Blender {release}'s bpy needs CPython {want}; no python{want} on PATH or in pyenv "
+                 f"(install it, e.g. 'pyenv install {want}')")
+    venv_dir = BLENDER_ENV_ROOT / release
+    full_version = subprocess.run([python, "-c", "import sys; print(sys.version)"], capture_output=True,
+                                  text=True).stdout.strip()
+    _ensure_env(venv_dir, LOCKS / f"blender-{release}.txt", venv_dir / ".installed-lock.sha256", python,
+                full_version, "about 400 MB the first time: bpy and what it needs")
+    return venv_python(venv_dir)
 
 
 def main(argv: list[str]) -> int:
     if not argv or argv[0] in ("-h", "--help"):
         print(__doc__)
         return 0 if argv else 2
+    if argv[0] == "blender-env":
+        if len(argv) != 2:
+            sys.exit(f"error: blender-env takes one Blender release ({', '.join(BLENDER_ENVS)})")
+        print(ensure_blender_env(argv[1]), flush=True)
+        return 0
     ensure_python()
     ensure_venv()
     py = str(venv_python())

@@ -2,14 +2,21 @@
 
 The manifest lists the wheels of every platform, pinned by file name. This
 downloads the wheels the requested platforms need into ``wheels/`` (not in git),
-stages the add-on with a manifest trimmed to those platforms, and builds and
-validates with Blender's own extension tool (``blender_ext.py``).
+checks that every compiled package has a wheel for each supported Blender's Python
+on each platform, stages the add-on with a manifest trimmed to those platforms, and
+builds and validates with Blender's own extension tool (``blender_ext.py``).
+
+Nothing here names a Blender or Python version: the Pythons come from the supported
+Blender releases (``headless.bootstrap.BLENDER_ENVS``, or ``--pythons``), and the
+extension tool is the one inside the installed bpy (or ``--blender-ext`` /
+``$BLENDER_EXT_TOOL``).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import os
 import re
 import shutil
 import subprocess
@@ -26,23 +33,69 @@ PIP_TAGS = {
     "linux-x64": ["manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_24_x86_64", "manylinux2014_x86_64",
                   "manylinux_2_17_x86_64"],
     "windows-x64": ["win_amd64"],
-    "macos-arm64": ["macosx_13_0_arm64", "macosx_12_0_arm64", "macosx_11_0_arm64"],
-    "macos-x64": ["macosx_13_0_x86_64", "macosx_10_14_x86_64", "macosx_10_9_x86_64"],
+    "macos-arm64": ["macosx_14_0_arm64", "macosx_13_0_arm64", "macosx_12_0_arm64", "macosx_11_0_arm64"],
+    "macos-x64": ["macosx_14_0_x86_64", "macosx_13_0_x86_64", "macosx_10_14_x86_64", "macosx_10_13_x86_64",
+                  "macosx_10_9_x86_64"],
 }
+
+
+def supported_pythons() -> list[str]:
+    """The CPython versions of the supported Blender releases, e.g. ["3.11", "3.13"]."""
+    from headless.bootstrap import BLENDER_ENVS
+
+    return sorted({"%d.%d" % v for v in BLENDER_ENVS.values()}, key=lambda s: tuple(map(int, s.split("."))))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--platforms", nargs="+", default=list(PLATFORMS), choices=PLATFORMS,
                         help="platforms to build for (default: all four)")
     parser.add_argument("--out", default="dist", help="folder for the zips (default dist/)")
+    parser.add_argument("--pythons", nargs="+", default=None, metavar="X.Y",
+                        help="CPython versions the zip must carry compiled wheels for "
+                             "(default: those of the supported Blender releases)")
+    parser.add_argument("--blender-ext", default=os.environ.get("BLENDER_EXT_TOOL"), metavar="PATH",
+                        help="Blender's blender_ext.py (default: $BLENDER_EXT_TOOL, else the one in the installed bpy)")
     parser.set_defaults(run=run)
 
 
-def blender_ext_tool() -> Path:
-    spec = importlib.util.find_spec("bpy")
+def blender_ext_tool(explicit: str | None = None) -> Path:
+    """Blender's own extension tool: the given path, else the one inside the installed bpy
+    (``bpy/<major.minor>/scripts/addons_core/bl_pkg/cli/blender_ext.py``)."""
+    if explicit:
+        tool = Path(explicit)
+        if not tool.is_file():
+            sys.exit(f"error: Blender's extension tool {tool} does not exist")
+        return tool
+    spec = importlib.util.find_spec("bpy")  # locate the package without starting Blender
     if spec is None or not spec.origin:
-        sys.exit("error: bpy is not installed; run the set-up first (python3.11 -m headless.bootstrap test)")
-    return Path(spec.origin).parent / "5.0" / "scripts" / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
+        sys.exit("error: bpy is not installed; run the set-up first (python3 -m headless.bootstrap test) "
+                 "or give --blender-ext PATH")
+    found = sorted(Path(spec.origin).parent.glob("*/scripts/addons_core/bl_pkg/cli/blender_ext.py"))
+    if not found:
+        sys.exit(f"error: no blender_ext.py inside {Path(spec.origin).parent}; give --blender-ext PATH")
+    return found[-1]
+
+
+def wheel_python(filename: str) -> str | None:
+    """The CPython version a compiled wheel is for ("3.13"), or None for abi3 and pure-Python wheels."""
+    python_tag, abi_tag = filename[:-4].split("-")[-3:-1]
+    if abi_tag in ("abi3", "none") or not python_tag.startswith("cp"):
+        return None
+    return f"{python_tag[2]}.{python_tag[3:]}"
+
+
+def check_pythons(wheels: list[str], platforms: list[str], pythons: list[str]) -> None:
+    """Every compiled package has a wheel for each Python on each platform, or Blender will
+    refuse to enable the extension on the releases that lack one."""
+    missing = []
+    for platform in platforms:
+        for_platform = [w for w in wheels if wheel_platform(w) in (platform, None)]
+        compiled = {w.split("-")[0] for w in for_platform if wheel_python(w) is not None}
+        for package in sorted(compiled):
+            have = {wheel_python(w) for w in for_platform if w.split("-")[0] == package}
+            missing += [f"{package} for CPython {py} on {platform}" for py in pythons if py not in have]
+    if missing:
+        raise SystemExit("error: blender_manifest.toml lists no wheel of " + "; ".join(missing))
 
 
 def wheel_platform(filename: str) -> str | None:
@@ -70,8 +123,9 @@ def fetch(wheel: str, platform: str | None) -> Path:
     if target.is_file():
         return target
     WHEELS.mkdir(exist_ok=True)
+    python = wheel_python(wheel) or "%d.%d" % sys.version_info[:2]
     cmd = [sys.executable, "-m", "pip", "download", "--disable-pip-version-check", "--no-deps", "--only-binary=:all:",
-           "--python-version", "3.11", "--implementation", "cp", "-d", str(WHEELS), requirement_of(wheel)]
+           "--python-version", python, "--implementation", "cp", "-d", str(WHEELS), requirement_of(wheel)]
     for tag in PIP_TAGS.get(platform or "linux-x64", []):
         cmd += ["--platform", tag]
     print(f"[wheels] downloading {wheel}", flush=True)
@@ -87,14 +141,15 @@ def staged_manifest(text: str, platforms: list[str], wheels: list[str]) -> str:
                   text)
 
 
-def build(platforms: list[str], out: Path) -> list[Path]:
+def build(platforms: list[str], out: Path, pythons: list[str] | None = None, tool: str | None = None) -> list[Path]:
     manifest_text = (REPO / "blender_manifest.toml").read_text()
     manifest = tomllib.loads(manifest_text)
     wheels = [Path(w).name for w in manifest.get("wheels", [])]
     needed = [w for w in wheels if wheel_platform(w) in (None, *platforms)]
+    check_pythons(needed, platforms, pythons or supported_pythons())
+    tool = blender_ext_tool(tool)
     for w in needed:
         fetch(w, wheel_platform(w))
-    tool = blender_ext_tool()
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="scanner-ext-") as tmp:
         stage = Path(tmp) / manifest["id"]
@@ -117,7 +172,7 @@ def build(platforms: list[str], out: Path) -> list[Path]:
 
 
 def run(args: argparse.Namespace) -> int:
-    zips = build(list(args.platforms), Path(args.out))
+    zips = build(list(args.platforms), Path(args.out), args.pythons, args.blender_ext)
     for z in zips:
         print(f"built {z} ({z.stat().st_size / 1e6:.0f} MB)")
     return 0

@@ -66,30 +66,41 @@ def parse_resolution(text: str | None):
     return w, h
 
 
-class ProgressBar:
-    """A one-line progress bar on stderr (a line per 10 % when stderr is not a terminal)."""
+def _clock(seconds: float) -> str:
+    seconds = int(round(seconds))
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}" if seconds >= 3600 else \
+        f"{seconds // 60}:{seconds % 60:02d}"
 
-    def __init__(self, quiet: bool):
+
+class ProgressBar:
+    """Progress of long work on stderr: one bar redrawn in place on a terminal (done/total,
+    rate, time left); where stderr is not a terminal (a log, CI), a plain line per 10 %."""
+
+    def __init__(self, quiet: bool, stream=None):
         self.quiet = quiet
-        self.tty = sys.stderr.isatty()
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
         self.start = time.perf_counter()
         self.shown = -1
 
     def __call__(self, stage: str, done: int, total: int) -> None:
         if self.quiet:
             return
-        frac = done / max(total, 1)
-        rate = done / max(time.perf_counter() - self.start, 1e-9)
+        frac = min(done / max(total, 1), 1.0)
+        elapsed = time.perf_counter() - self.start
+        rate = done / max(elapsed, 1e-9)
         unit = "shards" if stage == "shards" else "frames"
+        left = _clock((total - done) / rate) if 0 < done < total else ("-" if done == 0 else "0:00")
+        text = f"{stage}: {done}/{total} {unit}, {rate:.1f} {unit}/s, {left} left"
         if self.tty:
             bar = "#" * int(30 * frac)
-            sys.stderr.write(f"\r{stage}: [{bar:<30}] {done}/{total} {unit}, {rate:.1f} {unit}/s")
+            self.stream.write(f"\r[{bar:<30}] {text} ")
             if done >= total:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
+                self.stream.write("\n")
+            self.stream.flush()
         elif int(frac * 10) > self.shown:
             self.shown = int(frac * 10)
-            print(f"{stage}: {done}/{total} {unit}", file=sys.stderr, flush=True)
+            print(f"{text} ({frac * 100:.0f} %)", file=self.stream, flush=True)
 
 
 def run_scan_command(args: argparse.Namespace) -> int:

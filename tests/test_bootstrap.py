@@ -61,4 +61,35 @@ def test_no_tests_collected_is_not_a_failure(fake_repo, monkeypatch):
 def test_help_runs_on_plain_python():
     out = subprocess.run([sys.executable, "-m", "headless.bootstrap", "--help"], cwd=REPO,
                          capture_output=True, text=True)
-    assert out.returncode == 0 and "python3.11 -m headless.bootstrap test" in out.stdout
+    assert out.returncode == 0 and "python3 -m headless.bootstrap test" in out.stdout
+
+
+def test_finds_the_running_interpreter_and_refuses_a_missing_one(monkeypatch):
+    assert bootstrap.find_python(tuple(sys.version_info[:2])) == sys.executable
+    monkeypatch.setenv("PATH", "")
+    monkeypatch.setenv("PYENV_ROOT", "/nonexistent")
+    assert bootstrap.find_python((2, 1)) is None
+
+
+def test_a_wrong_python_gets_one_line_naming_the_one_needed(tmp_path):
+    # Pretend no CPython 3.13 exists anywhere: only the wrong interpreter is there to run.
+    # The wrong interpreter is Blender 4.5's CPython 3.11, which the extension tests need anyway.
+    wrong = bootstrap.find_python((3, 11))
+    assert wrong, "CPython 3.11 (Blender 4.5 LTS's Python) is needed by this suite"
+    env = {"PATH": str(tmp_path), "PYENV_ROOT": str(tmp_path), "HOME": str(tmp_path)}
+    out = subprocess.run([wrong, "-m", "headless.bootstrap", "test"], cwd=REPO, env=env,
+                         capture_output=True, text=True)
+    assert out.returncode != 0
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "needs CPython 3.13" in lines[0], out.stderr
+
+
+def test_a_pyenv_shim_that_does_not_run_is_passed_over(tmp_path, monkeypatch):
+    shim = tmp_path / "bin" / "python3.13"
+    shim.parent.mkdir()
+    shim.write_text("#!/bin/sh\necho 'pyenv: python3.13: command not found' >&2\nexit 127\n")
+    shim.chmod(0o755)
+    monkeypatch.setenv("PATH", str(shim.parent))
+    monkeypatch.setenv("PYENV_ROOT", str(tmp_path / "pyenv"))
+    monkeypatch.setattr(bootstrap.sys, "version_info", (3, 0, 0))
+    assert bootstrap.find_python((3, 13)) in (None, "/usr/local/bin/python3.13", "/usr/bin/python3.13")

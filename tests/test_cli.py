@@ -108,3 +108,32 @@ def test_demo_scan_runs_and_summarises(tmp_path):
     for word in ("points", "error", "coverage", "profiles/s", "cloud.ply", "report.json", "preview.png"):
         assert word in out.stdout
     assert {p.name for p in (tmp_path / "demo").iterdir()} == {"cloud.ply", "report.json", "preview.png"}
+    # Blender's own per-frame log ("Fra: ...", "Saved: '...exr'") stays off the terminal.
+    assert "Saved:" not in out.stdout and "Fra:" not in out.stdout
+    assert len(out.stdout.strip().splitlines()) < 15, out.stdout
+
+
+def test_progress_is_plain_lines_when_not_a_terminal(tmp_path):
+    out = run_cli("demo", "--frames", "::6", "--out", str(tmp_path / "demo"))
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = [ln for ln in out.stderr.splitlines() if ln.startswith("scan: ")]
+    assert 3 <= len(lines) <= 11 and "\r" not in out.stderr  # a line per 10 %, no redrawn bar
+    assert lines[-1].startswith("scan: 30/30 frames") and "frames/s" in lines[-1] and "left" in lines[-1]
+
+
+def test_progress_bar_redraws_one_line_on_a_terminal():
+    import io
+
+    from headless.scan import ProgressBar
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    stream = Tty()
+    bar = ProgressBar(quiet=False, stream=stream)
+    for done in range(0, 101, 10):
+        bar("scan", done, 100)
+    text = stream.getvalue()
+    assert text.count("\r") == 11 and text.count("\n") == 1 and text.endswith("\n")
+    assert "100/100 frames" in text and "left" in text and "frames/s" in text

@@ -5,6 +5,8 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
+from .compat import fcurve as ensure_fcurve
+
 LINEAR = bpy.types.Keyframe.bl_rna.properties["interpolation"].enum_items["LINEAR"].value
 
 
@@ -15,7 +17,7 @@ def keyframe_values(id_block, data_path: str, frames, values, index: int = 0) ->
     anim = id_block.animation_data or id_block.animation_data_create()
     if anim.action is None:
         anim.action = bpy.data.actions.new(f"{id_block.name} motion")
-    fcurve = anim.action.fcurve_ensure_for_datablock(id_block, data_path, index=index)
+    fcurve = ensure_fcurve(anim.action, id_block, data_path, index=index)
     fcurve.keyframe_points.clear()
     fcurve.keyframe_points.add(len(frames))
     fcurve.keyframe_points.foreach_set("co", np.column_stack([frames, values]).ravel())

@@ -27,6 +27,7 @@ import trimesh
 
 from ..core.errors import InputError
 from ..core.probe import Probe
+from .compat import ensure_node_tree
 from .materials import WORKPIECE_GREY, diffuse
 from .meshes import mesh_object
 from .units import to_blender
@@ -87,8 +88,7 @@ def add_laser(collection, probe: Probe, parent: bpy.types.Object, model: str = "
 
 
 def _gobo_nodes(light: bpy.types.Light, sigma: float) -> None:
-    light.use_nodes = True
-    nt = light.node_tree
+    nt = ensure_node_tree(light)
     emission = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeEmission")
     coords = nt.nodes.new("ShaderNodeTexCoord")  # for a light: "Normal" is the emission direction, light frame
     split = nt.nodes.new("ShaderNodeSeparateXYZ")

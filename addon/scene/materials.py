@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import bpy
 
+from .compat import new_material
+
 WORKPIECE_GREY = 0.6  # diffuse albedo of the "grey workpiece"
 
 
 def bare_material(name: str) -> tuple[bpy.types.Material, bpy.types.Node]:
     """A new material called ``name`` whose node tree holds only its output node; returns
     (material, output node) for the caller to wire its shader into."""
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     nodes = mat.node_tree.nodes
     for n in list(nodes):
         if n.bl_idname != "ShaderNodeOutputMaterial":
@@ -58,7 +60,7 @@ def surface(kind: str = "grey", roughness: float = 0.2) -> bpy.types.Material:
     mat = bpy.data.materials.get(name)
     if mat is not None:
         return mat
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     bsdf = mat.node_tree.nodes.get("Principled BSDF")
     bsdf.inputs["Base Color"].default_value = (*(0.6,) * 3, 1.0) if kind == "glossy" else (0.9, 0.9, 0.9, 1.0)
     bsdf.inputs["Roughness"].default_value = roughness if kind == "glossy" else 0.05

@@ -15,7 +15,9 @@ Gaussian line profile of the gobo laser.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +26,9 @@ import bpy
 import numpy as np
 
 from ..core.errors import InputError, check_whole
+from ..core.exr import read_exr
 from ..core.probe import Probe
+from .compat import ensure_node_tree, new_world
 from .session import ENGINES, use_device
 
 PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
@@ -138,24 +142,50 @@ def use_views(scene: bpy.types.Scene, cameras=(0, 1)) -> None:
 
 
 def _world(scene, strength: float) -> None:
-    world = scene.world or bpy.data.worlds.new("Scanner world")
+    world = scene.world or new_world("Scanner world")
     scene.world = world
-    bg = world.node_tree.nodes.get("Background")
+    bg = ensure_node_tree(world).nodes.get("Background")
     if bg is not None:
         bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
         bg.inputs["Strength"].default_value = strength
 
 
-def read_image(path: str | Path) -> np.ndarray:
-    """A float image file -> (H, W, 3) float32, row 0 at the top (OpenCV order)."""
-    img = bpy.data.images.load(str(path), check_existing=False)
+@contextlib.contextmanager
+def blender_output_captured():
+    """Keep Blender's per-frame log lines ("Fra: ...", "Saved: '...exr'") off the terminal.
+
+    Blender writes them to file descriptor 1 from C, below Python's ``sys.stdout``, so the
+    descriptor itself is pointed at a temporary file for the call; should the render fail,
+    the last lines of that log go into the error.
+    """
+    sys.stdout.flush()
     try:
-        W, H = img.size
-        px = np.empty(W * H * 4, dtype=np.float32)
-        img.pixels.foreach_get(px)
-    finally:
-        bpy.data.images.remove(img)
-    return px.reshape(H, W, 4)[::-1, :, :3].copy()
+        saved = os.dup(1)
+    except OSError:  # no descriptor 1 (a GUI without a console): nothing to keep quiet
+        yield
+        return
+    with tempfile.TemporaryFile(prefix="scanner-blender-log-") as log:
+        os.dup2(log.fileno(), 1)
+        try:
+            yield
+        except Exception as exc:
+            os.dup2(saved, 1)
+            log.seek(0)
+            tail = log.read()[-2000:].decode(errors="replace").strip()
+            if tail:
+                exc.add_note("Blender's log ended with:\n" + tail)
+            raise
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """A rendered EXR file -> (H, W, 3) float32 RGB, row 0 at the top (OpenCV order).
+
+    Read without Blender's image loader, which gives 0 × 0 images for multiview files
+    on 4.5 (see ``addon.core.exr``)."""
+    return read_exr(path)
 
 
 def set_rows(scene: bpy.types.Scene, rows: tuple[int, int] | None) -> None:
@@ -200,7 +230,8 @@ def render_animation(scene: bpy.types.Scene, first: int, last: int, cameras=(0, 
     r.filepath = str(folder / "frame_")
     r.use_file_extension = True
     try:
-        bpy.ops.render.render(animation=True)
+        with blender_output_captured():
+            bpy.ops.render.render(animation=True)
         out = []
         for frame in range(first, last + 1):
             images = []
@@ -230,8 +261,10 @@ def render_still(scene: bpy.types.Scene, camera: bpy.types.Object, width: int, h
         scene.camera = camera
         r.resolution_x, r.resolution_y = width, height
         r.filepath = str(folder / "still.exr")
-        r.image_settings.file_format = "OPEN_EXR"
-        bpy.ops.render.render(write_still=True)
+        image = r.image_settings
+        image.file_format, image.color_depth, image.color_mode, image.exr_codec = "OPEN_EXR", "32", "RGB", "NONE"
+        with blender_output_captured():
+            bpy.ops.render.render(write_still=True)
         return read_image(folder / "still.exr")
     finally:
         r.use_multiview, scene.camera, r.resolution_x, r.resolution_y, r.filepath = old
