@@ -41,8 +41,11 @@ LOCK = REPO / "requirements.txt"
 STAMP = VENV / ".installed-lock.sha256"
 REQUIRED_PYTHON = (3, 13)  # bpy 5.2 LTS wheels exist for CPython 3.13 only
 
-# The bare Blender environments of tests/extension: Blender release -> its CPython.
-BLENDER_ENVS = {"4.5": (3, 11), "5.2": (3, 13)}
+# The bare Blender environments of tests/extension: Blender release -> its CPython. The
+# suite installs the extension into the two long-term releases; SCANNER_BLENDERS=all
+# adds the others the extension supports.
+BLENDER_ENVS = {"4.5": (3, 11), "5.0": (3, 11), "5.1": (3, 13), "5.2": (3, 13)}
+LTS_RELEASES = ("4.5", "5.2")
 BLENDER_ENV_ROOT = REPO / ".venv-blender"
 LOCKS = Path(__file__).resolve().parent / "locks"
 
