@@ -132,6 +132,9 @@ def triangulate(probe: Probe, line: LineDetection, camera: int = 0, method: str 
     return triangulate_profile(probe, line, camera, method, min_angle_deg=min_angle_deg).points
 
 
+TIE_SPACING = 1e-3  # the two cameras' samples this close (share of the spacing) are the same Y
+
+
 def fuse_profiles(p0: Profile, p1: Profile, *, gate_sigmas: float = 5.0, gate_floor_mm: float = 0.05,
                   max_gap_factor: float = 2.5) -> Profile:
     """Combine the two cameras' profiles of one frame into one.
@@ -158,12 +161,21 @@ def fuse_profiles(p0: Profile, p1: Profile, *, gate_sigmas: float = 5.0, gate_fl
     z1, s1 = b.points[:, 2], b.sigma_mm
 
     def covered(yq, ys):
-        """Index of the right neighbour in ys for each yq, and whether both neighbours are close."""
-        j = np.searchsorted(ys, yq)
-        inside = (j > 0) & (j < len(ys))
-        jj = np.clip(j, 1, len(ys) - 1)
+        """Index of the right neighbour in ys for each yq, and whether both neighbours are close.
+
+        The two cameras of a symmetric probe see the same Y on a surface symmetric about the
+        laser plane, to rounding: a point level with the other camera's sample (within
+        TIE_SPACING of the spacing) counts as at that sample, so that rounding, not the
+        surface, does not decide whether it lies inside the other camera's run or beyond it."""
+        if len(ys) < 2:
+            return np.zeros(len(yq), int), np.zeros(len(yq), bool)
+        spacing = np.median(np.diff(ys))
+        j = np.clip(np.searchsorted(ys, yq), 1, len(ys) - 1)
+        nearest = np.where(yq - ys[j - 1] <= ys[j] - yq, j - 1, j)
+        yq = np.where(np.abs(yq - ys[nearest]) <= TIE_SPACING * spacing, ys[nearest], yq)
+        inside = (yq >= ys[0]) & (yq <= ys[-1])
+        jj = np.clip(np.searchsorted(ys, yq), 1, len(ys) - 1)
         gap = ys[jj] - ys[jj - 1]
-        spacing = np.median(np.diff(ys)) if len(ys) > 1 else 0.0
         return jj, inside & (gap <= max_gap_factor * max(spacing, 1e-12))
 
     j, cov0 = covered(y0, y1)
