@@ -333,7 +333,13 @@ class ScanRun:
     def finish(self, out_dir: str | Path | None) -> ScanResult:
         """Measure against the truth, build the report and (with ``out_dir``) write the files."""
         self.timing.update(render=self.t_render, detect=self.t_detect, triangulate=self.t_tri)
-        return assemble(self.config, self.plan, self.acc.cloud(), self.stats, self.timing, out_dir, self.t_all)
+        used = getattr(self.sc, "device_used", None)
+        asked = self.config.render.device
+        if asked != "CPU" and used == "CPU" and self.config.render.engine == "cycles":
+            self.plan.warnings.append(f"render device {asked} asked for, but no such GPU answered: "
+                                      "rendered on the CPU")
+        return assemble(self.config, self.plan, self.acc.cloud(), self.stats, self.timing, out_dir, self.t_all,
+                        {"render_device": used})
 
 
 def new_stats() -> dict:

@@ -21,6 +21,8 @@ def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
     parser.add_argument("--frames", help="part of the path, as A:B (Python slice, e.g. 0:40 or ::2)")
     parser.add_argument("--engine", choices=("cycles", "eevee"), help="render engine (eevee uses the slit laser)")
     parser.add_argument("--samples", type=int, help="samples per pixel")
+    parser.add_argument("--device", type=str.upper, choices=("CPU", "GPU", "OPTIX", "CUDA", "HIP", "ONEAPI", "METAL"),
+                        help="Cycles render device: CPU, GPU (the first backend found) or a backend by name")
     parser.add_argument("--resolution", help="sensor size WxH (columns x rows), the probe's optics kept")
     parser.add_argument("--detect", choices=("threshold", "cog", "gauss", "steger"), help="line detection method")
     parser.add_argument("--max-rms-um", type=float, help="exit with code 3 when the part's RMS error is larger")
@@ -122,7 +124,7 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
 
     config = config.with_overrides(engine=args.engine, samples=args.samples,
                                    resolution=parse_resolution(args.resolution), detect=args.detect,
-                                   frames=parse_frames(args.frames))
+                                   frames=parse_frames(args.frames), device=args.device)
     if args.max_rms_um is not None and not args.max_rms_um > 0:
         from addon.core.errors import InputError
 
@@ -162,7 +164,8 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
     print(f"  time          {wall:.1f} s: plan {ts['plan']:.2f}, scene {ts.get('scene', 0):.2f}, "
           f"render {ts.get('render', 0):.2f}, detect {ts.get('detect', 0):.2f}, "
           f"triangulate {ts.get('triangulate', 0):.2f}, write {ts.get('write', 0):.2f}")
-    print(f"  speed         {r['profiles_per_s']:.1f} profiles/s (render + detect + triangulate); "
+    print(f"  speed         {r['profiles_per_s']:.1f} profiles/s (render + detect + triangulate) on "
+          f"{r.get('render_device') or 'CPU'}; "
           f"cameras {r['cameras_rendered']}, {r['mean_rows_rendered']:.0f} of {r['config']['sensor_px'][1]} rows "
           f"rendered on average")
     if "farm" in r:

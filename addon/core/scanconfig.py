@@ -54,7 +54,7 @@ from .turntable import PAPER_A_R_MM, PAPER_D_R_MM, Turntable
 from .workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
 
 ENGINES = ("cycles", "eevee")
-DEVICES = ("CPU", "GPU")
+DEVICES = ("CPU", "GPU", "OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")  # GPU: the first backend found
 PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
 LASERS = ("gobo", "slit")
 PATH_KINDS = ("sweep", "turntable")
@@ -159,10 +159,15 @@ class ScanConfig:
                        material=self.material if material is None else material,
                        roughness=self.roughness if roughness is None else float(roughness))
 
-    def with_overrides(self, *, engine=None, samples=None, resolution=None, detect=None, frames=None) -> "ScanConfig":
+    def with_overrides(self, *, engine=None, samples=None, resolution=None, detect=None, frames=None,
+                       device=None) -> "ScanConfig":
         """A copy with command-line overrides applied; ``frames`` is a slice of the path."""
         cfg = self
         render = cfg.render
+        if device is not None:
+            if device not in DEVICES:
+                raise InputError(f"--device {device!r} is not one of: {', '.join(DEVICES)}")
+            render = replace(render, device=device)
         if engine is not None:
             if engine not in ENGINES:
                 raise InputError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")

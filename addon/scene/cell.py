@@ -54,6 +54,7 @@ class SceneCell:
     table: bpy.types.Object
     workpiece_object: bpy.types.Object | None
     extras: dict = field(default_factory=dict)
+    device_used: str | None = None  # the render device of the last render ("CPU", "GPU (OPTIX: ...)")
 
     @classmethod
     def attach(cls, scene, cell: Cell, probe: Probe, workpiece: Workpiece | None, name: str = "Scanner Cell"
@@ -131,7 +132,7 @@ class SceneCell:
         if settings.engine == "eevee" and self.laser_model == "gobo":
             raise InputError("Eevee ignores light node trees, so the gobo laser renders as a plain spot; "
                              "build the cell with laser='slit' to render with Eevee")
-        configure(self.scene, self.probe, settings, self.cameras[0])
+        self.device_used = configure(self.scene, self.probe, settings, self.cameras[0])
         with self._only_the_cell():
             if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else
                 return render_animation(self.scene, first, last, cameras, out_dir, rows)

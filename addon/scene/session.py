@@ -9,8 +9,9 @@ import addon_utils  # noqa: E402
 from ..core.errors import InputError
 
 ENGINES = {"cycles": "CYCLES", "eevee": "BLENDER_EEVEE"}
-DEVICES = ("CPU", "GPU")
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
+# "GPU": the first backend this machine has, in the order above; a backend by name: that one only.
+DEVICES = ("CPU", "GPU") + GPU_BACKENDS
 
 
 def new_scene(device: str = "CPU") -> bpy.types.Scene:
@@ -27,14 +28,15 @@ def new_scene(device: str = "CPU") -> bpy.types.Scene:
 
 
 def use_device(scene: bpy.types.Scene, device: str = "CPU") -> str:
-    """Select CPU or GPU for Cycles; returns the device actually used (GPU falls back to CPU)."""
+    """Select the CPU, the first GPU backend available ("GPU") or a named backend ("OPTIX",
+    "CUDA", ...) for Cycles; returns the device actually used (CPU where no GPU answers)."""
     if device not in DEVICES:
         raise InputError(f"render device {device!r} is not one of: {', '.join(DEVICES)}")
     scene.cycles.device = "CPU"
     if device == "CPU":
         return "CPU"
     prefs = bpy.context.preferences.addons["cycles"].preferences
-    for backend in GPU_BACKENDS:
+    for backend in GPU_BACKENDS if device == "GPU" else (device,):
         try:
             prefs.compute_device_type = backend
         except TypeError:
