@@ -32,18 +32,18 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from .core import metrics
-from .core.cloud import CloudAccumulator, save_ply
-from .core.detect import LineCode, detect_line
+from .core.geometry import metrics
+from .core.geometry.cloud import CloudAccumulator, save_ply
+from .core.optics.detect import LineCode, detect_line
 from .core.errors import InputError, ScannerError, UnreachablePose
-from .core.profile_filter import filter_profile
+from .core.optics.profile_filter import filter_profile
 from .core.files import write_bytes_atomic, write_png
-from .core.footprint import laser_footprint
-from .core.preview import render_preview
-from .core.scanconfig import ScanConfig
-from .core.scanpath import solve_path
-from .core.triangulate import fuse_profiles, triangulate_profile
-from .core.turntable import TABLE_RADIUS_MM, table_top_mesh
+from .core.geometry.footprint import laser_footprint
+from .core.scan.preview import render_preview
+from .core.config.scan import ScanConfig
+from .core.kinematics.path import solve_path
+from .core.optics.triangulate import fuse_profiles, triangulate_profile
+from .core.kinematics.turntable import TABLE_RADIUS_MM, table_top_mesh
 
 BAND_FULL_SHARE = 0.75     # a band this tall (share of the rows) is not worth cropping
 EDGE_PX = 1.5              # a line this close to the band's edge may run outside it

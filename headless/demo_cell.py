@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from addon.core.cell import Cell
+from addon.core.kinematics.cell import Cell
 from addon.core.errors import UnreachablePose
-from addon.core.euler import pose_from_xyz_yzz
-from addon.core.kinematics import load_robot
-from addon.core.probe import load_probe
-from addon.core.workpiece import builtin_workpiece
+from addon.core.kinematics.euler import pose_from_xyz_yzz
+from addon.core.config.rigs import load_robot
+from addon.core.config.rigs import load_probe
+from addon.core.geometry.workpiece import builtin_workpiece
 
 STAND_OFF_MM = 150.0
 READY_DEG = (0.0, 40.0, -100.0, 0.0, -30.0, 0.0)  # elbow up, wrist down: a natural scanning posture

@@ -26,7 +26,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
 
-from addon.core import shards
+from addon.core.scan import shards
 from addon.core.errors import InputError, ScannerError, check_whole
 
 # A worker process's cell, kept between shards of the same scan: {fingerprint: SceneCell}.
@@ -140,7 +140,7 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     last task of a render-farm job), else say which are missing or invalid.
     ``render_threads``: Cycles threads per worker (default: on a local cluster, the
     machine's cores shared out among the workers; on a scheduler, all of a worker's cores)."""
-    from addon.core.cloud import Cloud
+    from addon.core.geometry.cloud import Cloud
     from addon.pipeline import assemble, merge_stats, plan_scan
 
     check_whole(workers, "--workers", 1, 1024)

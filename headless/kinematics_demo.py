@@ -11,10 +11,10 @@ import time
 
 import numpy as np
 
-from addon.core.cell import Cell
-from addon.core.config import available_rigs
-from addon.core.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
-from addon.core.kinematics import load_robot
+from addon.core.kinematics.cell import Cell
+from addon.core.config.toml import available_rigs
+from addon.core.kinematics.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
+from addon.core.config.rigs import load_robot
 
 JOINT_VECTORS_DEG = {
     "zero": [0, 0, 0, 0, 0, 0],

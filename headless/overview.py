@@ -41,7 +41,7 @@ def _with_scan(args, scene, render_overview) -> int:
     import bpy
 
     import addon.ui as ui
-    from addon.core.scanconfig import load_scan_config
+    from addon.core.config.scan import load_scan_config
     from addon.scene.cell import SceneCell
 
     ui.register()

@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from addon.core.errors import InputError
     from addon.core.files import write_png
-    from addon.core.scanconfig import load_scan_config
+    from addon.core.config.scan import load_scan_config
     from headless.bench.realism import ALL, ALL_SCENE, configure
 
     base = load_scan_config(args.config)

@@ -106,14 +106,14 @@ class ProgressBar:
 
 
 def run_scan_command(args: argparse.Namespace) -> int:
-    from addon.core.scanconfig import load_scan_config
+    from addon.core.config.scan import load_scan_config
 
     config = load_scan_config(args.config)
     return _run(args, config, args.out or str(Path("out") / Path(config.source).stem))
 
 
 def run_demo(args: argparse.Namespace) -> int:
-    from addon.core.scanconfig import load_scan_config
+    from addon.core.config.scan import load_scan_config
 
     config = load_scan_config("demo")
     return _run(args, config, args.out or "out/demo")

@@ -13,7 +13,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..core.probe import Probe
+from ..core.optics.probe import Probe
 from .units import CV_TO_BLENDER_CAMERA, from_blender, to_blender
 
 SENSOR_WIDTH_MM = 36.0

@@ -17,11 +17,11 @@ import numpy as np
 import trimesh
 from mathutils import Matrix
 
-from ..core.cell import Cell
+from ..core.kinematics.cell import Cell
 from ..core.errors import InputError
-from ..core.transforms import rigid_inverse
-from ..core.probe import Probe
-from ..core.workpiece import Workpiece
+from ..core.kinematics.transforms import rigid_inverse
+from ..core.optics.probe import Probe
+from ..core.geometry.workpiece import Workpiece
 from . import rig
 from .animation import keyframe_values
 from .cameras import add_probe_cameras, camera_to_world_cv

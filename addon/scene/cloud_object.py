@@ -13,7 +13,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..core.cloud import Cloud
+from ..core.geometry.cloud import Cloud
 from .materials import bare_material
 from .units import M_PER_MM
 

@@ -26,7 +26,7 @@ import numpy as np
 import trimesh
 
 from ..core.errors import InputError
-from ..core.probe import Probe
+from ..core.optics.probe import Probe
 from .compat import ensure_node_tree
 from .materials import WORKPIECE_GREY, diffuse
 from .meshes import mesh_object

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..core.errors import InputError, check_whole
 from ..core.exr import read_exr
-from ..core.probe import Probe
+from ..core.optics.probe import Probe
 from .compat import ensure_node_tree, new_world
 from .session import ENGINES, use_device
 

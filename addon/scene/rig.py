@@ -23,9 +23,9 @@ import bpy
 import numpy as np
 import trimesh
 
-from ..core.kinematics import N_JOINTS, Robot
-from ..core.transforms import rigid_inverse, rot_x
-from ..core.workpiece import check_mesh
+from ..core.kinematics.robot import N_JOINTS, Robot
+from ..core.kinematics.transforms import rigid_inverse, rot_x
+from ..core.geometry.workpiece import check_mesh
 from .materials import diffuse
 from .meshes import mesh_object
 from .units import from_blender, to_blender

@@ -5,8 +5,8 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..core.turntable import Turntable, table_top_mesh
-from ..core.workpiece import Workpiece
+from ..core.kinematics.turntable import Turntable, table_top_mesh
+from ..core.geometry.workpiece import Workpiece
 from .materials import diffuse, surface
 from .meshes import mesh_object
 from .units import to_blender

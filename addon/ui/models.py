@@ -8,13 +8,14 @@ from pathlib import Path
 
 import bpy
 
-from ..core.cell import Cell
+from ..core.kinematics.cell import Cell
 from ..core.errors import InputError
-from ..core.kinematics import load_robot
-from ..core.probe import Probe, load_probe
-from ..core.sensor import SensorModel
-from ..core.turntable import Turntable
-from ..core.workpiece import builtin_workpiece, load_workpiece
+from ..core.config.rigs import load_robot
+from ..core.optics.probe import Probe
+from ..core.config.rigs import load_probe
+from ..core.optics.sensor import SensorModel
+from ..core.kinematics.turntable import Turntable
+from ..core.geometry.workpiece import builtin_workpiece, load_workpiece
 from .props import FILE
 
 CELL_NAME = "Scanner Cell"

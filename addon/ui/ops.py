@@ -52,7 +52,7 @@ class SCANNER_OT_load_probe(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
-        from ..core.probe import load_probe
+        from ..core.config.rigs import load_probe
 
         s = context.scene.scanner
         try:
@@ -77,8 +77,8 @@ class SCANNER_OT_go(bpy.types.Operator):
         return _cell_built(context)
 
     def execute(self, context):
-        from ..core.euler import pose_from_xyz_yzz
-        from ..core.transforms import rigid_inverse
+        from ..core.kinematics.euler import pose_from_xyz_yzz
+        from ..core.kinematics.transforms import rigid_inverse
         from ..scene import rig
 
         s = context.scene.scanner
@@ -90,7 +90,7 @@ class SCANNER_OT_go(bpy.types.Operator):
             target = pose_from_xyz_yzz(np.array(s.target_location), np.array(s.target_rotation))
             tool = pose_from_xyz_yzz(np.array(s.tool_location), np.array(s.tool_rotation))
             probe_target = target @ rigid_inverse(tool)  # the tool point sits at `tool` in the probe frame
-            from ..core.cell import Cell
+            from ..core.kinematics.cell import Cell
 
             res = Cell(robot, cell.table).ik(probe_target, rig.get_joints(robot_obj), relative_to=s.target_frame,
                                              table_angle_rad=s.table_angle)
@@ -169,7 +169,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
     _state = None
 
     def _config(self, context):
-        from ..core.scanconfig import load_scan_config
+        from ..core.config.scan import load_scan_config
 
         s = context.scene.scanner
         cfg = load_scan_config(models._path(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config)
@@ -286,7 +286,7 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
         return bpy.data.objects.get(models.CLOUD_NAME) is not None
 
     def execute(self, context):
-        from ..core.cloud import save_ply
+        from ..core.geometry.cloud import save_ply
         from ..scene.cloud_object import cloud_from_object
 
         cloud = cloud_from_object(bpy.data.objects[models.CLOUD_NAME])

@@ -13,10 +13,10 @@ import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty,
                        StringProperty)
 
-from ..core.config import available_rigs
-from ..core.scanconfig import MATERIALS
-from ..core.sensor import BIT_DEPTHS, SensorModel
-from ..core.workpiece import BUILTINS
+from ..core.config.toml import available_rigs
+from ..core.config.scan import MATERIALS
+from ..core.optics.sensor import BIT_DEPTHS, SensorModel
+from ..core.geometry.workpiece import BUILTINS
 
 FILE = "FILE"
 

@@ -86,8 +86,8 @@ def factors():
 
 def variant(base, changes: dict):
     """The scene's config with one setting changed."""
-    from addon.core.profile_filter import ProfileFilter
-    from addon.core.sensor import SensorModel
+    from addon.core.optics.profile_filter import ProfileFilter
+    from addon.core.optics.sensor import SensorModel
 
     cfg = base
     render = cfg.render
@@ -133,7 +133,7 @@ def measure(cfg, repeats: int) -> tuple[float, dict]:
 
 def run(args: argparse.Namespace) -> int:
     from addon.core.errors import InputError
-    from addon.core.scanconfig import load_scan_config
+    from addon.core.config.scan import load_scan_config
 
     if args.frames < 2 or args.repeats < 1 or args.eevee_frames < 1:
         raise InputError("--frames must be at least 2, --repeats and --eevee-frames at least 1")

@@ -14,8 +14,8 @@ import argparse
 import cv2
 import numpy as np
 
-from addon.core.detect import METHODS, DetectParams, detect_line
-from addon.core.synthetic import line_image
+from addon.core.optics.detect import METHODS, DetectParams, detect_line
+from headless.synthetic import line_image
 from headless.bench.timing import fmt_time, median_seconds
 
 SIGMAS = (0.7, 1.0, 1.5, 2.0, 3.0)

@@ -33,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def scenarios(args):
-    from addon.core.probe import load_probe
-    from addon.core.scanconfig import load_scan_config
+    from addon.core.config.rigs import load_probe
+    from addon.core.config.scan import load_scan_config
 
     demo = load_scan_config("demo")
     step = max(1, len(demo.waypoints) // args.frames)

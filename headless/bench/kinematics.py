@@ -15,10 +15,11 @@ import time
 
 import numpy as np
 
-from addon.core.ik import default_pos_tol, default_seed
-from addon.core.ik_analytic import spherical_wrist_arm
-from addon.core.kinematics import Robot, load_robot
-from addon.core.transforms import rot_x, rot_z, trans
+from addon.core.kinematics.ik import default_pos_tol, default_seed
+from addon.core.kinematics.ik_analytic import spherical_wrist_arm
+from addon.core.kinematics.robot import Robot
+from addon.core.config.rigs import load_robot
+from addon.core.kinematics.transforms import rot_x, rot_z, trans
 from headless.bench.timing import fmt_time, median_seconds, median_single_call, per_call_seconds
 
 DEFAULT_ROBOTS = ["adept_viper_s650", "puma560", "ur5"]

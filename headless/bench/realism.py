@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
 
 def scans(args: argparse.Namespace) -> str:
     """Run the scans, print the table; return it as Markdown."""
-    from addon.core.scanconfig import load_scan_config
+    from addon.core.config.scan import load_scan_config
     from addon.pipeline import run_scan
 
     scenes = []

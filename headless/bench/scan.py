@@ -30,10 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def scenarios(args):
-    from addon.core.probe import load_probe
-    from addon.core.scanconfig import load_scan_config
-    from addon.core.scanpath import sweep
-    from addon.core.workpiece import builtin_workpiece
+    from addon.core.config.rigs import load_probe
+    from addon.core.config.scan import load_scan_config
+    from addon.core.kinematics.path import sweep
+    from addon.core.geometry.workpiece import builtin_workpiece
 
     step = 4 if args.quick else 1
     demo = load_scan_config("demo").with_overrides(frames=slice(None, None, step))

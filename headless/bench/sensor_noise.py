@@ -21,12 +21,12 @@ LEVELS = (0.05, 0.1, 0.2, 0.4, 0.7)
 
 def rendered_plane_line():
     """(image (H, W, 3), probe): camera 0's view of a plane 150 mm below the probe, area-sampled."""
-    from addon.core.cell import Cell
-    from addon.core.euler import pose_from_xyz_yzz
-    from addon.core.kinematics import load_robot
-    from addon.core.probe import load_probe
-    from addon.core.transforms import trans
-    from addon.core.workpiece import builtin_workpiece
+    from addon.core.kinematics.cell import Cell
+    from addon.core.kinematics.euler import pose_from_xyz_yzz
+    from addon.core.config.rigs import load_robot
+    from addon.core.config.rigs import load_probe
+    from addon.core.kinematics.transforms import trans
+    from addon.core.geometry.workpiece import builtin_workpiece
     from addon.scene.cell import build_cell
     from addon.scene.render import RenderSettings
     from addon.scene.session import new_scene
@@ -44,9 +44,9 @@ def rendered_plane_line():
 
 def compare(frames: int = 20, seed: int = 0) -> list[tuple]:
     """Rows (level, noise at the peak as a fraction of it, rendered error px, synthetic error px, σ px)."""
-    from addon.core.detect import DetectParams, detect_line
-    from addon.core.sensor import SensorModel
-    from addon.core.synthetic import gaussian_profile, line_image
+    from addon.core.optics.detect import DetectParams, detect_line
+    from addon.core.optics.sensor import SensorModel
+    from headless.synthetic import gaussian_profile, line_image
     from headless.bench.detect import curved_centres
 
     clean, probe = rendered_plane_line()

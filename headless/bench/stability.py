@@ -61,13 +61,13 @@ ROT_TOL_RAD = 1e-9
 
 
 def _robot(name):
-    from addon.core.kinematics import load_robot
+    from addon.core.config.rigs import load_robot
 
     return load_robot(name)
 
 
 def _ik_roundtrip(robot, q_true, seed_offset=0.2) -> Outcome:
-    from addon.core.transforms import rotation_angle
+    from addon.core.kinematics.transforms import rotation_angle
 
     T = robot.fk(q_true)
     res = robot.ik(T, q_true + seed_offset)
@@ -184,9 +184,9 @@ def reach_outside():
 def _line_past_wrist_singularity(offset_mm: float, n: int = 1000):
     """A straight 100 mm line of tool positions at one orientation that passes ``offset_mm``
     from a wrist-singular pose of the Viper s650 (q5 = 0 there), and its IK walk."""
-    from addon.core.cell import Cell
-    from addon.core.scanpath import Waypoints, solve_path
-    from addon.core.turntable import Turntable
+    from addon.core.kinematics.cell import Cell
+    from addon.core.kinematics.path import Waypoints, solve_path
+    from addon.core.kinematics.turntable import Turntable
 
     robot = _robot("adept_viper_s650")
     cell = Cell(robot, Turntable())
@@ -252,15 +252,15 @@ def nan_joints():
 
 # -- probe geometry ------------------------------------------------------------------------
 def _probe(a, phi, gamma, rows=160, cols=160, name="extreme"):
-    from addon.core.probe import Probe
+    from addon.core.optics.probe import Probe
 
     return Probe(name, a, 0.0, phi, gamma, rows, cols)
 
 
 def _roundtrip(probe, n=41, min_angle_deg: float | None = None) -> Outcome:
     """Laser-plane points across the range and the line, projected exactly and triangulated back."""
-    from addon.core.detect import LineCode, LineDetection
-    from addon.core.triangulate import triangulate_profile
+    from addon.core.optics.detect import LineCode, LineDetection
+    from addon.core.optics.triangulate import triangulate_profile
 
     z0, z1 = probe.z_range_mm
     zs = np.linspace(z0, z1, n + 2)[1:-1] if z1 < 1e6 else np.geomspace(z0 * 1.01, z1 * 0.99, n)
@@ -297,8 +297,8 @@ def _roundtrip(probe, n=41, min_angle_deg: float | None = None) -> Outcome:
       "rays meeting the laser plane under the 2° minimum rejected and counted; with the limit lowered, "
       "exact to 1e-9 of the depth")
 def tiny_baseline():
-    from addon.core.probe import angles_from_range
-    from addon.core.triangulate import MIN_ANGLE_DEG
+    from addon.core.optics.probe import angles_from_range
+    from addon.core.optics.triangulate import MIN_ANGLE_DEG
 
     phi, gamma = angles_from_range(1.0, 0.0, 70.0, 250.0)
     probe = _probe(1.0, phi, gamma)
@@ -311,7 +311,7 @@ def tiny_baseline():
 
 @case("probe", "baseline a = 1 000 mm", "finite range; exact triangulation back to 1e-9 of the depth")
 def huge_baseline():
-    from addon.core.probe import angles_from_range
+    from addon.core.optics.probe import angles_from_range
 
     phi, gamma = angles_from_range(1000.0, 0.0, 70.0, 250.0)
     return _roundtrip(_probe(1000.0, phi, gamma))
@@ -336,9 +336,9 @@ def large_gamma():
 @case("probe", "4 096 × 4 096 sensor",
       "exact triangulation back to 1e-9 of the depth; gauss finds a synthetic line to 0.01 px")
 def big_sensor():
-    from addon.core.detect import DetectParams, detect_line
-    from addon.core.probe import load_probe
-    from addon.core.synthetic import line_image
+    from addon.core.optics.detect import DetectParams, detect_line
+    from addon.core.config.rigs import load_probe
+    from headless.synthetic import line_image
 
     probe = load_probe("default").with_resolution(4096, 4096)
     out = _roundtrip(probe)
@@ -394,10 +394,10 @@ def _bounded_or_rejected(cfg, bound_um: float = 50.0) -> Outcome:
 
 def _plate(tilt_deg: float, height_mm: float = 30.0, frames: int = 8, standoff_mm: float = 160.0, size=80.0):
     """The tilted-plane scene with the plate tilted about the line's direction (y) and one sweep."""
-    from addon.core.scanconfig import load_scan_config
-    from addon.core.scanpath import sweep
-    from addon.core.euler import pose_from_xyz_yzz
-    from addon.core.workpiece import builtin_workpiece
+    from addon.core.config.scan import load_scan_config
+    from addon.core.kinematics.path import sweep
+    from addon.core.kinematics.euler import pose_from_xyz_yzz
+    from addon.core.geometry.workpiece import builtin_workpiece
 
     cfg = load_scan_config("tilted_plane")
     pose = pose_from_xyz_yzz([0.0, 0.0, height_mm], np.radians([0.0, tilt_deg, 0.0]))
@@ -459,9 +459,9 @@ def beyond_range():
 @case("scene", "cell 1 km from the world origin (float32 in Blender)",
       "the same cloud as at the origin, to 1 µm", renders=True)
 def far_from_origin():
-    from addon.core.transforms import trans
+    from addon.core.kinematics.transforms import trans
 
-    from addon.core.turntable import Turntable
+    from addon.core.kinematics.turntable import Turntable
 
     near = _plate(20.0, frames=6)
     # Robot base and table both 1 km along x from the world origin.
@@ -479,8 +479,8 @@ def far_from_origin():
       "no accumulated error: after 360° and 720° the probe's pose in the table frame and the rendered "
       "images equal the first frame's", renders=True)
 def many_table_steps():
-    from addon.core.scanconfig import load_scan_config
-    from addon.core.scanpath import turntable
+    from addon.core.config.scan import load_scan_config
+    from addon.core.kinematics.path import turntable
     from addon.pipeline import plan_scan
     from addon.scene.cell import build_cell
     from addon.scene.render import RenderSettings
@@ -508,8 +508,8 @@ def many_table_steps():
 @case("scene", "tiny part: sphere of radius 0.5 mm",
       "bounded error on what is kept (RMS ≤ 50 µm), or points rejected and counted", renders=True)
 def tiny_sphere():
-    from addon.core.euler import pose_from_xyz_yzz
-    from addon.core.workpiece import builtin_workpiece
+    from addon.core.kinematics.euler import pose_from_xyz_yzz
+    from addon.core.geometry.workpiece import builtin_workpiece
 
     cfg = _plate(0.0, frames=8)
     wp = builtin_workpiece("sphere", pose=pose_from_xyz_yzz([0.0, 0.0, 30.0], [0.0, 0.0, 0.0]), radius_mm=0.5)
@@ -551,7 +551,7 @@ def mirror_part():
 @case("scene", "line 20× full scale on a clipping sensor",
       "every clipped column rejected as saturated and counted; nothing clipped is measured", renders=True)
 def saturated_line():
-    from addon.core.sensor import SensorModel
+    from addon.core.optics.sensor import SensorModel
 
     cfg = _plate(20.0, frames=6).with_realism(SensorModel(saturate=True, exposure_ms=40.0))
     res = _scan(cfg)
@@ -562,7 +562,7 @@ def saturated_line():
 
 
 def _ideal():
-    from addon.core.sensor import SensorModel
+    from addon.core.optics.sensor import SensorModel
 
     return SensorModel()
 

@@ -12,9 +12,10 @@ import math
 
 import numpy as np
 
-from addon.core.detect import LineDetection
-from addon.core.probe import Probe, load_probe
-from addon.core.triangulate import fuse_profiles, triangulate_profile
+from addon.core.optics.detect import LineDetection
+from addon.core.optics.probe import Probe
+from addon.core.config.rigs import load_probe
+from addon.core.optics.triangulate import fuse_profiles, triangulate_profile
 from headless.bench.timing import fmt_time, median_seconds
 
 

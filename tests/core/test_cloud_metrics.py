@@ -8,12 +8,12 @@ import pytest
 import trimesh
 
 from addon.core import files
-from addon.core.cloud import Cloud, CloudAccumulator, load_ply, save_ply
+from addon.core.geometry.cloud import Cloud, CloudAccumulator, load_ply, save_ply
 from addon.core.errors import InputError, ScannerError
-from addon.core.metrics import coverage, distances, error_stats, evaluate
-from addon.core.shapes import Cylinder, PlanePatch, Sphere
-from addon.core.transforms import rot_x, rot_z, trans
-from addon.core.triangulate import Profile
+from addon.core.geometry.metrics import coverage, distances, error_stats, evaluate
+from addon.core.geometry.shapes import Cylinder, PlanePatch, Sphere
+from addon.core.kinematics.transforms import rot_x, rot_z, trans
+from addon.core.optics.triangulate import Profile
 
 
 def profile(points, camera=1):

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from addon.core.detect import DetectParams, LineCode, detect_line
+from addon.core.optics.detect import DetectParams, LineCode, detect_line
 from addon.core.errors import InputError
-from addon.core.synthetic import line_image
+from headless.synthetic import line_image
 
 H, W = 160, 200
 
@@ -133,7 +133,7 @@ def test_unknown_method():
 
 
 def test_columns_much_wider_than_the_line_are_rejected_when_asked():
-    from addon.core.detect import DetectParams
+    from addon.core.optics.detect import DetectParams
 
     W = 100
     sigma = np.full(W, 0.8)
@@ -147,7 +147,7 @@ def test_columns_much_wider_than_the_line_are_rejected_when_asked():
 
 
 def test_a_line_cut_by_a_depth_edge_is_not_fitted():
-    from addon.core.detect import DetectParams
+    from addon.core.optics.detect import DetectParams
 
     img = line_image(160, np.full(60, 70.2), 0.55, background=0.0, integrate=False)
     img[71:, :30, 0] = 0.0  # the part ends just past the peak in the first 30 columns

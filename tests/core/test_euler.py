@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from addon.core.errors import InputError
-from addon.core.euler import matrix_to_yzz, pose_from_xyz_yzz, pose_to_xyz_yzz, yzz_to_matrix
-from addon.core.transforms import rot_y, rot_z
+from addon.core.kinematics.euler import matrix_to_yzz, pose_from_xyz_yzz, pose_to_xyz_yzz, yzz_to_matrix
+from addon.core.kinematics.transforms import rot_y, rot_z
 
 
 def reference(yaw, pitch, roll):

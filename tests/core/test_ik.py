@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from addon.core.errors import InputError, UnreachablePose
-from addon.core.ik import IKResult, default_pos_tol
-from addon.core.kinematics import Robot, load_robot
-from addon.core.transforms import trans
+from addon.core.kinematics.ik import IKResult, default_pos_tol
+from addon.core.kinematics.robot import Robot
+from addon.core.config.rigs import load_robot
+from addon.core.kinematics.transforms import trans
 
 SPHERICAL = ["adept_viper_s650", "puma560"]
 

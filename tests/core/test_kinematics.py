@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from addon.core.errors import InputError
-from addon.core.kinematics import Robot, load_robot
-from addon.core.transforms import rot_x, rot_z, rotation_vector, trans
+from addon.core.kinematics.robot import Robot
+from addon.core.config.rigs import load_robot
+from addon.core.kinematics.transforms import rot_x, rot_z, rotation_vector, trans
 
 ROBOTS = ["adept_viper_s650", "puma560", "ur5"]
 

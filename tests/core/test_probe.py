@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from addon.core.errors import ConfigError, InputError
-from addon.core.probe import Probe, angles_from_range, load_probe
+from addon.core.optics.probe import Probe, angles_from_range
+from addon.core.config.rigs import load_probe
 
 
 def ray_hits(probe: Probe, camera: int, px: np.ndarray, py: np.ndarray):

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from addon.core.errors import InputError
-from addon.core.profile_filter import ProfileFilter, filter_profile, incidence_deg
-from addon.core.triangulate import Profile
+from addon.core.optics.profile_filter import ProfileFilter, filter_profile, incidence_deg
+from addon.core.optics.triangulate import Profile
 
 
 def profile(points, col=None):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from addon.core.errors import ConfigError
-from addon.core.kinematics import load_robot
+from addon.core.config.rigs import load_robot
 
 LINK = """
 [[link]]

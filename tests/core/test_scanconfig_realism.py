@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from addon.core.errors import ConfigError, InputError
-from addon.core.scanconfig import load_scan_config
-from addon.core.sensor import SensorModel
+from addon.core.config.scan import load_scan_config
+from addon.core.optics.sensor import SensorModel
 
 REPO = Path(__file__).resolve().parents[2]
 STEP = (REPO / "rigs" / "scenes" / "step_block.toml").read_text()

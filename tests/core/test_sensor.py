@@ -6,11 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from addon.core.detect import DetectParams, detect_line
+from addon.core.optics.detect import DetectParams, detect_line
 from addon.core.errors import InputError
-from addon.core.probe import load_probe
-from addon.core.sensor import SensorModel, speckle_pattern
-from addon.core.synthetic import line_image
+from addon.core.config.rigs import load_probe
+from addon.core.optics.sensor import SensorModel, speckle_pattern
+from headless.synthetic import line_image
 
 PROBE = load_probe("default")
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from addon.core import shards
-from addon.core.cloud import Cloud
+from addon.core.scan import shards
+from addon.core.geometry.cloud import Cloud
 from addon.core.errors import InputError
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from addon.core.errors import InputError
-from addon.core.transforms import (
+from addon.core.kinematics.transforms import (
     check_transform,
     make_pose,
     orthonormality_error,

@@ -5,10 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from addon.core.detect import LineCode, LineDetection
+from addon.core.optics.detect import LineCode, LineDetection
 from addon.core.errors import InputError
-from addon.core.probe import Probe, load_probe
-from addon.core.triangulate import fuse_profiles, triangulate, triangulate_profile
+from addon.core.optics.probe import Probe
+from addon.core.config.rigs import load_probe
+from addon.core.optics.triangulate import fuse_profiles, triangulate, triangulate_profile
 
 
 def detection(probe, u, v, code=None):

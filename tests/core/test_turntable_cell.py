@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from addon.core.cell import Cell
+from addon.core.kinematics.cell import Cell
 from addon.core.errors import InputError
-from addon.core.euler import pose_from_xyz_yzz
-from addon.core.kinematics import load_robot
-from addon.core.transforms import rigid_inverse, rot_z, transform_points, trans
-from addon.core.turntable import Turntable
+from addon.core.kinematics.euler import pose_from_xyz_yzz
+from addon.core.config.rigs import load_robot
+from addon.core.kinematics.transforms import rigid_inverse, rot_z, transform_points, trans
+from addon.core.kinematics.turntable import Turntable
 
 
 def test_eq4_and_eq5_are_inverse_and_match_the_paper():

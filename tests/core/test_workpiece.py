@@ -5,10 +5,10 @@ import pytest
 import trimesh
 
 from addon.core.errors import InputError
-from addon.core.metrics import distances
-from addon.core.shapes import StepBlock
-from addon.core.transforms import rot_z, trans
-from addon.core.workpiece import BUILTINS, builtin_workpiece, load_workpiece
+from addon.core.geometry.metrics import distances
+from addon.core.geometry.shapes import StepBlock
+from addon.core.kinematics.transforms import rot_z, trans
+from addon.core.geometry.workpiece import BUILTINS, builtin_workpiece, load_workpiece
 
 
 @pytest.mark.parametrize("suffix,scale", [(".stl", 1.0), (".obj", 1.0), (".ply", 1.0), (".glb", 1000.0)])
@@ -64,7 +64,7 @@ def test_bad_meshes_are_refused_with_the_reason(tmp_path, make, fragment):
 
 
 def test_non_finite_vertices_are_refused():
-    from addon.core.workpiece import check_mesh
+    from addon.core.geometry.workpiece import check_mesh
 
     mesh = trimesh.creation.box([10, 10, 10])
     mesh.vertices[0, 0] = np.nan

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from addon.core.scanconfig import load_scan_config
+from addon.core.config.scan import load_scan_config
 from addon.pipeline import run_scan
 from headless import farm
 
@@ -78,7 +78,7 @@ def test_a_farm_manager_can_run_one_shard_per_task_then_merge(single, tmp_path):
     import sys
     from pathlib import Path
 
-    from addon.core.cloud import load_ply
+    from addon.core.geometry.cloud import load_ply
 
     repo = Path(__file__).resolve().parents[2]
     out = tmp_path / "job"

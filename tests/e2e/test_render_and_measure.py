@@ -18,8 +18,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from addon.core.probe import load_probe
-from addon.core.scanconfig import load_scan_config
+from addon.core.config.rigs import load_probe
+from addon.core.config.scan import load_scan_config
 from addon.pipeline import run_scan
 
 

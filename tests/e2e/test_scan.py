@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addon.core.scanconfig import load_scan_config
+from addon.core.config.scan import load_scan_config
 from addon.pipeline import run_scan
 
 REPO = Path(__file__).resolve().parents[2]

@@ -4,13 +4,13 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.core.cell import Cell
+from addon.core.kinematics.cell import Cell
 from addon.core.errors import InputError
-from addon.core.euler import pose_from_xyz_yzz
-from addon.core.kinematics import load_robot
-from addon.core.probe import load_probe
-from addon.core.transforms import rot_z, trans
-from addon.core.workpiece import builtin_workpiece
+from addon.core.kinematics.euler import pose_from_xyz_yzz
+from addon.core.config.rigs import load_robot
+from addon.core.config.rigs import load_probe
+from addon.core.kinematics.transforms import rot_z, trans
+from addon.core.geometry.workpiece import builtin_workpiece
 from addon.scene.cell import build_cell, remove_cell
 from addon.scene.render import RenderSettings
 from addon.scene.units import from_blender
@@ -111,7 +111,7 @@ def test_bad_render_settings(kwargs, fragment):
 
 def test_the_scenes_own_objects_stay_out_of_probe_renders():
     """An artist's scene (a bright lamp, a prop) must not change what the probe measures."""
-    from addon.core.scanconfig import load_scan_config
+    from addon.core.config.scan import load_scan_config
     from addon.pipeline import run_scan
     from addon.scene.session import new_scene
 

@@ -13,14 +13,14 @@ import pytest
 import trimesh
 from mathutils import Matrix
 
-from addon.core.detect import DetectParams, detect_line
-from addon.core.probe import load_probe
+from addon.core.optics.detect import DetectParams, detect_line
+from addon.core.config.rigs import load_probe
 from addon.scene.animation import keyframe_values
 from addon.scene.cell import add_probe
 from addon.scene.materials import diffuse, emission
 from addon.scene.meshes import mesh_object
 from addon.scene.render import RenderSettings, configure, render_animation
-from addon.core.transforms import rot_x, rot_y, trans
+from addon.core.kinematics.transforms import rot_x, rot_y, trans
 
 FLOAT = DetectParams(saturation=np.inf, smoothing_px=0.0)  # float renders do not clip, nor carry noise
 DISTANCES = (90.0, 150.0, 220.0)

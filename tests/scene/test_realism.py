@@ -6,15 +6,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from addon.core.cell import Cell
-from addon.core.detect import DetectParams, detect_line
-from addon.core.euler import pose_from_xyz_yzz
-from addon.core.kinematics import load_robot
-from addon.core.probe import load_probe
-from addon.core.scanconfig import load_scan_config
-from addon.core.sensor import SensorModel
-from addon.core.transforms import trans
-from addon.core.workpiece import builtin_workpiece
+from addon.core.kinematics.cell import Cell
+from addon.core.optics.detect import DetectParams, detect_line
+from addon.core.kinematics.euler import pose_from_xyz_yzz
+from addon.core.config.rigs import load_robot
+from addon.core.config.rigs import load_probe
+from addon.core.config.scan import load_scan_config
+from addon.core.optics.sensor import SensorModel
+from addon.core.kinematics.transforms import trans
+from addon.core.geometry.workpiece import builtin_workpiece
 from addon.pipeline import render_settings, run_scan
 from addon.scene.cell import build_cell
 from addon.scene.render import RenderSettings

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from addon.core.cell import Cell
-from addon.core.kinematics import load_robot
-from addon.core.probe import load_probe
+from addon.core.kinematics.cell import Cell
+from addon.core.config.rigs import load_robot
+from addon.core.config.rigs import load_probe
 from addon.scene.cell import build_cell
 
 POS_TOL_MM = 1e-3

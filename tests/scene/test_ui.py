@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import addon.ui as ui
-from addon.core.euler import pose_from_xyz_yzz
-from addon.core.kinematics import load_robot
-from addon.core.probe import load_probe
-from addon.core.turntable import Turntable
+from addon.core.kinematics.euler import pose_from_xyz_yzz
+from addon.core.config.rigs import load_robot
+from addon.core.config.rigs import load_probe
+from addon.core.kinematics.turntable import Turntable
 from addon.scene import rig
 from addon.scene.units import from_blender
 
@@ -211,7 +211,7 @@ def test_scan_imports_the_cloud_on_the_turntable_and_exports_ply(panel, tmp_path
     n = len(cloud.data.vertices)
     assert n > 1000
     from addon.scene.cloud_object import cloud_from_object
-    from addon.core.workpiece import builtin_workpiece
+    from addon.core.geometry.workpiece import builtin_workpiece
 
     points = cloud_from_object(cloud).points  # table frame
     d = builtin_workpiece("step_block").truth.distance(points)
@@ -219,7 +219,7 @@ def test_scan_imports_the_cloud_on_the_turntable_and_exports_ply(panel, tmp_path
     assert {p.name for p in next(tmp_path.iterdir()).iterdir()} == {"cloud.ply", "report.json", "preview.png"}
     out = tmp_path / "exported.ply"
     assert bpy.ops.scanner.export_ply(filepath=str(out)) == {"FINISHED"}
-    from addon.core.cloud import load_ply
+    from addon.core.geometry.cloud import load_ply
 
     assert len(load_ply(out)) == n
     # The imported cloud stays out of the probe's images: a second scan sees exactly the same.
@@ -240,7 +240,7 @@ def test_scan_refusal_leaves_no_cloud(panel, tmp_path):
 
 
 def test_a_scan_dropped_midway_keeps_nothing(scene, tmp_path):
-    from addon.core.scanconfig import load_scan_config
+    from addon.core.config.scan import load_scan_config
     from addon.pipeline import ScanRun
 
     run = ScanRun(load_scan_config("step_block"), scene)

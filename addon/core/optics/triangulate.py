@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .detect import LineDetection
-from .errors import InputError
+from ..errors import InputError
 from .probe import Probe, _check_camera
 
 TRIANGULATION_METHODS = ("exact", "paper")

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 from .probe import Probe
 
 BIT_DEPTHS = (8, 10, 12, 16)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 # Largest ‖RᵀR − I‖ (max-abs) accepted as "a rotation". Loose enough for values
 # typed into a config file with 6-8 digits, tight enough to catch a scale or shear.

@@ -39,19 +39,21 @@ from pathlib import Path
 
 import numpy as np
 
-from . import scanpath
-from .cell import Cell
-from .config import Table, load_toml, resolve_rig
-from .detect import METHODS as DETECT_METHODS
-from .detect import DetectParams
-from .errors import ConfigError, InputError
-from .kinematics import Robot, load_robot
-from .probe import Probe, load_probe
-from .sensor import SensorModel
-from .profile_filter import ProfileFilter
-from .triangulate import TRIANGULATION_METHODS
-from .turntable import PAPER_A_R_MM, PAPER_D_R_MM, Turntable
-from .workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
+from ..kinematics import path as scanpath
+from ..kinematics.cell import Cell
+from .toml import Table, load_toml, resolve_rig
+from ..optics.detect import METHODS as DETECT_METHODS
+from ..optics.detect import DetectParams
+from ..errors import ConfigError, InputError
+from ..kinematics.robot import Robot
+from ..config.rigs import load_robot
+from ..optics.probe import Probe
+from ..config.rigs import load_probe
+from ..optics.sensor import SensorModel
+from ..optics.profile_filter import ProfileFilter
+from ..optics.triangulate import TRIANGULATION_METHODS
+from ..kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, Turntable
+from ..geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
 
 ENGINES = ("cycles", "eevee")
 DEVICES = ("CPU", "GPU", "OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")  # GPU: the first backend found

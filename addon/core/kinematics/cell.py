@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 from .ik import IKResult
-from .kinematics import Robot
+from .robot import Robot
 from .transforms import check_transform
 from .turntable import Turntable
 

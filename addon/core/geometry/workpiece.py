@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .errors import InputError
+from ..errors import InputError
 from .shapes import Cylinder, PlanePatch, Sphere, StepBlock
-from .transforms import check_transform, trans
+from ..kinematics.transforms import check_transform, trans
 
 FORMATS = (".stl", ".obj", ".ply", ".glb", ".gltf")
 METRE_FORMATS = (".glb", ".gltf")

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError, check_whole
+from ..errors import InputError, check_whole
 from .triangulate import Profile
 
 

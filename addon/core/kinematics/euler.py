@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 from .transforms import _cos_sin, check_rotation, make_pose
 
 SINGULAR_SIN_PITCH = 1e-12

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 from .transforms import rot_z, trans
 
 PAPER_A_R_MM = -500.0

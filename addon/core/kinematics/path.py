@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .cell import Cell
-from .errors import InputError
+from ..errors import InputError
 from .ik import ROT_TOL_RAD, all_branches, default_pos_tol, default_seed, wrap_to_limits
 from .ik_analytic import spherical_wrist_arm
 from .transforms import make_pose

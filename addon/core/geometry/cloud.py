@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .errors import InputError, ScannerError
-from .files import write_bytes_atomic
-from .transforms import check_transform
-from .triangulate import Profile
+from ..errors import InputError, ScannerError
+from ..files import write_bytes_atomic
+from ..kinematics.transforms import check_transform
+from ..optics.triangulate import Profile
 
 
 @dataclass

@@ -33,9 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import load_toml, resolve_rig
-from .errors import ConfigError, InputError
-from .transforms import check_transform, make_pose, rigid_inverse
+from ..errors import ConfigError, InputError
+from ..kinematics.transforms import check_transform, make_pose, rigid_inverse
 
 CAMERAS = (0, 1)
 MAX_PIXELS = 100_000
@@ -218,48 +217,3 @@ def angles_from_range(a_mm: float, b_mm: float, z_min_mm: float, z_max_mm: float
     near = math.atan(a_mm / (z_min_mm - b_mm))  # φ + γ
     far = math.atan(a_mm / (z_max_mm - b_mm))   # φ − γ
     return 0.5 * (near + far), 0.5 * (near - far)
-
-
-def load_probe(name_or_path: str | Path) -> Probe:
-    """Probe from ``rigs/probes/<name>.toml`` or a path to such a file.
-
-    Keys: ``name``, ``source``; ``[camera]`` with ``a_mm``, ``b_mm``, either
-    ``phi_deg`` and ``gamma_deg`` or ``range_mm = [z_min, z_max]`` (φ, γ then follow
-    from Eq. 7), ``rows_px`` (H, along the triangulation direction) and ``cols_px``
-    (W, along the line); ``[laser]`` with ``line_width_mm``, ``fan_deg``,
-    ``wavelength_nm``; ``[mount]`` with ``xyz_mm``, ``yzz_deg`` (T_L^6).
-    """
-    path = resolve_rig("probes", name_or_path)
-    top = load_toml(path)
-    name = top.string("name", default=path.stem)
-    source = top.string("source", default="")
-    cam = top.table("camera")
-    a = cam.number("a_mm", lo=0.0, hi=1e5, lo_open=True)
-    b = cam.number("b_mm", default=0.0, lo=-1e5, hi=1e5)
-    if cam.has("range_mm"):
-        if cam.has("phi_deg") or cam.has("gamma_deg"):
-            raise cam.error("range_mm", "give either range_mm or phi_deg and gamma_deg, not both")
-        z = cam.numbers("range_mm", 2, lo=-1e6, hi=1e6)
-        try:
-            phi, gamma = angles_from_range(a, b, float(z[0]), float(z[1]))
-        except InputError as exc:
-            raise cam.error("range_mm", str(exc)) from None
-    else:
-        phi = math.radians(cam.number("phi_deg", lo=0.0, hi=90.0, lo_open=True, hi_open=True))
-        gamma = math.radians(cam.number("gamma_deg", lo=0.0, hi=90.0, lo_open=True, hi_open=True))
-    rows = cam.integer("rows_px", lo=2, hi=MAX_PIXELS)
-    cols = cam.integer("cols_px", lo=2, hi=MAX_PIXELS)
-    cam.finish()
-    laser = top.table("laser", default={})
-    width = laser.number("line_width_mm", default=0.3, lo=0.0, hi=100.0, lo_open=True)
-    fan = laser.number("fan_deg", default=60.0, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
-    wavelength = laser.number("wavelength_nm", default=650.0, lo=200.0, hi=20000.0)
-    laser.finish()
-    mount = top.pose("mount")
-    top.finish()
-    try:
-        return Probe(name=name, a_mm=a, b_mm=b, phi_rad=phi, gamma_rad=gamma, rows_px=rows, cols_px=cols,
-                     line_width_mm=width, fan_rad=math.radians(fan), wavelength_nm=wavelength, mount=mount,
-                     source=source)
-    except InputError as exc:
-        raise ConfigError(f"{path}: {exc}") from None

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError, UnreachablePose
+from ..errors import InputError, UnreachablePose
 from .ik_analytic import branches, flange_targets, spherical_wrist_arm
 from .ik_numeric import levenberg_marquardt, solve_numeric
 from .transforms import check_transform, rotation_angle

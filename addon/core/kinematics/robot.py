@@ -26,8 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import Table, load_toml, resolve_rig
-from .errors import ConfigError, InputError
+from ..errors import ConfigError, InputError
 from .transforms import _cos_sin, check_transform
 
 N_JOINTS = 6
@@ -329,64 +328,3 @@ class Robot:
         from .ik import solve_all
 
         return solve_all(self, T_target, **options)
-
-
-# -- rig files ------------------------------------------------------------------
-
-def load_robot(name_or_path: str | Path) -> Robot:
-    """Robot from ``rigs/robots/<name>.toml`` or a path to such a file.
-
-    The file has a ``name``, a ``source`` (where the numbers come from), exactly six
-    ``[[link]]`` tables with ``a_mm``, ``d_mm``, ``alpha_deg``, ``theta_offset_deg``,
-    ``min_deg``, ``max_deg``, and optional ``[base]`` and ``[tool]`` poses
-    (``xyz_mm``, ``yzz_deg``). Raises ConfigError naming file, key and allowed range.
-    """
-    path = resolve_rig("robots", name_or_path)
-    top = load_toml(path)
-    name = top.string("name", default=path.stem)
-    source = top.string("source", default="")
-    links = top.tables("link")
-    if len(links) != N_JOINTS:
-        raise ConfigError(f"{path}: found {len(links)} [[link]] tables; a robot needs exactly {N_JOINTS} "
-                          "(one per joint, in order from the base)")
-    cols: dict[str, list[float]] = {k: [] for k in ("a", "d", "alpha", "offset", "lo", "hi")}
-    meshes: list[tuple[str, np.ndarray]] = []
-    for t in links:
-        cols["a"].append(t.number("a_mm", lo=-MAX_LENGTH_MM, hi=MAX_LENGTH_MM))
-        cols["d"].append(t.number("d_mm", lo=-MAX_LENGTH_MM, hi=MAX_LENGTH_MM))
-        cols["alpha"].append(t.number("alpha_deg", lo=-360.0, hi=360.0))
-        cols["offset"].append(t.number("theta_offset_deg", default=0.0, lo=-360.0, hi=360.0))
-        lo = t.number("min_deg", lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG)
-        hi = t.number("max_deg", lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG)
-        if lo >= hi:
-            raise t.error("max_deg", f"{hi:g} must be greater than min_deg = {lo:g}")
-        cols["lo"].append(lo)
-        cols["hi"].append(hi)
-        # Display meshes (the Blender scene loads them); the path is relative to the rig file.
-        mesh = ""
-        if t.has("mesh"):
-            mesh_path = (path.parent / t.string("mesh")).resolve()
-            if not mesh_path.is_file():
-                raise t.error("mesh", f"no such file: {mesh_path}")
-            mesh = str(mesh_path)
-        meshes.append((mesh, t.pose("mesh_offset")))
-        t.finish()
-    base = top.pose("base")
-    tool = top.pose("tool")
-    top.finish()
-    try:
-        return Robot(
-            name=name,
-            a_mm=cols["a"],
-            d_mm=cols["d"],
-            alpha_rad=np.radians(cols["alpha"]),
-            theta_offset_rad=np.radians(cols["offset"]),
-            q_min_rad=np.radians(cols["lo"]),
-            q_max_rad=np.radians(cols["hi"]),
-            base=base,
-            tool=tool,
-            source=source,
-            link_meshes=tuple(meshes) if any(m for m, _ in meshes) else (),
-        )
-    except InputError as exc:
-        raise ConfigError(f"{path}: {exc}") from None

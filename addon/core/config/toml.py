@@ -18,10 +18,10 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from .errors import ConfigError
-from .euler import pose_from_xyz_yzz
+from ..errors import ConfigError
+from ..kinematics.euler import pose_from_xyz_yzz
 
-RIGS_DIR = Path(__file__).resolve().parents[2] / "rigs"
+RIGS_DIR = Path(__file__).resolve().parents[3] / "rigs"
 
 _MISSING = object()
 

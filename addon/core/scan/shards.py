@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .cloud import Cloud
-from .errors import InputError
-from .files import write_bytes_atomic
+from ..geometry.cloud import Cloud
+from ..errors import InputError
+from ..files import write_bytes_atomic
 
 FORMAT = 1
 

@@ -13,7 +13,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from .errors import InputError
+from ..errors import InputError
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from .probe import Probe
+from ..optics.probe import Probe
 
 OCCLUSION_EPS_MM = 0.05  # slack for "the first surface on the camera's ray is the lit point" (Embree is float32)
 

@@ -39,7 +39,7 @@ from enum import IntEnum
 import cv2
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 METHODS = ("threshold", "cog", "gauss", "steger")
 STEGER_MIN_SIGMA = 1.0

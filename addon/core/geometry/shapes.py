@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
-from .errors import InputError
-from .transforms import check_transform, rigid_inverse
+from ..errors import InputError
+from ..kinematics.transforms import check_transform, rigid_inverse
 
 
 def _positive(name: str, value: float) -> float:

@@ -1,0 +1,144 @@
+"""Rig files: robots (``rigs/robots/*.toml``) and probes (``rigs/probes/*.toml``) as core models.
+
+Each loader reads one TOML file through :mod:`addon.core.config.toml` (which names
+the file, key and allowed range in every error) and builds the pure model
+(:class:`~addon.core.kinematics.robot.Robot`, :class:`~addon.core.optics.probe.Probe`).
+Loaded rigs are cached by path and file time, so a panel redraw reads no file.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError, InputError
+from ..kinematics.robot import MAX_JOINT_DEG, MAX_LENGTH_MM, N_JOINTS, Robot
+from ..optics.probe import MAX_PIXELS, Probe, angles_from_range
+from .toml import load_toml, resolve_rig
+
+
+def load_robot(name_or_path: str | Path) -> Robot:
+    """Robot from ``rigs/robots/<name>.toml`` or a path to such a file (cached while the file is unchanged)."""
+    path = resolve_rig("robots", name_or_path)
+    return _robot_cached(path, path.stat().st_mtime_ns)
+
+
+def load_probe(name_or_path: str | Path) -> Probe:
+    """Probe from ``rigs/probes/<name>.toml`` or a path to such a file (cached while the file is unchanged)."""
+    path = resolve_rig("probes", name_or_path)
+    return _probe_cached(path, path.stat().st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=64)
+def _robot_cached(path: Path, mtime_ns: int) -> Robot:
+    return _read_robot(path)
+
+
+@functools.lru_cache(maxsize=64)
+def _probe_cached(path: Path, mtime_ns: int) -> Probe:
+    return _read_probe(path)
+
+
+def _read_robot(path: Path) -> Robot:
+    """Robot from ``rigs/robots/<name>.toml`` or a path to such a file.
+
+    The file has a ``name``, a ``source`` (where the numbers come from), exactly six
+    ``[[link]]`` tables with ``a_mm``, ``d_mm``, ``alpha_deg``, ``theta_offset_deg``,
+    ``min_deg``, ``max_deg``, and optional ``[base]`` and ``[tool]`` poses
+    (``xyz_mm``, ``yzz_deg``). Raises ConfigError naming file, key and allowed range.
+    """
+    top = load_toml(path)
+    name = top.string("name", default=path.stem)
+    source = top.string("source", default="")
+    links = top.tables("link")
+    if len(links) != N_JOINTS:
+        raise ConfigError(f"{path}: found {len(links)} [[link]] tables; a robot needs exactly {N_JOINTS} "
+                          "(one per joint, in order from the base)")
+    cols: dict[str, list[float]] = {k: [] for k in ("a", "d", "alpha", "offset", "lo", "hi")}
+    meshes: list[tuple[str, np.ndarray]] = []
+    for t in links:
+        cols["a"].append(t.number("a_mm", lo=-MAX_LENGTH_MM, hi=MAX_LENGTH_MM))
+        cols["d"].append(t.number("d_mm", lo=-MAX_LENGTH_MM, hi=MAX_LENGTH_MM))
+        cols["alpha"].append(t.number("alpha_deg", lo=-360.0, hi=360.0))
+        cols["offset"].append(t.number("theta_offset_deg", default=0.0, lo=-360.0, hi=360.0))
+        lo = t.number("min_deg", lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG)
+        hi = t.number("max_deg", lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG)
+        if lo >= hi:
+            raise t.error("max_deg", f"{hi:g} must be greater than min_deg = {lo:g}")
+        cols["lo"].append(lo)
+        cols["hi"].append(hi)
+        # Display meshes (the Blender scene loads them); the path is relative to the rig file.
+        mesh = ""
+        if t.has("mesh"):
+            mesh_path = (path.parent / t.string("mesh")).resolve()
+            if not mesh_path.is_file():
+                raise t.error("mesh", f"no such file: {mesh_path}")
+            mesh = str(mesh_path)
+        meshes.append((mesh, t.pose("mesh_offset")))
+        t.finish()
+    base = top.pose("base")
+    tool = top.pose("tool")
+    top.finish()
+    try:
+        return Robot(
+            name=name,
+            a_mm=cols["a"],
+            d_mm=cols["d"],
+            alpha_rad=np.radians(cols["alpha"]),
+            theta_offset_rad=np.radians(cols["offset"]),
+            q_min_rad=np.radians(cols["lo"]),
+            q_max_rad=np.radians(cols["hi"]),
+            base=base,
+            tool=tool,
+            source=source,
+            link_meshes=tuple(meshes) if any(m for m, _ in meshes) else (),
+        )
+    except InputError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+def _read_probe(path: Path) -> Probe:
+    """Probe from ``rigs/probes/<name>.toml`` or a path to such a file.
+
+    Keys: ``name``, ``source``; ``[camera]`` with ``a_mm``, ``b_mm``, either
+    ``phi_deg`` and ``gamma_deg`` or ``range_mm = [z_min, z_max]`` (φ, γ then follow
+    from Eq. 7), ``rows_px`` (H, along the triangulation direction) and ``cols_px``
+    (W, along the line); ``[laser]`` with ``line_width_mm``, ``fan_deg``,
+    ``wavelength_nm``; ``[mount]`` with ``xyz_mm``, ``yzz_deg`` (T_L^6).
+    """
+    top = load_toml(path)
+    name = top.string("name", default=path.stem)
+    source = top.string("source", default="")
+    cam = top.table("camera")
+    a = cam.number("a_mm", lo=0.0, hi=1e5, lo_open=True)
+    b = cam.number("b_mm", default=0.0, lo=-1e5, hi=1e5)
+    if cam.has("range_mm"):
+        if cam.has("phi_deg") or cam.has("gamma_deg"):
+            raise cam.error("range_mm", "give either range_mm or phi_deg and gamma_deg, not both")
+        z = cam.numbers("range_mm", 2, lo=-1e6, hi=1e6)
+        try:
+            phi, gamma = angles_from_range(a, b, float(z[0]), float(z[1]))
+        except InputError as exc:
+            raise cam.error("range_mm", str(exc)) from None
+    else:
+        phi = math.radians(cam.number("phi_deg", lo=0.0, hi=90.0, lo_open=True, hi_open=True))
+        gamma = math.radians(cam.number("gamma_deg", lo=0.0, hi=90.0, lo_open=True, hi_open=True))
+    rows = cam.integer("rows_px", lo=2, hi=MAX_PIXELS)
+    cols = cam.integer("cols_px", lo=2, hi=MAX_PIXELS)
+    cam.finish()
+    laser = top.table("laser", default={})
+    width = laser.number("line_width_mm", default=0.3, lo=0.0, hi=100.0, lo_open=True)
+    fan = laser.number("fan_deg", default=60.0, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
+    wavelength = laser.number("wavelength_nm", default=650.0, lo=200.0, hi=20000.0)
+    laser.finish()
+    mount = top.pose("mount")
+    top.finish()
+    try:
+        return Probe(name=name, a_mm=a, b_mm=b, phi_rad=phi, gamma_rad=gamma, rows_px=rows, cols_px=cols,
+                     line_width_mm=width, fan_rad=math.radians(fan), wavelength_nm=wavelength, mount=mount,
+                     source=source)
+    except InputError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
