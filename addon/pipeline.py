@@ -40,6 +40,7 @@ from .core.optics.profile_filter import filter_profile
 from .core.files import write_bytes_atomic, write_png
 from .core.geometry.footprint import laser_footprint
 from .core.scan.preview import render_preview
+from .core.config.render import RenderOptions
 from .core.config.scan import ScanConfig
 from .core.kinematics.path import solve_path
 from .core.optics.triangulate import fuse_profiles, triangulate_profile
@@ -233,7 +234,6 @@ class ScanRun:
 
         from .scene.cell import build_cell
         from .scene.laser import laser_power_w
-        from .scene.render import RenderSettings
         from .scene.session import new_scene
 
         t = time.perf_counter()
@@ -250,7 +250,7 @@ class ScanRun:
         lo, hi = max(0, a - 1), min(total, b + 1)
         keyed = self.sc.keyframe(self.plan.q[lo:hi], self.plan.table_rad[lo:hi])
         self.frames = range(keyed.start + a - lo, keyed.start + b - lo)
-        self.settings = replace(render_settings(config, RenderSettings), threads=threads)
+        self.settings = replace(render_settings(config), threads=threads)
         self.timing["scene"] = time.perf_counter() - t
         self.n = b - a
         self.acc = CloudAccumulator()
@@ -421,16 +421,13 @@ def _detect_all(images, rows, config: ScanConfig):
     return out
 
 
-def render_settings(config: ScanConfig, RenderSettings):
-    """Render settings for a config: its [render] table, adjusted for the sensor model."""
-    r = config.render
-    base = RenderSettings(engine=r.engine, device=r.device, samples=r.samples, pixel_filter=r.pixel_filter,
-                          filter_width_px=r.filter_width_px, bounces=r.bounces, ambient=r.ambient)
-    return with_sensor(base, config.sensor)
+def render_settings(config: ScanConfig) -> RenderOptions:
+    """The render options of a config: its [render] table, adjusted for the sensor model."""
+    return with_sensor(config.render, config.sensor)
 
 
 def with_sensor(settings, sensor):
-    """``settings`` (a RenderSettings) with the sensor model's render-side effects: pixel
+    """``settings`` (a RenderOptions) with the sensor model's render-side effects: pixel
     area integration (box filter of one pixel, enough samples to fill it) and motion
     during the exposure (the shutter open for exposure × frame rate of each frame)."""
     samples, pixel_filter, width = settings.samples, settings.pixel_filter, settings.filter_width_px

@@ -28,7 +28,8 @@ from .cameras import add_probe_cameras, camera_to_world_cv
 from .laser import add_laser
 from .materials import diffuse
 from .meshes import mesh_object
-from .render import RenderSettings, configure, render_animation
+from ..core.config.render import RenderOptions
+from .render import configure, render_animation
 from .turntable import add_turntable, add_workpiece, set_table_angle
 from .units import from_blender
 
@@ -117,7 +118,7 @@ class SceneCell:
             col = _child_collection(self.root, RESULTS)
         return col
 
-    def render(self, first: int, last: int, settings: RenderSettings | None = None, cameras=(0, 1),
+    def render(self, first: int, last: int, settings: RenderOptions | None = None, cameras=(0, 1),
                out_dir=None, rows: tuple[int, int] | None = None, leave_out_robot: bool = True,
                move_table: bool | None = None) -> list[list[np.ndarray | None]]:
         """Probe images for frames first..last in one render call ([frame][camera], float32 (H, W, 3)).
@@ -128,7 +129,7 @@ class SceneCell:
         keyframed with :meth:`keyframe`, the probe frame follows its own keyframed
         world pose and the rig is not evaluated at all.
         """
-        settings = settings or RenderSettings()
+        settings = settings or RenderOptions()
         if settings.engine == "eevee" and self.laser_model == "gobo":
             raise InputError("Eevee ignores light node trees, so the gobo laser renders as a plain spot; "
                              "build the cell with laser='slit' to render with Eevee")

@@ -18,7 +18,8 @@ from mathutils import Vector
 
 from ..core.files import write_png
 from .cell import SceneCell
-from .render import RenderSettings, configure, render_animation, render_still
+from ..core.config.render import RenderOptions
+from .render import configure, render_animation, render_still
 
 VIEW_DIRECTION = Vector((1.0, -1.25, 0.75)).normalized()  # from the front right, above
 
@@ -47,7 +48,7 @@ def render_overview(sc: SceneCell, path: str | Path, width: int = 720, height: i
         scene.frame_set(frame)
     current = scene.frame_current
     # Some ambient light so the workpiece shows around the line.
-    probe_imgs = sc.render(current, current, RenderSettings(ambient=0.12, samples=16, filter_width_px=1.0))[0]
+    probe_imgs = sc.render(current, current, RenderOptions(ambient=0.12, samples=16, filter_width_px=1.0))[0]
 
     lo, hi = _bounds(focus or [o for o in sc.root.all_objects])
     centre = (lo + hi) / 2
@@ -67,7 +68,7 @@ def render_overview(sc: SceneCell, path: str | Path, width: int = 720, height: i
     laser = sc.laser[0].data
     power = laser.energy
     try:
-        configure(scene, sc.probe, RenderSettings(samples=samples, filter_width_px=1.5,
+        configure(scene, sc.probe, RenderOptions(samples=samples, filter_width_px=1.5,
                                                   pixel_filter="BLACKMAN_HARRIS", ambient=0.35), cam)
         laser.energy = power * 8.0
         outside = render_still(scene, cam, width, height)

@@ -19,61 +19,25 @@ import contextlib
 import os
 import sys
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 
 import bpy
 import numpy as np
 
-from ..core.errors import InputError, check_whole
+from ..core.config.render import RenderOptions
+from ..core.errors import InputError
 from ..core.exr import read_exr
 from ..core.optics.probe import Probe
 from .compat import ensure_node_tree, new_world
-from .session import ENGINES, use_device
+from .session import BLENDER_ENGINES, use_device
 
-PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
 VIEWS = (("left", "_L"), ("right", "_R"))
 
 
-@dataclass(frozen=True)
-class RenderSettings:
-    """engine: cycles | eevee; device: CPU | GPU; samples per pixel; pixel filter and width (px);
-    bounces (0 for diffuse scenes); ambient: world strength (0 = dark); resolution override (W, H)."""
-
-    engine: str = "cycles"
-    device: str = "CPU"
-    samples: int = 1
-    pixel_filter: str = "BOX"
-    filter_width_px: float = 0.01
-    bounces: int = 0
-    ambient: float = 0.0
-    resolution: tuple[int, int] | None = None
-    persistent_data: bool = True
-    motion_blur_shutter: float = 0.0  # fraction of a frame the shutter is open (0: no motion blur)
-    threads: int | None = None        # render threads (None: as many as the machine has cores)
-
-    def __post_init__(self) -> None:
-        if self.engine not in ENGINES:
-            raise InputError(f"render engine {self.engine!r} is not one of: {', '.join(ENGINES)}")
-        check_whole(self.samples, "samples", 1, 65536)
-        if self.pixel_filter not in PIXEL_FILTERS:
-            raise InputError(f"pixel filter {self.pixel_filter!r} is not one of: {', '.join(PIXEL_FILTERS)}")
-        if not 0.01 <= self.filter_width_px <= 10:
-            raise InputError(f"filter width must be in [0.01, 10] px, got {self.filter_width_px}")
-        if not 0 <= self.bounces <= 64:
-            raise InputError(f"bounces must be in [0, 64], got {self.bounces}")
-        if not 0 <= self.ambient <= 100:
-            raise InputError(f"ambient must be in [0, 100], got {self.ambient}")
-        if not 0 <= self.motion_blur_shutter <= 1:
-            raise InputError(f"motion blur shutter must be in [0, 1] frames, got {self.motion_blur_shutter}")
-        if self.threads is not None:
-            check_whole(self.threads, "render threads (or None: all cores)", 1, 1024)
-
-
-def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderSettings, camera_left: bpy.types.Object) -> str:
+def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, camera_left: bpy.types.Object) -> str:
     """Set the scene up for probe renders; returns the device used."""
     r = scene.render
-    r.engine = ENGINES[settings.engine]
+    r.engine = BLENDER_ENGINES[settings.engine]
     W, H = settings.resolution or (probe.cols_px, probe.rows_px)
     r.resolution_x, r.resolution_y, r.resolution_percentage = W, H, 100
     r.pixel_aspect_x = r.pixel_aspect_y = 1.0

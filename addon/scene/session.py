@@ -6,12 +6,12 @@ import bpy  # first: it puts Blender's own modules (addon_utils) on the path
 
 import addon_utils  # noqa: E402
 
+from ..core.config.render import DEVICES, ENGINES, GPU_BACKENDS
 from ..core.errors import InputError
 
-ENGINES = {"cycles": "CYCLES", "eevee": "BLENDER_EEVEE"}
-GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
-# "GPU": the first backend this machine has, in the order above; a backend by name: that one only.
-DEVICES = ("CPU", "GPU") + GPU_BACKENDS
+# Blender's name of each engine the render options allow.
+BLENDER_ENGINES = {"cycles": "CYCLES", "eevee": "BLENDER_EEVEE"}
+assert set(BLENDER_ENGINES) == set(ENGINES)
 
 
 def new_scene(device: str = "CPU") -> bpy.types.Scene:

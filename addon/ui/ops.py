@@ -118,7 +118,7 @@ class SCANNER_OT_render_views(bpy.types.Operator):
 
     def execute(self, context):
         from ..pipeline import with_sensor
-        from ..scene.render import RenderSettings
+        from ..core.config.render import RenderOptions
 
         s = context.scene.scanner
         sc = models.scene_cell(context)
@@ -131,7 +131,7 @@ class SCANNER_OT_render_views(bpy.types.Operator):
             self.report({"ERROR"}, f"Sensor realism: {exc}")
             return {"CANCELLED"}
         frame = context.scene.frame_current
-        settings = with_sensor(RenderSettings(ambient=s.ambient, samples=4, filter_width_px=1.0), sensor)
+        settings = with_sensor(RenderOptions(ambient=s.ambient, samples=4, filter_width_px=1.0), sensor)
         with kept_render_settings(context.scene):  # the scene's own render settings come back
             images = sc.render(frame, frame, settings)[0]
         if sensor.changes_images:

@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import statistics
 
-    from addon.scene.render import RenderSettings
+    from addon.core.config.render import RenderOptions
     from addon.scene.session import new_scene
     from headless import demo_cell
 
@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     sc = demo_cell.build(scene, probe=args.probe)
     frames = demo_cell.sweep(sc, args.frames)
     first, last = frames.start, frames.stop - 1
-    settings = RenderSettings()
+    settings = RenderOptions()
 
     def one_call(cameras=(0, 1)):
         sc.render(first, last, settings, cameras)

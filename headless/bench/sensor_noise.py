@@ -28,7 +28,7 @@ def rendered_plane_line():
     from addon.core.kinematics.transforms import trans
     from addon.core.geometry.workpiece import builtin_workpiece
     from addon.scene.cell import build_cell
-    from addon.scene.render import RenderSettings
+    from addon.core.config.render import RenderOptions
     from addon.scene.session import new_scene
 
     probe = load_probe("default")
@@ -37,7 +37,7 @@ def rendered_plane_line():
     res = sc.cell.ik(pose_from_xyz_yzz([0, 0, 170], [math.pi / 2, math.pi, 0]),
                      np.radians([0, 40, -100, 0, -30, 0]), relative_to="table")
     frames = sc.keyframe(res.q[None])
-    image = sc.render(frames.start, frames.start, RenderSettings(samples=64, pixel_filter="BOX",
+    image = sc.render(frames.start, frames.start, RenderOptions(samples=64, pixel_filter="BOX",
                                                                  filter_width_px=1.0))[0][0]
     return image, probe
 

@@ -483,7 +483,7 @@ def many_table_steps():
     from addon.core.kinematics.path import turntable
     from addon.pipeline import plan_scan
     from addon.scene.cell import build_cell
-    from addon.scene.render import RenderSettings
+    from addon.core.config.render import RenderOptions
     from addon.scene.session import new_scene
 
     n = 10_000
@@ -495,7 +495,7 @@ def many_table_steps():
     plan = plan_scan(cfg)
     sc = build_cell(new_scene(), cfg.cell, cfg.probe, cfg.workpiece)
     frames = sc.keyframe(plan.q, plan.table_rad)
-    images = [sc.render(frames.start + k, frames.start + k, RenderSettings())[0][0] for k in (0, n, 2 * n)]
+    images = [sc.render(frames.start + k, frames.start + k, RenderOptions())[0][0] for k in (0, n, 2 * n)]
     seconds = time.perf_counter() - t
     diff = max(float(np.abs(images[k] - images[0]).max()) for k in (1, 2))
     lit = float(images[0][..., 0].max())

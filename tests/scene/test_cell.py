@@ -12,7 +12,7 @@ from addon.core.config.rigs import load_probe
 from addon.core.kinematics.transforms import rot_z, trans
 from addon.core.geometry.workpiece import builtin_workpiece
 from addon.scene.cell import build_cell, remove_cell
-from addon.scene.render import RenderSettings
+from addon.core.config.render import RenderOptions
 from addon.scene.units import from_blender
 
 
@@ -83,7 +83,7 @@ def test_only_requested_cameras_render(scene):
 def test_eevee_needs_the_slit_laser(scene):
     sc = build_cell(scene, Cell(load_robot("ur5")), load_probe("default"))
     with pytest.raises(InputError, match="slit"):
-        sc.render(1, 1, RenderSettings(engine="eevee"))
+        sc.render(1, 1, RenderOptions(engine="eevee"))
 
 
 def test_rebuilding_replaces_the_cell(scene):
@@ -106,7 +106,7 @@ def test_rebuilding_replaces_the_cell(scene):
 ])
 def test_bad_render_settings(kwargs, fragment):
     with pytest.raises(InputError, match=fragment):
-        RenderSettings(**kwargs)
+        RenderOptions(**kwargs)
 
 
 def test_the_scenes_own_objects_stay_out_of_probe_renders():

@@ -19,7 +19,8 @@ from addon.scene.animation import keyframe_values
 from addon.scene.cell import add_probe
 from addon.scene.materials import diffuse, emission
 from addon.scene.meshes import mesh_object
-from addon.scene.render import RenderSettings, configure, render_animation
+from addon.scene.render import configure, render_animation
+from addon.core.config.render import RenderOptions
 from addon.core.kinematics.transforms import rot_x, rot_y, trans
 
 FLOAT = DetectParams(saturation=np.inf, smoothing_px=0.0)  # float renders do not clip, nor carry noise
@@ -82,7 +83,7 @@ def deviations(probe, poses, images, params=FLOAT):
 
 def test_gobo_laser_line_lies_where_the_core_predicts(scene):
     probe = load_probe("default")
-    poses, images = render_planes(scene, probe, "gobo", RenderSettings(samples=1))
+    poses, images = render_planes(scene, probe, "gobo", RenderOptions(samples=1))
     d = deviations(probe, poses, images)
     # Measured: mean −0.0006 px, RMS 0.0016 px, worst 0.0036 px; bounds about 3× that.
     assert abs(d.mean()) <= 0.002, d.mean()
@@ -93,7 +94,7 @@ def test_slit_laser_model_renders_a_line_at_the_predicted_place(scene):
     # The paper's slit: a flat-topped line whose edges are point-sampled at 1 spp;
     # with 16 samples over the pixel area its centre is found to a small fraction of a pixel.
     probe = load_probe("default")
-    poses, images = render_planes(scene, probe, "slit", RenderSettings(samples=16, filter_width_px=1.0))
+    poses, images = render_planes(scene, probe, "slit", RenderOptions(samples=16, filter_width_px=1.0))
     d = deviations(probe, poses, images, DetectParams(saturation=np.inf, flat_top=True))  # the flat top needs smoothing
     assert abs(d.mean()) <= 0.1, d.mean()
     assert np.sqrt(np.mean(d ** 2)) <= 0.2, np.sqrt(np.mean(d ** 2))
@@ -127,7 +128,7 @@ def test_markers_image_where_probe_project_puts_them(scene, name):
     for i, c in enumerate(centres):
         m = mesh_object(f"Marker{i}", sphere.copy().apply_translation(c), col, glow)
         m.parent = frame
-    configure(scene, probe, RenderSettings(samples=64, filter_width_px=1.0), cams[0])
+    configure(scene, probe, RenderOptions(samples=64, filter_width_px=1.0), cams[0])
     (pair,) = render_animation(scene, 1, 1)
     for camera, img in enumerate(pair):
         expected = probe.project(centres, camera)

@@ -17,7 +17,7 @@ from addon.core.kinematics.transforms import trans
 from addon.core.geometry.workpiece import builtin_workpiece
 from addon.pipeline import render_settings, run_scan
 from addon.scene.cell import build_cell
-from addon.scene.render import RenderSettings
+from addon.core.config.render import RenderOptions
 
 FLOAT = DetectParams(saturation=np.inf)
 
@@ -32,9 +32,9 @@ def test_motion_blur_widens_the_line_by_its_travel_during_the_exposure(scene):
         q = res.q
         qs.append(q)
     frames = sc.keyframe(np.array(qs))
-    sharp = sc.render(frames.start, frames.stop - 1, RenderSettings(samples=16, filter_width_px=1.0))
+    sharp = sc.render(frames.start, frames.stop - 1, RenderOptions(samples=16, filter_width_px=1.0))
     shutter = 0.6
-    blurred = sc.render(frames.start, frames.stop - 1, RenderSettings(samples=64, filter_width_px=1.0,
+    blurred = sc.render(frames.start, frames.stop - 1, RenderOptions(samples=64, filter_width_px=1.0,
                                                                       motion_blur_shutter=shutter))
     lines = [detect_line(p[0], "gauss", FLOAT) for p in sharp]
     rows = [np.nanmedian(ln.row) for ln in lines]
@@ -68,11 +68,10 @@ def test_glossy_part_with_bounces_shows_reflections_the_detector_rejects():
 
 def test_sensor_switches_set_the_render():
     cfg = load_scan_config("demo")
-    assert render_settings(cfg, RenderSettings).samples == 1
-    area = render_settings(replace(cfg, sensor=SensorModel(integrate_pixels=True)), RenderSettings)
+    assert render_settings(cfg).samples == 1
+    area = render_settings(replace(cfg, sensor=SensorModel(integrate_pixels=True)))
     assert (area.pixel_filter, area.filter_width_px) == ("BOX", 1.0) and area.samples >= 16
-    moving = render_settings(replace(cfg, sensor=SensorModel(motion_blur=True, exposure_ms=2.0, frame_rate_hz=100)),
-                             RenderSettings)
+    moving = render_settings(replace(cfg, sensor=SensorModel(motion_blur=True, exposure_ms=2.0, frame_rate_hz=100)))
     assert moving.motion_blur_shutter == pytest.approx(0.2)
 
 

@@ -48,33 +48,17 @@ from ..errors import ConfigError, InputError
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
 from ..optics.probe import Probe
-from ..config.rigs import load_probe
+from .render import DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions
+from .rigs import load_probe
 from ..optics.sensor import SensorModel
 from ..optics.profile_filter import ProfileFilter
 from ..optics.triangulate import TRIANGULATION_METHODS
 from ..kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, Turntable
 from ..geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
 
-ENGINES = ("cycles", "eevee")
-DEVICES = ("CPU", "GPU", "OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")  # GPU: the first backend found
-PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
-LASERS = ("gobo", "slit")
 PATH_KINDS = ("sweep", "turntable")
 MATERIALS = ("grey", "dark", "glossy", "mirror")
 MAX_FRAMES = 1_000_000
-
-
-@dataclass(frozen=True)
-class RenderOptions:
-    engine: str = "cycles"
-    device: str = "CPU"
-    samples: int = 1
-    pixel_filter: str = "BOX"
-    filter_width_px: float = 0.01
-    bounces: int = 0
-    ambient: float = 0.0
-    laser: str = "gobo"
-    laser_peak: float = 0.5
 
 
 @dataclass(frozen=True)

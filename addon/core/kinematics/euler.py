@@ -22,9 +22,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..tolerances import TOL
 from .transforms import _cos_sin, check_rotation, make_pose
 
-SINGULAR_SIN_PITCH = 1e-12
+SINGULAR_SIN_PITCH = TOL.singular
 
 
 def yzz_to_matrix(yaw, pitch, roll) -> np.ndarray:

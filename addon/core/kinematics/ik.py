@@ -22,12 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, UnreachablePose
+from ..tolerances import TOL
 from .ik_analytic import branches, flange_targets, spherical_wrist_arm
 from .ik_numeric import levenberg_marquardt, solve_numeric
 from .transforms import check_transform, rotation_angle
 
-ROT_TOL_RAD = 1e-9
-LIMIT_TOL_RAD = 1e-10
+ROT_TOL_RAD = TOL.ik_rotation_rad
+LIMIT_TOL_RAD = TOL.joint_limit_rad
 METHODS = ("auto", "analytic", "numeric")
 # IKResult.reason values: success; farther than any joint vector reaches; reachable
 # only with joints outside their limits; closed form off by rounding at a singularity
@@ -85,7 +86,7 @@ class IKBatch:
 # -- helpers ----------------------------------------------------------------------
 
 def default_pos_tol(robot) -> float:
-    return min(1e-6, 1e-9 * robot.length_scale_mm)
+    return min(TOL.ik_position_mm, TOL.ik_position_rel * robot.length_scale_mm)
 
 
 def default_seed(robot) -> np.ndarray:

@@ -33,10 +33,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .transforms import rigid_inverse
+from ..tolerances import TOL
 
 # A unit-vector component below this is treated as exactly zero (singular wrist,
 # wrist centre on the joint-1 axis).
-SINGULAR = 1e-12
+SINGULAR = TOL.singular
 
 
 @dataclass(frozen=True)

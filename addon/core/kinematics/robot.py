@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError, InputError
+from ..tolerances import TOL
 from .transforms import _cos_sin, check_transform
 
 N_JOINTS = 6
@@ -145,7 +146,7 @@ class Robot:
             raise InputError(f"{name}{list(idx)} is {q[tuple(idx)]}: joint angles must be finite numbers (radians)")
         return q
 
-    def within_limits(self, q, tol_rad: float = 1e-12) -> np.ndarray | bool:
+    def within_limits(self, q, tol_rad: float = TOL.joint_limit_rad) -> np.ndarray | bool:
         """True where every joint of q (6,) or (n, 6) is inside [q_min, q_max] ± tol."""
         q = self.check_q(q)
         ok = np.all((q >= self.q_min_rad - tol_rad) & (q <= self.q_max_rad + tol_rad), axis=-1)
@@ -156,7 +157,8 @@ class Robot:
         q = self.check_q(q)
         out = []
         for j in range(N_JOINTS):
-            if not (self.q_min_rad[j] - 1e-12 <= q[j] <= self.q_max_rad[j] + 1e-12):
+            tol = TOL.joint_limit_rad
+            if not (self.q_min_rad[j] - tol <= q[j] <= self.q_max_rad[j] + tol):
                 out.append(f"J{j + 1} = {np.degrees(q[j]):.3f}° outside "
                            f"[{np.degrees(self.q_min_rad[j]):g}°, {np.degrees(self.q_max_rad[j]):g}°]")
         return out

@@ -34,11 +34,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError, InputError
+from ..tolerances import TOL
 from ..kinematics.transforms import check_transform, make_pose, rigid_inverse
 
 CAMERAS = (0, 1)
 MAX_PIXELS = 100_000
-EDGE_TOL_PX = 1e-9
+EDGE_TOL_PX = TOL.sensor_edge_px
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,0 +1,66 @@
+"""Render options: the one home of what a probe render may be asked for.
+
+Scan configs (``[render]``), the command line, the panel and the scene all use
+:class:`RenderOptions`; the Blender side (``addon.scene.render``) maps it onto
+Blender's settings and adds nothing of its own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import InputError, check_whole
+
+ENGINES = ("cycles", "eevee")
+GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
+# "GPU": the first backend the machine has, in GPU_BACKENDS' order; a backend by name: that one only.
+DEVICES = ("CPU", "GPU") + GPU_BACKENDS
+PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
+LASERS = ("gobo", "slit")
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """engine: cycles | eevee; device: CPU, GPU or a GPU backend by name; samples per pixel;
+    pixel filter and its width (px; 0.01 point-samples each pixel's centre); bounces (0 for
+    diffuse scenes); ambient: world light strength (0 = dark); laser: gobo (Cycles' smooth
+    Gaussian line) or slit (the paper's point light behind an aperture); laser_peak: the
+    line's peak as a fraction of full scale; resolution: (W, H) override of the probe's
+    sensor; persistent_data: keep Cycles' scene between frames; motion_blur_shutter:
+    fraction of a frame the shutter is open (0: none); threads: render threads (None: all)."""
+
+    engine: str = "cycles"
+    device: str = "CPU"
+    samples: int = 1
+    pixel_filter: str = "BOX"
+    filter_width_px: float = 0.01
+    bounces: int = 0
+    ambient: float = 0.0
+    laser: str = "gobo"
+    laser_peak: float = 0.5
+    resolution: tuple[int, int] | None = None
+    persistent_data: bool = True
+    motion_blur_shutter: float = 0.0
+    threads: int | None = None
+
+    def __post_init__(self) -> None:
+        for name, value, allowed in (("render engine", self.engine, ENGINES), ("render device", self.device, DEVICES),
+                                     ("pixel filter", self.pixel_filter, PIXEL_FILTERS), ("laser", self.laser, LASERS)):
+            if value not in allowed:
+                raise InputError(f"{name} {value!r} is not one of: {', '.join(allowed)}")
+        check_whole(self.samples, "samples", 1, 65536)
+        if not 0.01 <= self.filter_width_px <= 10:
+            raise InputError(f"filter width must be in [0.01, 10] px, got {self.filter_width_px}")
+        check_whole(self.bounces, "bounces", 0, 64)
+        if not 0 <= self.ambient <= 100:
+            raise InputError(f"ambient must be in [0, 100], got {self.ambient}")
+        if not 0 < self.laser_peak <= 1e3:
+            raise InputError(f"laser peak must be in (0, 1000] (fractions of full scale), got {self.laser_peak}")
+        if not 0 <= self.motion_blur_shutter <= 1:
+            raise InputError(f"motion blur shutter must be in [0, 1] frames, got {self.motion_blur_shutter}")
+        if self.threads is not None:
+            check_whole(self.threads, "render threads (or None: all cores)", 1, 1024)
+        if self.resolution is not None:
+            w, h = self.resolution
+            check_whole(w, "image width", 2, 100_000)
+            check_whole(h, "image height", 2, 100_000)
