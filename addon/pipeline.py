@@ -38,8 +38,9 @@ from .core.optics.detect import LineCode, detect_line
 from .core.errors import InputError, ScannerError, UnreachablePose
 from .core.optics.profile_filter import filter_profile
 from .core.files import write_bytes_atomic, write_png
-from .core.geometry.footprint import laser_footprint
+from .core.geometry.footprint import SurfaceCaster, laser_footprint
 from .core.scan.preview import render_preview
+from .core.scan.report import report_json
 from .core.config.render import RenderOptions
 from .core.config.scan import ScanConfig
 from .core.kinematics.path import solve_path
@@ -90,8 +91,12 @@ def frame_ranges(indices) -> str:
     return ", ".join(runs[:12]) + more
 
 
-def plan_scan(config: ScanConfig) -> Plan:
-    """IK for the whole path and the laser footprint check; raises before anything renders."""
+def plan_scan(config: ScanConfig, allow_blind: bool = False) -> Plan:
+    """IK for the whole path and the laser footprint check; raises before anything renders.
+
+    ``allow_blind``: frames whose laser meets nothing in range are kept (a step-by-step
+    scanner measures nothing there) instead of refusing the path; where no camera sees
+    the line on any frame, ``cameras`` is empty and nothing needs rendering."""
     cell = config.cell
     wp = config.waypoints
     sol = solve_path(cell, wp, config.q_start)
@@ -103,19 +108,38 @@ def plan_scan(config: ScanConfig) -> Plan:
     if sol.jumps:
         warnings.append(f"joint jumps over {math.degrees(max(sol.max_step_rad)):.0f}° between neighbouring "
                         f"waypoints at frames {frame_ranges(sol.jumps)} (near a singularity or a limit)")
-    foot = laser_footprint(config.probe, wp.probe2table, [config.workpiece.mesh, table_top_mesh()])
-    if foot.empty_frames:
+    return plan_frames(config, sol.q, wp.table_rad, allow_blind, warnings)
+
+
+def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_blind: bool = False,
+                warnings: list | None = None, surfaces: SurfaceCaster | None = None) -> Plan:
+    """The plan for frames whose joints are known (q (n, 6), table_rad (n,)): the laser fan cast
+    against the part and the table (``surfaces``, built here when not given) for the cameras to
+    render and the rows the line can fall on."""
+    wp_probe2table = config.cell.probe2table(q, table_rad)
+    foot = laser_footprint(config.probe, wp_probe2table, surfaces or cell_surfaces(config))
+    warnings = [] if warnings is None else warnings
+    n = len(q)
+    if foot.empty_frames and not allow_blind:
         z0, z1 = config.probe.z_range_mm
-        raise ScannerError(f"{len(foot.empty_frames)} of {len(wp)} waypoints put no surface inside the probe's "
+        raise ScannerError(f"{len(foot.empty_frames)} of {n} waypoints put no surface inside the probe's "
                            f"range {z0:.0f}-{z1:.0f} mm (frames {frame_ranges(foot.empty_frames)}): "
                            "move the path closer to or farther from the part")
-    cameras = foot.cameras_needed() if config.leave_out.skip_blind_cameras else (0, 1)
-    if not cameras:
+    cameras = foot.cameras_needed() if config.leave_out.skip_blind_cameras or allow_blind else (0, 1)
+    if not cameras and not allow_blind:
         raise ScannerError("neither camera sees the laser line anywhere on the path (hidden or off the sensors)")
-    with np.errstate(all="ignore"):
-        rows = foot.rows[:, list(cameras)]
-        predicted = np.column_stack([np.nanmin(rows[:, :, 0], axis=1), np.nanmax(rows[:, :, 1], axis=1)])
-    return Plan(sol.q, wp.table_rad, cameras, predicted, warnings)
+    predicted = np.full((n, 2), np.nan)
+    if cameras:
+        with np.errstate(all="ignore"):
+            rows = foot.rows[:, list(cameras)]
+            predicted = np.column_stack([np.nanmin(rows[:, :, 0], axis=1), np.nanmax(rows[:, :, 1], axis=1)])
+    return Plan(np.asarray(q, dtype=np.float64), np.asarray(table_rad, dtype=np.float64), cameras, predicted,
+                warnings)
+
+
+def cell_surfaces(config: ScanConfig) -> SurfaceCaster:
+    """What the laser can meet in a scan: the part and the table top, ready for ray casts."""
+    return SurfaceCaster([config.workpiece.mesh, table_top_mesh()])
 
 
 class _Band:
@@ -261,6 +285,7 @@ class ScanRun:
         self.t_render = self.t_detect = self.t_tri = 0.0
         self.done = 0
         self.previous_rows: list = [None, None]
+        self.frame_codes: dict[int, dict] = {}  # path index -> {detection code: columns}, for step-by-step callers
 
     @property
     def scene_cell(self):
@@ -310,10 +335,13 @@ class ScanRun:
             self.t_tri += time.perf_counter() - t
             stats["valid"] += sum(int(ln.valid.sum()) for ln in lines[i] if ln is not None)
             stats["columns"] += sum(len(ln.col) for ln in lines[i] if ln is not None)
+            codes: dict[str, int] = {}
             for ln in lines[i]:
                 if ln is not None:
                     for name, count in ln.counts().items():
                         stats["codes"][name] = stats["codes"].get(name, 0) + count
+                        codes[name] = codes.get(name, 0) + count
+            self.frame_codes[index + i] = codes
             stats["band_rows"].append(probe.rows_px if rows is None or i in redo else rows[1] - rows[0])
             self.band.update(_line_extent(lines[i]))
         self.previous_rows = [None if ln is None else ln.row for ln in lines[size - 1]]
@@ -401,7 +429,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         report["time_s"]["write"] = round(time.perf_counter() - t, 4)
     report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
     if files:
-        write_bytes_atomic(files["report"], (json.dumps(report, indent=2) + "\n").encode())
+        write_bytes_atomic(files["report"], report_json(report).encode())
     return ScanResult(cloud, report, files, error_um, on_part)
 
 

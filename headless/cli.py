@@ -14,6 +14,7 @@ Commands:
   bench stability      stiff and extreme cases, each with its expected and measured outcome
   bench farm           sharded scans on a local Dask cluster: 1 against 2 workers
   bench versions       the demo under several Blender releases (their interpreters), side by side
+  bench measure        one Scanner.measure() against one frame of a batch scan
   overview             a picture of the cell and the two probe camera images
   realism-figure       one probe frame seen by the ideal and by the realistic sensor
   build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
@@ -54,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     from headless.bench import scan as bench_scan
     from headless.bench import stability as bench_stability
     from headless.bench import triangulate as bench_triangulate
+    from headless.bench import measure as bench_measure
     from headless.bench import versions as bench_versions
 
     overview.add_arguments(sub.add_parser("overview", help=overview.__doc__.split("\n")[0]))
@@ -62,7 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
     for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),
                          ("triangulate", bench_triangulate), ("render", bench_render), ("scan", bench_scan),
                          ("realism", bench_realism), ("accuracy", bench_accuracy),
-                         ("stability", bench_stability), ("farm", bench_farm), ("versions", bench_versions)):
+                         ("stability", bench_stability), ("farm", bench_farm), ("versions", bench_versions),
+                         ("measure", bench_measure)):
         module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))
     return parser
 

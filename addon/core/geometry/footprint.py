@@ -55,10 +55,21 @@ class Footprint:
         return tuple(c for c in (0, 1) if self.seen[:, c].any())
 
 
-def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.Trimesh], rays: int = 65) -> Footprint:
-    """Cast the laser fan for frames with probe poses ``probe2table`` (n, 4, 4) against ``meshes`` (table frame)."""
-    scene = trimesh.util.concatenate(meshes)
-    caster = _intersector(scene)
+class SurfaceCaster:
+    """The cell's surfaces (table frame) with their ray-casting structure built once: a
+    step-by-step scanner casts a few rays per measurement, and building the structure
+    (about 0.1 s for the demo) would cost more than the casting."""
+
+    def __init__(self, meshes: list[trimesh.Trimesh]):
+        self.mesh = trimesh.util.concatenate(meshes)
+        self.caster = _intersector(self.mesh)
+
+
+def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.Trimesh] | SurfaceCaster,
+                    rays: int = 65) -> Footprint:
+    """Cast the laser fan for frames with probe poses ``probe2table`` (n, 4, 4) against ``meshes``
+    (table frame; or a SurfaceCaster built from them once)."""
+    caster = (meshes if isinstance(meshes, SurfaceCaster) else SurfaceCaster(meshes)).caster
     n = len(probe2table)
     alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
     d_probe = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])

@@ -1,0 +1,97 @@
+"""A scan's report, typed, and its JSON (strict: no NaN or infinity, which JSON does not have).
+
+``report.json`` is written by :func:`report_json` only; :class:`ScanReport` reads the same
+content back as dataclasses (``ScanReport.from_dict(json.load(f))``), so a script writes
+``report.error_um.rms_um`` rather than dictionary keys.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+
+def _finite_or_none(value):
+    """JSON has no NaN or infinity: such numbers become null, everywhere in a structure."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_none(v) for v in value]
+    return value
+
+
+def report_json(report) -> str:
+    """The one way a report becomes JSON: a ScanReport or its dict, NaN and infinity as null."""
+    data = report.to_dict() if isinstance(report, ScanReport) else report
+    return json.dumps(_finite_or_none(data), indent=2, allow_nan=False) + "\n"
+
+
+def _nan(value) -> float:
+    return float("nan") if value is None else float(value)
+
+
+@dataclass(frozen=True)
+class ErrorSummary:
+    """Point-to-surface error of n points in µm (NaN where there are no points; bias NaN where
+    the truth has no sign)."""
+
+    n: int
+    rms_um: float
+    mean_um: float
+    p95_um: float
+    max_um: float
+    bias_um: float
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ErrorSummary":
+        return cls(int(d["n"]), *(_nan(d[k]) for k in ("rms_um", "mean_um", "p95_um", "max_um", "bias_um")))
+
+
+@dataclass(frozen=True)
+class ScanReport:
+    """What a scan measured and what it cost.
+
+    frames: profiles taken; points: in the cloud (on the part / on the table); error_um: of the
+    part's points against its exact shape; table_error_um: of the table's points against its
+    top; coverage: share of the part's surface within coverage_tolerance_mm of a point;
+    column_codes: sensor columns per detection code; time_s: seconds per stage;
+    profiles_per_s: frames / (render + detect + triangulate); config: what was scanned.
+    """
+
+    config: dict
+    frames: int
+    points: int
+    points_on_part: int
+    points_on_table: int
+    error_um: ErrorSummary
+    table_error_um: ErrorSummary
+    coverage: float
+    coverage_tolerance_mm: float
+    valid_fraction: float
+    column_codes: dict
+    cameras_rendered: list
+    frames_rerendered_full: int
+    mean_rows_rendered: float
+    time_s: dict
+    profiles_per_s: float
+    warnings: list = field(default_factory=list)
+    software: dict = field(default_factory=dict)
+    render_device: str | None = None
+    extra: dict = field(default_factory=dict)  # anything else a run adds (a farm's shard counts)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ScanReport":
+        names = {f.name for f in fields(cls)} - {"extra"}
+        kwargs = {k: v for k, v in d.items() if k in names}
+        kwargs["error_um"] = ErrorSummary.from_dict(d["error_um"])
+        kwargs["table_error_um"] = ErrorSummary.from_dict(d["table_error_um"])
+        kwargs["profiles_per_s"] = _nan(d["profiles_per_s"])
+        return cls(**kwargs, extra={k: v for k, v in d.items() if k not in names})
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d.update(d.pop("extra"))
+        return d

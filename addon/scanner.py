@@ -1,0 +1,318 @@
+"""The one way in: a scanner that scripts, the panel, the command line and the farm drive.
+
+Step by step (for adaptive scanning: move, measure, look, decide)::
+
+    from addon import Scanner
+    s = Scanner.from_config("demo")               # robot, probe, table, part, render, detection
+    s.move_to(([0, 0, 210], [90, 180, 0]))        # probe position (mm) and YZZ' angles (deg), table frame
+    p = s.measure()                               # one profile: p.points (n, 3) mm, table frame
+    s.sweep([-40, 0, 210], [40, 0, 210], 20)      # twenty profiles along a line
+    s.turn_table(30)                              # turn the table by 30 degrees
+    s.report().error_um.rms_um, len(s.cloud)      # everything measured so far
+
+or a whole configured path: ``Scanner.from_config("step_block").run()``, then ``save(out_dir)``.
+
+A move that cannot be made (unreachable, outside the joint limits) raises
+``UnreachablePose`` and moves nothing. Blender is loaded at the first measurement,
+not before; the cell is built once and kept.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .core.config.render import RenderOptions
+from .core.config.rigs import load_probe, load_robot
+from .core.config.scan import ScanConfig, load_scan_config
+from .core.errors import InputError, UnreachablePose
+from .core.geometry.cloud import Cloud
+from .core.geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
+from .core.kinematics.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
+from .core.kinematics.path import Waypoints, probe_orientation, sweep as sweep_waypoints
+from .core.kinematics.robot import Robot
+from .core.kinematics.transforms import check_transform
+from .core.kinematics.turntable import Turntable
+from .core.optics.probe import Probe
+from .core.scan.report import ScanReport
+
+RELATIVE_TO = ("table", "base")
+
+
+@dataclass
+class Profile:
+    """One measurement: what the probe saw at one pose.
+
+    points : (n, 3) float, mm, table frame
+    camera : (n,) uint8, 1 = camera 0, 2 = camera 1, 3 = both (fused)
+    sigma_mm : (n,) float, depth uncertainty: how far the point moves for 0.1 px of detection error
+    quality : (n,) float, 0..1, 1 for points both cameras agree on, lower the less sure the point
+    probe2table : (4, 4) float, mm, the probe pose in the table frame
+    q : (6,) rad, the robot's joints; table_deg : the table's angle
+    codes : {detection code: sensor columns}, over both cameras (OK, NO_LINE, AMBIGUOUS, ...)
+    frame : index of the measurement in the scanner's cloud
+    """
+
+    points: np.ndarray
+    camera: np.ndarray
+    sigma_mm: np.ndarray
+    probe2table: np.ndarray
+    q: np.ndarray
+    table_deg: float
+    codes: dict = field(default_factory=dict)
+    frame: int = 0
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    @property
+    def quality(self) -> np.ndarray:
+        """(n,) 0..1: 1 for fused points (both cameras agree), 0.5 for points one camera saw."""
+        return np.where(self.camera == 3, 1.0, 0.5)
+
+
+def _robot(value) -> Robot:
+    return value if isinstance(value, Robot) else load_robot(value)
+
+
+def _probe(value) -> Probe:
+    return value if isinstance(value, Probe) else load_probe(value)
+
+
+def _workpiece(value) -> Workpiece:
+    if isinstance(value, Workpiece):
+        return value
+    return builtin_workpiece(value) if value in BUILTINS else load_workpiece(value)
+
+
+class Scanner:
+    """A simulated cell: a robot carrying the probe over a part on the rotary table.
+
+    ``Scanner(robot=..., probe=..., workpiece=..., table=..., render=..., detect=...)`` takes
+    objects or names (a rig name under rigs/, a path, a built-in shape name or a mesh file);
+    ``Scanner.from_config(name_or_path, **overrides)`` takes a scan config and the command
+    line's overrides (engine, samples, resolution, detect, frames, device).
+    """
+
+    def __init__(self, robot: Robot | str = "adept_viper_s650", probe: Probe | str = "default",
+                 workpiece: Workpiece | str = "sphere", table: Turntable | None = None,
+                 render: RenderOptions | None = None, detect: str = "gauss", *, config: ScanConfig | None = None,
+                 scene=None):
+        if config is None:
+            base = load_scan_config("demo")  # the detection, filter and leave-out defaults of a scan
+            config = replace(base, name="Scanner", source="", robot=_robot(robot), probe=_probe(probe),
+                             table=table or Turntable(), workpiece=_workpiece(workpiece),
+                             waypoints=Waypoints(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0, int)),
+                             q_start=None, render=render or base.render)
+            config = config.with_overrides(detect=detect)
+        self.config = config
+        self._scene = scene
+        self._sc = None  # the Blender cell, built at the first measurement
+        self._surfaces = None  # the part and table for ray casts, built at the first measurement
+        self._q = self._start_joints()
+        self._table_rad = float(config.waypoints.table_rad[0]) if len(config.waypoints) else 0.0
+        self._parts: list[Cloud] = []
+        self._stats: list[dict] = []
+        self._timing = {"plan": 0.0, "scene": 0.0, "render": 0.0, "detect": 0.0, "triangulate": 0.0}
+        self._cameras: set[int] = set()
+        self._warnings: list[str] = []
+        self._t0 = time.perf_counter()
+        self._frames = 0
+
+    @classmethod
+    def from_config(cls, name_or_path: str | Path, scene=None, **overrides) -> "Scanner":
+        """A scanner for a scan config (a name under rigs/scenes/ or a path), with overrides
+        as on the command line: engine, samples, resolution (W, H), detect, frames (a slice), device."""
+        return cls(config=load_scan_config(name_or_path).with_overrides(**overrides), scene=scene)
+
+    # -- state ---------------------------------------------------------------------------
+    def _start_joints(self) -> np.ndarray:
+        cfg = self.config
+        if cfg.q_start is not None:
+            return np.array(cfg.q_start, dtype=np.float64)
+        lo, hi = cfg.robot.q_min_rad, cfg.robot.q_max_rad
+        return np.clip(np.zeros(6), lo, hi)
+
+    @property
+    def q(self) -> np.ndarray:
+        """(6,) rad: the robot's joints now."""
+        return self._q.copy()
+
+    @property
+    def table_deg(self) -> float:
+        """The table's angle now, in degrees."""
+        return math.degrees(self._table_rad)
+
+    def pose(self, relative_to: str = "table") -> np.ndarray:
+        """(4, 4) mm: the probe frame's pose (laser at the origin, beam along +Z) now."""
+        if relative_to not in RELATIVE_TO:
+            raise InputError(f"relative_to must be one of {', '.join(RELATIVE_TO)}, got {relative_to!r}")
+        cell = self.config.cell
+        return cell.probe2table(self._q, self._table_rad) if relative_to == "table" else cell.probe2base(self._q)
+
+    @property
+    def cloud(self) -> Cloud:
+        """Everything measured so far (table frame)."""
+        return Cloud.concatenate(self._parts)
+
+    # -- moves ---------------------------------------------------------------------------
+    def move_to(self, pose, relative_to: str = "table") -> np.ndarray:
+        """Put the probe at ``pose``: a (4, 4) transform, or (xyz_mm, yzz_deg), relative to the
+        table or the robot base. IK takes the branch nearest the current joints. Returns the
+        new joints; raises UnreachablePose (and moves nothing) where the pose cannot be reached."""
+        T = self._as_pose(pose)
+        if relative_to not in RELATIVE_TO:
+            raise InputError(f"relative_to must be one of {', '.join(RELATIVE_TO)}, got {relative_to!r}")
+        res = self.config.cell.ik(T, self._q, relative_to=relative_to, table_angle_rad=self._table_rad)
+        if not res.success:
+            xyz, yzz = pose_to_xyz_yzz(T)
+            raise UnreachablePose(f"probe pose {np.round(xyz, 3).tolist()} mm, YZZ' "
+                                  f"{np.round(np.degrees(yzz), 3).tolist()} deg relative to the {relative_to} "
+                                  f"cannot be reached: {res.message}", res)
+        self._q = np.array(res.q, dtype=np.float64)
+        return self.q
+
+    def move_joints(self, q) -> np.ndarray:
+        """Set the robot's joints (6,) rad; raises UnreachablePose (and moves nothing) outside the limits."""
+        q = self.config.robot.check_q(q)
+        if q.shape != (6,):
+            raise InputError(f"move_joints takes 6 joint angles, got shape {q.shape}")
+        bad = self.config.robot.limit_violations(q)
+        if bad:
+            raise UnreachablePose("joints outside the robot's limits: " + "; ".join(bad))
+        self._q = np.array(q, dtype=np.float64)
+        return self.q
+
+    def turn_table(self, deg: float) -> float:
+        """Turn the table by ``deg`` degrees; returns its new angle (degrees)."""
+        if not math.isfinite(deg):
+            raise InputError(f"table turn must be a finite number of degrees, got {deg}")
+        self._table_rad += math.radians(deg)
+        return self.table_deg
+
+    @staticmethod
+    def _as_pose(pose) -> np.ndarray:
+        if isinstance(pose, tuple) and len(pose) == 2:
+            xyz, yzz_deg = (np.asarray(v, dtype=np.float64) for v in pose)
+            if xyz.shape != (3,) or yzz_deg.shape != (3,) or not (np.isfinite(xyz).all() and np.isfinite(yzz_deg).all()):
+                raise InputError("a pose as (xyz_mm, yzz_deg) needs three finite numbers in each")
+            return pose_from_xyz_yzz(xyz, np.radians(yzz_deg))
+        return check_transform(pose, "probe pose")
+
+    # -- measuring -----------------------------------------------------------------------
+    def measure(self) -> Profile:
+        """One profile at the current pose (nothing moves). A pose whose laser meets nothing
+        in the probe's range gives an empty profile without rendering."""
+        return self._scan_frames(self._q[None, :], np.array([self._table_rad]))[0]
+
+    def sweep(self, from_mm, to_mm, frames: int, *, beam=(0.0, 0.0, -1.0), line=None) -> list[Profile]:
+        """``frames`` profiles with the probe moving in a straight line from ``from_mm`` to
+        ``to_mm`` (table frame), beam straight down unless given, the laser line across the
+        motion. Every pose is solved before anything moves or renders; the probe ends at the
+        last one."""
+        wp = sweep_waypoints(frames, from_mm, to_mm, beam, line, table_rad=self._table_rad)
+        from .core.kinematics.path import solve_path
+
+        sol = solve_path(self.config.cell, wp, self._q)
+        if not sol.ok.all():
+            from .pipeline import frame_ranges
+
+            bad = sol.unreachable
+            raise UnreachablePose(f"{len(bad)} of {frames} poses of the sweep cannot be reached "
+                                  f"(steps {frame_ranges(bad)}): {sol.messages[bad[0]]}")
+        profiles = self._scan_frames(sol.q, wp.table_rad)
+        self._q = np.array(sol.q[-1], dtype=np.float64)
+        return profiles
+
+    def run(self, progress=None) -> ScanReport:
+        """Scan the configured path ([[path]] entries) from its start joints; the probe ends at
+        the path's last pose. Returns the report of everything measured so far."""
+        cfg = self.config
+        if not len(cfg.waypoints):
+            raise InputError("this scanner has no path to run (give one in a scan config, or use sweep/measure)")
+        from .pipeline import plan_scan
+
+        t = time.perf_counter()
+        plan = plan_scan(cfg)
+        self._timing["plan"] += time.perf_counter() - t
+        self._warnings += plan.warnings
+        self._scan_frames(plan.q, plan.table_rad, plan=plan, progress=progress)
+        self._q = np.array(plan.q[-1], dtype=np.float64)
+        self._table_rad = float(plan.table_rad[-1])
+        return self.report()
+
+    def _scene_cell(self):
+        if self._sc is None:
+            from .scene.cell import build_cell
+            from .scene.laser import laser_power_w
+            from .scene.session import new_scene
+
+            t = time.perf_counter()
+            cfg = self.config
+            scene = self._scene if self._scene is not None else new_scene(cfg.render.device)
+            self._sc = build_cell(scene, cfg.cell, cfg.probe, cfg.workpiece, cfg.render.laser,
+                                  laser_power_w(cfg.probe, peak=cfg.render.laser_peak), material=cfg.material,
+                                  roughness=cfg.roughness)
+            self._timing["scene"] += time.perf_counter() - t
+        return self._sc
+
+    def _scan_frames(self, q: np.ndarray, table_rad: np.ndarray, plan=None, progress=None) -> list[Profile]:
+        """Render, detect and triangulate the frames at joints q (n, 6) and table angles (n,);
+        their points join the cloud under the next frame numbers."""
+        from .pipeline import ScanRun, cell_surfaces, plan_frames
+
+        cfg = self.config
+        t = time.perf_counter()
+        if plan is None:
+            if self._surfaces is None:
+                self._surfaces = cell_surfaces(cfg)
+            plan = plan_frames(cfg, q, table_rad, allow_blind=True, surfaces=self._surfaces)
+            self._timing["plan"] += time.perf_counter() - t
+        first = self._frames
+        n = len(q)
+        probe2table = cfg.cell.probe2table(q, table_rad)
+        if not plan.cameras:  # the laser meets nothing any camera sees: nothing to render
+            out = [Profile(np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0), probe2table[i], q[i].copy(),
+                           math.degrees(table_rad[i]), {}, first + i) for i in range(n)]
+            self._frames += n
+            return out
+        run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, np.zeros(n, int))), None, progress,
+                      plan=plan, scene_cell=self._scene_cell())
+        while not run.step():
+            pass
+        for stage in ("render", "detect", "triangulate"):
+            self._timing[stage] += getattr(run, f"t_{stage}" if stage != "triangulate" else "t_tri")
+        self._stats.append(run.stats)
+        self._cameras |= set(plan.cameras)
+        cloud = run.acc.cloud()
+        out = []
+        for i in range(n):
+            part = cloud.select(cloud.frame == i)
+            part = Cloud(part.points, np.full(len(part), first + i), part.camera, part.quality)
+            self._parts.append(part)
+            out.append(Profile(part.points, part.camera, part.quality.astype(np.float64), probe2table[i],
+                               q[i].copy(), math.degrees(table_rad[i]), run.frame_codes.get(i, {}), first + i))
+        self._frames += n
+        return out
+
+    # -- results -------------------------------------------------------------------------
+    def _result(self, out_dir: str | Path | None):
+        from .pipeline import Plan, assemble, merge_stats
+
+        plan = Plan(np.zeros((0, 6)), np.zeros(0), tuple(sorted(self._cameras)), np.zeros((0, 2)),
+                    list(self._warnings))
+        return assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0)
+
+    def report(self) -> ScanReport:
+        """The report of everything measured so far: error against the part's exact shape,
+        coverage, detection codes, timing (typed; ``report_json`` gives its JSON)."""
+        return ScanReport.from_dict(self._result(None).report)
+
+    def save(self, out_dir: str | Path) -> dict[str, Path]:
+        """Write cloud.ply, report.json and preview.png into ``out_dir`` (each atomically);
+        returns their paths."""
+        return self._result(out_dir).files

@@ -1,0 +1,120 @@
+"""The Scanner API step by step, against the exact sphere of the demo cell."""
+
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("bpy", reason="scans render with bpy (installed by the README's set-up)")
+
+from addon import Profile, Scanner, ScanReport, UnreachablePose, report_json  # noqa: E402
+from addon.core.errors import InputError  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+CENTRE, RADIUS = np.array([0.0, 0.0, 30.0]), 30.0  # the demo's sphere stands on the table
+
+
+def sphere_error_um(points):
+    return (np.linalg.norm(points - CENTRE, axis=1) - RADIUS) * 1000
+
+
+@pytest.fixture(scope="module")
+def scanner():
+    return Scanner.from_config("demo")
+
+
+def test_measure_puts_points_on_the_exact_sphere(scanner):
+    scanner.move_to(([12.0, 0.0, 210.0], [90.0, 180.0, 0.0]))
+    np.testing.assert_allclose(scanner.pose()[:3, 3], [12.0, 0.0, 210.0], atol=1e-6)
+    p = scanner.measure()
+    assert isinstance(p, Profile) and len(p) > 100
+    on_sphere = p.points[p.points[:, 2] > 1.0]
+    err = sphere_error_um(on_sphere)
+    assert len(on_sphere) > 50 and np.sqrt(np.mean(err ** 2)) < 20 and np.abs(err).max() < 100
+    assert p.points.shape[1] == 3 and p.sigma_mm.shape == (len(p),) and np.all(p.sigma_mm > 0)
+    np.testing.assert_allclose(p.probe2table, scanner.pose(), atol=1e-9)
+    assert p.codes.get("OK", 0) > 100
+    # Every point lies in the laser plane: through the probe's origin, normal to its X axis.
+    normal, origin = p.probe2table[:3, 0], p.probe2table[:3, 3]
+    assert np.abs((p.points - origin) @ normal).max() < 0.05
+
+
+def test_turning_the_table_moves_the_measured_meridian(scanner):
+    scanner.move_to(([12.0, 0.0, 210.0], [90.0, 180.0, 0.0]))
+    before = scanner.table_deg
+    assert scanner.turn_table(90.0) == pytest.approx(before + 90.0)
+    p = scanner.measure()
+    # In the table frame the probe (and so the laser plane) has turned by -90 degrees about Z.
+    expect = np.array([math.cos(math.radians(-90 - before)) * 12, math.sin(math.radians(-90 - before)) * 12])
+    np.testing.assert_allclose(p.probe2table[:2, 3], expect, atol=1e-6)
+    assert len(p) > 100 and np.sqrt(np.mean(sphere_error_um(p.points[p.points[:, 2] > 1]) ** 2)) < 20
+
+
+def test_a_refused_move_raises_and_moves_nothing(scanner):
+    q, table = scanner.q, scanner.table_deg
+    with pytest.raises(UnreachablePose, match="cannot be reached"):
+        scanner.move_to(([0.0, 0.0, 2000.0], [90.0, 180.0, 0.0]))
+    with pytest.raises(UnreachablePose, match="outside"):
+        scanner.move_joints(q + [0, 0, 0, 0, 0, 100.0])
+    with pytest.raises(UnreachablePose, match="sweep cannot be reached"):
+        scanner.sweep([0, 0, 210], [1500, 0, 210], 5)
+    with pytest.raises(InputError):
+        scanner.move_to(([0, 0, float("nan")], [90, 180, 0]))
+    np.testing.assert_array_equal(scanner.q, q)
+    assert scanner.table_deg == table
+
+
+def test_a_pose_that_sees_nothing_gives_an_empty_profile_without_rendering():
+    s = Scanner.from_config("demo")
+    s.move_to(([12.0, 0.0, 320.0], [90.0, 180.0, 0.0]))  # the table 320 mm away: beyond the 250 mm range
+    p = s.measure()
+    assert len(p) == 0 and s._sc is None  # Blender was never asked to render
+
+
+def test_sweep_report_and_save(scanner, tmp_path):
+    n0 = len(scanner.cloud)
+    profiles = scanner.sweep([-40.0, 0.0, 210.0], [40.0, 0.0, 210.0], 12)
+    assert len(profiles) == 12 and len(scanner.cloud) == n0 + sum(len(p) for p in profiles)
+    np.testing.assert_allclose(scanner.pose()[:3, 3], [40.0, 0.0, 210.0], atol=1e-6)
+    report = scanner.report()
+    assert isinstance(report, ScanReport) and report.points == len(scanner.cloud)
+    assert report.frames == max(p.frame for p in profiles) + 1
+    assert report.error_um.rms_um < 20
+    files = scanner.save(tmp_path / "out")
+    assert {p.name for p in (tmp_path / "out").iterdir()} == {"cloud.ply", "report.json", "preview.png"}
+    again = ScanReport.from_dict(json.loads(files["report"].read_text()))
+    assert again.points == report.points and again.error_um.rms_um == pytest.approx(report.error_um.rms_um)
+
+
+def test_run_gives_the_pipelines_cloud_point_for_point():
+    from addon.pipeline import run_scan
+
+    s = Scanner.from_config("step_block", frames=slice(0, 100, 10))
+    report = s.run()
+    single = run_scan(s.config, None, write_outputs=False)
+    np.testing.assert_array_equal(s.cloud.points, single.cloud.points)
+    assert report.error_um.rms_um == pytest.approx(single.report["error_um"]["rms_um"])
+
+
+def test_report_json_is_strict():
+    text = report_json({"rms_um": float("nan"), "nested": [float("inf"), 1.0]})
+    assert json.loads(text) == {"rms_um": None, "nested": [None, 1.0]}
+    assert "NaN" not in text and "Infinity" not in text
+
+
+def test_the_readme_example_runs_as_written(tmp_path):
+    readme = (REPO / "README.md").read_text()
+    match = re.search(r"<!-- example:scanner -->\s*```python\n(.*?)```", readme, re.S)
+    assert match, "README.md has no Scanner example"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    out = subprocess.run([sys.executable, "-c", match.group(1)], cwd=tmp_path, env=env, capture_output=True,
+                         text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert re.search(r"\d+ points, RMS \d+\.\d um", out.stdout), out.stdout
+    assert (tmp_path / "out" / "adaptive-example" / "report.json").is_file()
