@@ -31,31 +31,13 @@ from addon.core.errors import InputError, ScannerError, check_whole
 
 # A worker process's cell, kept between shards of the same scan: {fingerprint: SceneCell}.
 _WORKER_CELL: dict = {}
-# For the fault-tolerance test: "INDEX:MARKER" makes the worker that starts shard INDEX
-# die after its first chunk, once (the marker file records that it happened).
-DIE_ENV = "SCANNER_FARM_DIE_IN_SHARD"
 
 
 def scan_fingerprint(config, plan) -> str:
-    """What decides the scan's result: the plan, the path, and every setting that reaches a pixel or a point."""
-    wp = config.workpiece
-    return shards.fingerprint([
-        shards.FORMAT, plan.q, plan.table_rad, plan.predicted_rows, tuple(plan.cameras),
-        config.waypoints.probe2table, config.probe, config.probe.mount, config.render, config.detect_method,
-        config.detect_params, config.triangulate_method, config.fuse, config.leave_out, config.sensor,
-        config.material, config.roughness, config.profile_filter, wp.mesh.vertices, wp.mesh.faces, wp.truth,
-        config.table, config.robot.base, config.robot.tool,
-    ])
-
-
-def _maybe_die(shard: shards.Shard) -> None:
-    spec = os.environ.get(DIE_ENV)
-    if not spec:
-        return
-    index, marker = spec.split(":", 1)
-    if int(index) == shard.index and not Path(marker).exists():
-        Path(marker).write_text(f"worker {os.getpid()} died in {shard.describe()}\n")
-        os._exit(17)
+    """What decides the scan's result: the plan and the whole config, field by field (every
+    field of ScanConfig counts but its name, file and description)."""
+    return shards.fingerprint([shards.FORMAT, plan.q, plan.table_rad, plan.predicted_rows, tuple(plan.cameras),
+                               config, config.detect_params])
 
 
 def _clean_sys_path() -> None:
@@ -78,10 +60,8 @@ def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, th
     run = ScanRun(config, plan=plan, frames=shard.frames, scene_cell=cell, threads=threads)
     _WORKER_CELL.clear()
     _WORKER_CELL[fingerprint] = run.scene_cell
-    finished = run.step()
-    _maybe_die(shard)  # (the fault-tolerance test's hook: a worker dying after its first chunk)
-    while not finished:
-        finished = run.step()
+    while not run.step():
+        pass
     run.timing.update(render=run.t_render, detect=run.t_detect, triangulate=run.t_tri)
     cloud = run.acc.cloud()
     shards.write(path, shard, cloud, run.stats, run.timing, fingerprint)

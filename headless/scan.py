@@ -37,23 +37,6 @@ def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
     parser.set_defaults(run=run_demo if demo else run_scan_command)
 
 
-def parse_frames(text: str | None) -> slice | None:
-    if text is None:
-        return None
-    from addon.core.errors import InputError
-
-    parts = text.split(":")
-    try:
-        if len(parts) == 1:
-            i = int(parts[0])
-            return slice(i, i + 1)
-        if len(parts) in (2, 3):
-            return slice(*[int(p) if p.strip() else None for p in parts])
-    except ValueError:
-        pass
-    raise InputError(f"--frames {text!r}: expected A:B or A:B:STEP with whole numbers (e.g. 0:40)")
-
-
 def parse_resolution(text: str | None):
     if text is None:
         return None
@@ -120,11 +103,12 @@ def run_demo(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, config, out: str) -> int:
+    from addon.core.config.scan import parse_frames
     from addon.pipeline import run_scan
 
     config = config.with_overrides(engine=args.engine, samples=args.samples,
                                    resolution=parse_resolution(args.resolution), detect=args.detect,
-                                   frames=parse_frames(args.frames), device=args.device)
+                                   frames=parse_frames(args.frames, "--frames"), device=args.device)
     if args.max_rms_um is not None and not args.max_rms_um > 0:
         from addon.core.errors import InputError
 

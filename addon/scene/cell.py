@@ -37,6 +37,17 @@ from .units import from_blender
 RESULTS = "Scan results"
 
 
+CELL_NAME = "Scanner Cell"
+
+
+def cell_object(name: str, cell_name: str = CELL_NAME):
+    """The object called ``name`` in the built cell (the robot, the turntable, ...), or None."""
+    root = bpy.data.collections.get(cell_name)
+    if root is None:
+        return None
+    return next((o for o in root.all_objects if o.name == name), None)
+
+
 @dataclass
 class SceneCell:
     """Handles on the Blender objects of a built cell, and the core models behind them."""

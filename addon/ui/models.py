@@ -16,27 +16,28 @@ from ..core.config.rigs import load_probe
 from ..core.optics.sensor import SensorModel
 from ..core.kinematics.turntable import Turntable
 from ..core.geometry.workpiece import builtin_workpiece, load_workpiece
+from ..scene.cell import CELL_NAME, cell_object
 from .props import FILE
 
-CELL_NAME = "Scanner Cell"
 CLOUD_NAME = "Scan cloud"
 # The extension's own package ("bl_ext.<repo>.<id>"); empty when these modules are used outside one.
 ROOT_PACKAGE = ".".join(__package__.split(".")[:-2])
 
 
-def _path(value: str, what: str) -> str:
+def chosen_file(value: str, what: str) -> str:
+    """The absolute path of a file chosen in the panel; InputError when none is chosen."""
     if not value:
         raise InputError(f"choose a {what} file first")
     return bpy.path.abspath(value)
 
 
 def robot_from(s):
-    return load_robot(_path(s.robot_file, "robot") if s.robot == FILE else s.robot)
+    return load_robot(chosen_file(s.robot_file, "robot") if s.robot == FILE else s.robot)
 
 
 def probe_from(s) -> Probe:
     """The probe rig with the panel's optics (a, b, phi, gamma, sensor size); raises InputError when invalid."""
-    rig = load_probe(_path(s.probe_file, "probe") if s.probe == FILE else s.probe)
+    rig = load_probe(chosen_file(s.probe_file, "probe") if s.probe == FILE else s.probe)
     return replace(rig, a_mm=s.probe_a, b_mm=s.probe_b, phi_rad=s.probe_phi, gamma_rad=s.probe_gamma,
                    rows_px=s.probe_rows, cols_px=s.probe_cols)
 
@@ -57,7 +58,7 @@ def sensor_from(s) -> SensorModel:
 
 def workpiece_from(s):
     if s.workpiece == FILE:
-        return load_workpiece(_path(s.workpiece_file, "mesh"))
+        return load_workpiece(chosen_file(s.workpiece_file, "mesh"))
     return builtin_workpiece(s.workpiece)
 
 
@@ -76,18 +77,8 @@ def scene_cell(context):
         return None
 
 
-def find_table(scene):
-    root = bpy.data.collections.get(CELL_NAME)
-    if root is None:
-        return None
-    return next((o for o in root.all_objects if o.name == "Turntable"), None)
-
-
 def find_robot(scene):
-    root = bpy.data.collections.get(CELL_NAME)
-    if root is None:
-        return None
-    return next((o for o in root.all_objects if o.name == "Robot"), None)
+    return cell_object("Robot")
 
 
 def default_output_dir() -> Path:

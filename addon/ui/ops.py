@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 
+from pathlib import Path
+
 import bpy
 import numpy as np
 from bpy.props import StringProperty
@@ -56,7 +58,7 @@ class SCANNER_OT_load_probe(bpy.types.Operator):
 
         s = context.scene.scanner
         try:
-            p = load_probe(models._path(s.probe_file, "probe") if s.probe == models.FILE else s.probe)
+            p = load_probe(models.chosen_file(s.probe_file, "probe") if s.probe == models.FILE else s.probe)
         except ScannerError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -155,6 +157,11 @@ class SCANNER_OT_render_views(bpy.types.Operator):
         return {"FINISHED"}
 
 
+def _message(exc: Exception) -> str:
+    """One line for the status bar: the project's own errors as they are, others with their kind."""
+    return str(exc) if isinstance(exc, ScannerError) else f"{type(exc).__name__}: {exc}"
+
+
 class SCANNER_OT_scan(bpy.types.Operator):
     """Run the chosen scan: render, detect, triangulate, and bring the cloud into the scene (Esc cancels)"""
 
@@ -162,23 +169,37 @@ class SCANNER_OT_scan(bpy.types.Operator):
     bl_label = "Scan"
     bl_options = {"REGISTER", "UNDO"}
 
-    frames: StringProperty(name="Frames", default="", description="Part of the path, as A:B (empty: all)")
+    # The operator carries its parameters, so that a script can call
+    # bpy.ops.scanner.scan(config="step_block", frames="0:100:20", output_dir="/tmp/scans")
+    # without touching the panel; an empty value takes the panel's setting.
+    config: StringProperty(name="Config", default="",
+                           description="Scan config: a bundled name or a .toml path (empty: the panel's choice)")
+    frames: StringProperty(name="Frames", default="", description="Part of the path, as A:B or A:B:STEP (empty: all)")
+    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
+                               description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
 
     _timer = None
     _run = None
     _state = None
 
     def _config(self, context):
-        from ..core.config.scan import load_scan_config
+        from ..core.config.scan import load_scan_config, parse_frames
 
         s = context.scene.scanner
-        cfg = load_scan_config(models._path(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config)
-        if self.frames:
-            parts = [int(p) if p.strip() else None for p in self.frames.split(":")]
-            cfg = cfg.with_overrides(frames=slice(*parts))
-        if s.scan_sensor == "PANEL":
+        if self.config:
+            source = bpy.path.abspath(self.config) if self.config.endswith(".toml") else self.config
+        else:
+            source = models.chosen_file(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config
+        cfg = load_scan_config(source).with_overrides(frames=parse_frames(self.frames))
+        if s.scan_sensor == "PANEL" and not self.config:
             cfg = cfg.with_realism(models.sensor_from(s), s.material, s.roughness, s.ambient)
         return cfg
+
+    def _output_dir(self, context, name: str):
+        if self.output_dir:
+            safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name) or "scan"
+            return Path(bpy.path.abspath(self.output_dir)) / safe
+        return models.output_dir(context.scene.scanner, name)
 
     def _start(self, context):
         from ..pipeline import ScanRun
@@ -201,7 +222,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
         s = context.scene.scanner
         run, self._run = self._run, None
         try:
-            result = run.finish(models.output_dir(s, run.config.name))
+            result = run.finish(self._output_dir(context, run.config.name))
         finally:
             self._restore()
         old = bpy.data.objects.get(models.CLOUD_NAME)
@@ -220,18 +241,18 @@ class SCANNER_OT_scan(bpy.types.Operator):
             while not self._run.step():
                 pass
             self._finish(context)
-        except (ScannerError, ValueError) as exc:
+        except Exception as exc:  # any failure: the scene comes back as it was, and the user is told
             self._run = None
             self._restore()
-            self.report({"ERROR"}, str(exc))
+            self.report({"ERROR"}, _message(exc))
             return {"CANCELLED"}
         return {"FINISHED"}
 
     def invoke(self, context, event):
         try:
             self._start(context)
-        except (ScannerError, ValueError) as exc:
-            self.report({"ERROR"}, str(exc))
+        except Exception as exc:
+            self.report({"ERROR"}, _message(exc))
             return {"CANCELLED"}
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.01, window=context.window)
@@ -250,17 +271,17 @@ class SCANNER_OT_scan(bpy.types.Operator):
             return {"PASS_THROUGH"}
         try:
             done = self._run.step()
-        except ScannerError as exc:
+            context.window_manager.progress_update(self._run.done)
+            models.status(context, f"Scanning: {self._run.done}/{self._run.n} frames (Esc to cancel)")
+            if not done:
+                return {"RUNNING_MODAL"}
+            self._stop(context)
+            self._finish(context)
+        except Exception as exc:  # any failure: timer, progress bar and scene settings are put back
             self._stop(context)
             self._run = None
-            self.report({"ERROR"}, str(exc))
+            self.report({"ERROR"}, _message(exc))
             return {"CANCELLED"}
-        context.window_manager.progress_update(self._run.done)
-        models.status(context, f"Scanning: {self._run.done}/{self._run.n} frames (Esc to cancel)")
-        if not done:
-            return {"RUNNING_MODAL"}
-        self._stop(context)
-        self._finish(context)
         return {"FINISHED"}
 
     def _stop(self, context):

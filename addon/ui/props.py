@@ -40,9 +40,9 @@ WORKPIECE_ITEMS = [(k, k.replace("_", " ").title(), f"Built-in {k.replace('_', '
 
 
 def _table_angle_changed(self, context):
-    from .models import find_table
+    from ..scene.cell import cell_object
 
-    table = find_table(context.scene)
+    table = cell_object("Turntable")
     if table is not None:
         table.rotation_euler[2] = self.table_angle
 

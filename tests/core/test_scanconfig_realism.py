@@ -60,3 +60,16 @@ def test_with_realism_swaps_sensor_surface_and_ambient(tmp_path):
     assert real.roughness == cfg.roughness and cfg.sensor.ideal  # the original is untouched
     with pytest.raises(InputError, match="material"):
         cfg.with_realism(SensorModel(), "chrome")
+
+
+def test_frames_are_parsed_or_refused_by_name():
+    from addon.core.config.scan import parse_frames
+    from addon.core.errors import InputError
+
+    assert parse_frames(None) is None and parse_frames("") is None
+    assert parse_frames("5") == slice(5, 6)
+    assert parse_frames("0:40") == slice(0, 40) and parse_frames("::2") == slice(None, None, 2)
+    for bad, message in (("0:4:0", "step must be"), ("0:4:-1", "step must be"), ("a:b", "expected A:B"),
+                         ("1:2:3:4", "expected A:B"), ("x", "expected A:B")):
+        with pytest.raises(InputError, match=message):
+            parse_frames(bad, "--frames")

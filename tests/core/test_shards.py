@@ -83,3 +83,19 @@ def test_fingerprint_sees_every_bit():
     assert shards.fingerprint([q2, "gauss", 1.5]) != a
     assert shards.fingerprint([q, "gauss", 1.5]) == a
     assert shards.fingerprint([q, "cog", 1.5]) != a
+
+
+def test_the_scan_fingerprint_comes_from_every_field_of_the_config():
+    from dataclasses import fields, replace
+
+    from addon.core.config.scan import ScanConfig, load_scan_config
+    from addon.core.scan.shards import NOT_IN_FINGERPRINT
+
+    a, b = load_scan_config("demo"), load_scan_config("demo")
+    assert shards.fingerprint([a]) == shards.fingerprint([b])  # loaded twice: the same scan
+    assert shards.fingerprint([a]) == shards.fingerprint([replace(a, name="renamed", description="x")])
+    changed = {"roughness": 0.7, "coverage_tolerance_mm": 2.0, "fuse": False, "material": "dark",
+               "triangulate_method": "paper", "detect_method": "cog", "probe": a.probe.with_resolution(100, 100)}
+    for name, value in changed.items():
+        assert shards.fingerprint([replace(a, **{name: value})]) != shards.fingerprint([a]), name
+    assert {f.name for f in fields(ScanConfig)} > set(changed) | NOT_IN_FINGERPRINT

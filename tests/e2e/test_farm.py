@@ -39,10 +39,51 @@ def test_two_workers_give_the_single_process_cloud_on_loopback_only(config, sing
     assert any("cell reused" in line for line in lines)  # a worker kept its scene between shards
 
 
-def test_a_worker_killed_mid_shard_loses_nothing(config, single, tmp_path, monkeypatch):
+def die_in_shard(index: int, marker: str):
+    """A Dask worker plugin (the fault is the test's, not the farm's), defined here so that it
+    travels to the workers by value: the worker that starts shard ``index`` dies after the
+    shard's first chunk, once (``marker`` records it)."""
+    from dask.distributed import WorkerPlugin
+
+    class DieInShard(WorkerPlugin):
+        def __init__(self, index: int, marker: str):
+            self.index, self.marker = index, marker
+
+        def setup(self, worker):
+            import os
+            from pathlib import Path
+
+            from addon import pipeline
+            from headless import farm as worker_farm
+
+            run_shard, step = worker_farm.run_shard, pipeline.ScanRun.step
+            armed = {"now": False}
+
+            def doomed_run_shard(config, plan, shard, *args, **kwargs):
+                armed["now"] = shard.index == self.index and not Path(self.marker).exists()
+                return run_shard(config, plan, shard, *args, **kwargs)
+
+            def doomed_step(run):
+                done = step(run)
+                if armed["now"]:
+                    Path(self.marker).write_text(f"worker {os.getpid()} died in shard {self.index}\n")
+                    os._exit(17)
+                return done
+
+            worker_farm.run_shard, pipeline.ScanRun.step = doomed_run_shard, doomed_step
+
+    return DieInShard(index, marker)
+
+
+def test_a_worker_killed_mid_shard_loses_nothing(config, single, tmp_path):
+    from dask.distributed import Client, LocalCluster
+
     marker = tmp_path / "died.txt"
-    monkeypatch.setenv(farm.DIE_ENV, f"1:{marker}")  # the worker that starts shard 1 dies after its first chunk
-    res = farm.run_farm(config, tmp_path / "out", workers=2, shard_frames=5, log=lambda m: None)
+    with LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1", dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        client.register_plugin(die_in_shard(1, str(marker)), name="die-in-shard-1")
+        res = farm.run_farm(config, tmp_path / "out", scheduler=cluster.scheduler_address, shard_frames=5,
+                            log=lambda m: None, render_threads=1)
     assert marker.exists(), "the fault was not injected"
     same_cloud(res.cloud, single.cloud)  # nothing lost, nothing twice
     assert res.report["farm"]["computed"] == 4

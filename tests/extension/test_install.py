@@ -100,7 +100,7 @@ def linux_zip(tmp_path_factory):
 
 def test_zip_ships_the_addon_its_rigs_and_linux_wheels_for_both_pythons(linux_zip):
     names = set(zipfile.ZipFile(linux_zip).namelist())
-    for needed in ("blender_manifest.toml", "__init__.py", "addon/core/kinematics.py", "addon/ui/ops.py",
+    for needed in ("blender_manifest.toml", "__init__.py", "addon/core/kinematics/robot.py", "addon/scanner.py", "addon/ui/ops.py",
                    "addon/scene/compat.py", "rigs/robots/adept_viper_s650.toml", "rigs/scenes/demo.toml"):
         assert needed in names
     wheels = [n for n in names if n.startswith("wheels/")]

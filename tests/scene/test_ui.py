@@ -316,3 +316,33 @@ def test_every_panel_draws_with_and_without_a_cell_and_realism(panel):
     assert any(t.startswith("Speckle grain") for t in labels) and any("In focus at" in t for t in labels)
     s.sensor_focus_mm = 1.0  # inside the focal length: shown, not raised
     assert "focal length" in " ".join(draw_all(context))
+
+
+def test_the_scan_operator_carries_its_parameters(panel, tmp_path):
+    # A script sets nothing on the panel: config, frames and output folder are the call's.
+    assert panel.scanner.scan_config == "demo"
+    res = bpy.ops.scanner.scan(config="step_block", frames="0:100:25", output_dir=str(tmp_path))
+    assert res == {"FINISHED"}
+    (folder,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    assert {p.name for p in folder.iterdir()} == {"cloud.ply", "report.json", "preview.png"}
+    import json
+
+    assert json.loads((folder / "report.json").read_text())["frames"] == 4
+    with pytest.raises(RuntimeError, match="step must be a whole number of at least 1"):
+        bpy.ops.scanner.scan(config="step_block", frames="0:4:0", output_dir=str(tmp_path))
+
+
+def test_an_unexpected_failure_midway_puts_the_scene_back(panel, tmp_path, monkeypatch):
+    from addon import pipeline
+
+    _artists_settings(panel)
+    before = _settings_of(panel)
+
+    def broken(self):
+        raise RuntimeError("disk on fire")
+
+    monkeypatch.setattr(pipeline.ScanRun, "step", broken)
+    with pytest.raises(RuntimeError, match="RuntimeError: disk on fire"):  # bpy.ops raises what the operator reported
+        bpy.ops.scanner.scan(config="demo", frames="0:10", output_dir=str(tmp_path))
+    assert _settings_of(panel) == before
+    assert not list(tmp_path.rglob("*.ply")) and bpy.data.objects.get("Scan cloud") is None

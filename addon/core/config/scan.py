@@ -178,6 +178,25 @@ class ScanConfig:
         return cfg
 
 
+def parse_frames(text: str | None, what: str = "frames") -> slice | None:
+    """A part of a path as the user writes it ("A:B", "A:B:STEP", "::2", "5") -> a slice; None
+    for none given. Whole numbers only, a step of at least 1."""
+    if text is None or not str(text).strip():
+        return None
+    parts = str(text).split(":")
+    try:
+        values = [int(p) if p.strip() else None for p in parts]
+    except ValueError:
+        values = []
+    if len(parts) == 1 and values and values[0] is not None:
+        return slice(values[0], values[0] + 1)
+    if len(values) not in (2, 3):
+        raise InputError(f"{what} {text!r}: expected A:B or A:B:STEP with whole numbers (e.g. 0:40 or ::2)")
+    if len(values) == 3 and values[2] is not None and values[2] < 1:
+        raise InputError(f"{what} {text!r}: the step must be a whole number of at least 1")
+    return slice(*values)
+
+
 def _rig_path(base: Path, value: str) -> str:
     """A rig given as a path is relative to the config file; a bare name is a bundled rig."""
     if "/" in value or "\\" in value or value.endswith(".toml"):

@@ -15,6 +15,7 @@ shard it falls in, and band renders give the rows full frames give bit for bit.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import io
 import json
@@ -64,17 +65,43 @@ def default_shard_frames(n_frames: int, workers: int) -> int:
     return max(4, math.ceil(n_frames / max(4 * workers, 1)))
 
 
+# Fields of a config that name or describe a scan without changing its result.
+NOT_IN_FINGERPRINT = {"name", "source", "description"}
+
+
+def _feed(h, part) -> None:
+    """Hash ``part``: arrays as exact bytes, dataclasses field by field (so that every field a
+    config has counts, without a list to keep up to date), meshes by their vertices and faces."""
+    if isinstance(part, np.ndarray):
+        a = np.ascontiguousarray(part)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    elif dataclasses.is_dataclass(part) and not isinstance(part, type):
+        h.update(type(part).__qualname__.encode())
+        for f in dataclasses.fields(part):
+            if f.name not in NOT_IN_FINGERPRINT:
+                h.update(f.name.encode())
+                _feed(h, getattr(part, f.name))
+    elif hasattr(part, "vertices") and hasattr(part, "faces"):
+        _feed(h, np.asarray(part.vertices))
+        _feed(h, np.asarray(part.faces))
+    elif isinstance(part, (list, tuple)):
+        for item in part:
+            _feed(h, item)
+    elif isinstance(part, dict):
+        for key in sorted(part, key=repr):
+            h.update(repr(key).encode())
+            _feed(h, part[key])
+    else:
+        h.update(repr(part).encode())
+    h.update(b"\x00")
+
+
 def fingerprint(parts: list) -> str:
     """SHA-256 of everything that decides a scan's result (numbers as exact bytes, the rest as text)."""
     h = hashlib.sha256()
     for part in parts:
-        if isinstance(part, np.ndarray):
-            a = np.ascontiguousarray(part)
-            h.update(str((a.dtype.str, a.shape)).encode())
-            h.update(a.tobytes())
-        else:
-            h.update(repr(part).encode())
-        h.update(b"\x00")
+        _feed(h, part)
     return h.hexdigest()
 
 
