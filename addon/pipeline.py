@@ -25,6 +25,7 @@ import json
 import math
 import platform
 import time
+from warnings import catch_warnings, simplefilter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
@@ -130,7 +131,8 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
         raise ScannerError("neither camera sees the laser line anywhere on the path (hidden or off the sensors)")
     predicted = np.full((n, 2), np.nan)
     if cameras:
-        with np.errstate(all="ignore"):
+        with np.errstate(all="ignore"), catch_warnings():
+            simplefilter("ignore", RuntimeWarning)  # frames no camera sees: NaN, as meant
             rows = foot.rows[:, list(cameras)]
             predicted = np.column_stack([np.nanmin(rows[:, :, 0], axis=1), np.nanmax(rows[:, :, 1], axis=1)])
     return Plan(np.asarray(q, dtype=np.float64), np.asarray(table_rad, dtype=np.float64), cameras, predicted,

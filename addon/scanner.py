@@ -122,6 +122,7 @@ class Scanner:
         self._warnings: list[str] = []
         self._t0 = time.perf_counter()
         self._frames = 0
+        self._cached = None  # ((frames measured, output folder), ScanResult) of the last result()
 
     @classmethod
     def from_config(cls, name_or_path: str | Path, scene=None, **overrides) -> "Scanner":
@@ -153,6 +154,11 @@ class Scanner:
             raise InputError(f"relative_to must be one of {', '.join(RELATIVE_TO)}, got {relative_to!r}")
         cell = self.config.cell
         return cell.probe2table(self._q, self._table_rad) if relative_to == "table" else cell.probe2base(self._q)
+
+    @property
+    def scene_cell(self):
+        """The Blender cell the scanner renders in (None before the first measurement)."""
+        return self._sc
 
     @property
     def cloud(self) -> Cloud:
@@ -230,7 +236,16 @@ class Scanner:
 
     def run(self, progress=None) -> ScanReport:
         """Scan the configured path ([[path]] entries) from its start joints; the probe ends at
-        the path's last pose. Returns the report of everything measured so far."""
+        the path's last pose. ``progress(stage, done, total)`` is called after each chunk of
+        frames. Returns the report of everything measured so far."""
+        for _ in self.run_steps(progress):
+            pass
+        return self.report()
+
+    def run_steps(self, progress=None):
+        """The configured path chunk by chunk, for callers that must stay responsive (the
+        panel): a generator that yields (frames done, frames in all) after each chunk. The
+        path is planned (IK, reach, range) before the first yield; a refusal raises then."""
         cfg = self.config
         if not len(cfg.waypoints):
             raise InputError("this scanner has no path to run (give one in a scan config, or use sweep/measure)")
@@ -240,10 +255,9 @@ class Scanner:
         plan = plan_scan(cfg)
         self._timing["plan"] += time.perf_counter() - t
         self._warnings += plan.warnings
-        self._scan_frames(plan.q, plan.table_rad, plan=plan, progress=progress)
+        yield from self._frames_steps(plan.q, plan.table_rad, plan=plan, progress=progress)
         self._q = np.array(plan.q[-1], dtype=np.float64)
         self._table_rad = float(plan.table_rad[-1])
-        return self.report()
 
     def _scene_cell(self):
         if self._sc is None:
@@ -260,9 +274,19 @@ class Scanner:
             self._timing["scene"] += time.perf_counter() - t
         return self._sc
 
-    def _scan_frames(self, q: np.ndarray, table_rad: np.ndarray, plan=None, progress=None) -> list[Profile]:
+    def _scan_frames(self, q: np.ndarray, table_rad: np.ndarray) -> list[Profile]:
         """Render, detect and triangulate the frames at joints q (n, 6) and table angles (n,);
         their points join the cloud under the next frame numbers."""
+        steps = self._frames_steps(q, table_rad)
+        while True:
+            try:
+                next(steps)
+            except StopIteration as done:
+                return done.value
+
+    def _frames_steps(self, q: np.ndarray, table_rad: np.ndarray, plan=None, progress=None):
+        """The work of :meth:`_scan_frames` as a generator: yields (done, total) after each
+        chunk of frames and returns the profiles."""
         from .pipeline import ScanRun, cell_surfaces, plan_frames
 
         cfg = self.config
@@ -283,7 +307,8 @@ class Scanner:
         run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, np.zeros(n, int))), None, progress,
                       plan=plan, scene_cell=self._scene_cell())
         while not run.step():
-            pass
+            yield run.done, run.n
+        yield run.done, run.n
         for stage in ("render", "detect", "triangulate"):
             self._timing[stage] += getattr(run, f"t_{stage}" if stage != "triangulate" else "t_tri")
         self._stats.append(run.stats)
@@ -300,19 +325,28 @@ class Scanner:
         return out
 
     # -- results -------------------------------------------------------------------------
-    def _result(self, out_dir: str | Path | None):
+    def result(self, out_dir: str | Path | None = None):
+        """Everything measured so far, measured against the truth (a ScanResult: cloud, the
+        report's dict, per-point error and part/table split, files), and with ``out_dir``
+        written there. Kept until the next measurement, so report() after save() is free."""
         from .pipeline import Plan, assemble, merge_stats
 
+        key = (self._frames, str(out_dir) if out_dir is not None else None)
+        if self._cached is not None and self._cached[0][0] == key[0] and (out_dir is None or self._cached[0] == key):
+            return self._cached[1]
         plan = Plan(np.zeros((0, 6)), np.zeros(0), tuple(sorted(self._cameras)), np.zeros((0, 2)),
                     list(self._warnings))
-        return assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0)
+        result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
+                          {"render_device": getattr(self._sc, "device_used", None)})
+        self._cached = (key, result)
+        return result
 
     def report(self) -> ScanReport:
         """The report of everything measured so far: error against the part's exact shape,
         coverage, detection codes, timing (typed; ``report_json`` gives its JSON)."""
-        return ScanReport.from_dict(self._result(None).report)
+        return ScanReport.from_dict(self.result().report)
 
     def save(self, out_dir: str | Path) -> dict[str, Path]:
         """Write cloud.ply, report.json and preview.png into ``out_dir`` (each atomically);
         returns their paths."""
-        return self._result(out_dir).files
+        return self.result(out_dir).files

@@ -104,7 +104,6 @@ def run_demo(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, config, out: str) -> int:
     from addon.core.config.scan import parse_frames
-    from addon.pipeline import run_scan
 
     config = config.with_overrides(engine=args.engine, samples=args.samples,
                                    resolution=parse_resolution(args.resolution), detect=args.detect,
@@ -135,7 +134,11 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
                           log=(lambda m: None) if args.quiet else (lambda m: print(m, flush=True)),
                           progress=ProgressBar(args.quiet), merge_only=args.merge)
     else:
-        result = run_scan(config, out, progress=ProgressBar(args.quiet))
+        from addon import Scanner
+
+        scanner = Scanner(config=config)
+        scanner.run(progress=ProgressBar(args.quiet))
+        result = scanner.result(out)
     wall = time.perf_counter() - t
     r = result.report
     e = r["error_um"]

@@ -179,7 +179,9 @@ class SCANNER_OT_scan(bpy.types.Operator):
                                description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
 
     _timer = None
-    _run = None
+    _scanner = None
+    _steps = None
+    _progress = (0, 0)
     _state = None
 
     def _config(self, context):
@@ -202,14 +204,25 @@ class SCANNER_OT_scan(bpy.types.Operator):
         return models.output_dir(context.scene.scanner, name)
 
     def _start(self, context):
-        from ..pipeline import ScanRun
+        from ..scanner import Scanner
 
         self._state = RenderState(context.scene)  # put back when the scan ends, however it ends
         try:
-            self._run = ScanRun(self._config(context), scene=context.scene)
+            self._scanner = Scanner(config=self._config(context), scene=context.scene)
+            self._steps = self._scanner.run_steps()
+            self._progress = next(self._steps)  # plans the path (a refusal raises here), then the first chunk
         except BaseException:
+            self._scanner = self._steps = None
             self._restore()
             raise
+
+    def _step(self) -> bool:
+        """The next chunk of frames; True when the path is done."""
+        try:
+            self._progress = next(self._steps)
+        except StopIteration:
+            return True
+        return False
 
     def _restore(self):
         state, self._state = self._state, None
@@ -220,17 +233,17 @@ class SCANNER_OT_scan(bpy.types.Operator):
         from ..scene.cloud_object import import_cloud
 
         s = context.scene.scanner
-        run, self._run = self._run, None
+        scanner, self._scanner, self._steps = self._scanner, None, None
         try:
-            result = run.finish(self._output_dir(context, run.config.name))
+            result = scanner.result(self._output_dir(context, scanner.config.name))
         finally:
             self._restore()
         old = bpy.data.objects.get(models.CLOUD_NAME)
         if old is not None:
             bpy.data.objects.remove(old, do_unlink=True)
         if s.import_cloud:
-            import_cloud(run.scene_cell.results_collection(), result.cloud, run.scene_cell.table, result.error_um,
-                         name=models.CLOUD_NAME, on_part=result.on_part)
+            import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
+                         result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
         e = result.report["error_um"]
         self.report({"INFO"}, f"Scanned {result.report['points']} points, RMS {e['rms_um']:.1f} um; "
                               f"files in {result.files['cloud'].parent}")
@@ -238,11 +251,11 @@ class SCANNER_OT_scan(bpy.types.Operator):
     def execute(self, context):
         try:
             self._start(context)
-            while not self._run.step():
+            while not self._step():
                 pass
             self._finish(context)
         except Exception as exc:  # any failure: the scene comes back as it was, and the user is told
-            self._run = None
+            self._scanner = self._steps = None
             self._restore()
             self.report({"ERROR"}, _message(exc))
             return {"CANCELLED"}
@@ -256,30 +269,30 @@ class SCANNER_OT_scan(bpy.types.Operator):
             return {"CANCELLED"}
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.01, window=context.window)
-        wm.progress_begin(0, self._run.n)
+        wm.progress_begin(0, self._progress[1])
         wm.modal_handler_add(self)
-        models.status(context, f"Scanning {self._run.n} frames... (Esc to cancel)")
+        models.status(context, f"Scanning {self._progress[1]} frames... (Esc to cancel)")
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
         if event.type == "ESC":
             self._stop(context)
-            self._run = None  # partial results are discarded: nothing was written or imported
+            self._scanner = self._steps = None  # partial results are discarded: nothing was written or imported
             self.report({"WARNING"}, "Scan cancelled; nothing was kept")
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         try:
-            done = self._run.step()
-            context.window_manager.progress_update(self._run.done)
-            models.status(context, f"Scanning: {self._run.done}/{self._run.n} frames (Esc to cancel)")
+            done = self._step()
+            context.window_manager.progress_update(self._progress[0])
+            models.status(context, f"Scanning: {self._progress[0]}/{self._progress[1]} frames (Esc to cancel)")
             if not done:
                 return {"RUNNING_MODAL"}
             self._stop(context)
             self._finish(context)
         except Exception as exc:  # any failure: timer, progress bar and scene settings are put back
             self._stop(context)
-            self._run = None
+            self._scanner = self._steps = None
             self.report({"ERROR"}, _message(exc))
             return {"CANCELLED"}
         return {"FINISHED"}

@@ -30,6 +30,13 @@ class ErrorStats:
     def as_dict(self) -> dict:
         return asdict(self)
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "ErrorStats":
+        """From ``as_dict`` or its JSON, where NaN was written as null."""
+        nan = float("nan")
+        return cls(int(d["n"]), *(nan if d[k] is None else float(d[k])
+                                  for k in ("rms_um", "mean_um", "p95_um", "max_um", "bias_um")))
+
 
 def error_stats(distance_mm, signed_mm=None) -> ErrorStats:
     d = np.abs(np.asarray(distance_mm, dtype=np.float64).ravel())

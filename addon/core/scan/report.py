@@ -11,6 +11,8 @@ import json
 import math
 from dataclasses import asdict, dataclass, field, fields
 
+from ..geometry.metrics import ErrorStats
+
 
 def _finite_or_none(value):
     """JSON has no NaN or infinity: such numbers become null, everywhere in a structure."""
@@ -34,23 +36,6 @@ def _nan(value) -> float:
 
 
 @dataclass(frozen=True)
-class ErrorSummary:
-    """Point-to-surface error of n points in µm (NaN where there are no points; bias NaN where
-    the truth has no sign)."""
-
-    n: int
-    rms_um: float
-    mean_um: float
-    p95_um: float
-    max_um: float
-    bias_um: float
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "ErrorSummary":
-        return cls(int(d["n"]), *(_nan(d[k]) for k in ("rms_um", "mean_um", "p95_um", "max_um", "bias_um")))
-
-
-@dataclass(frozen=True)
 class ScanReport:
     """What a scan measured and what it cost.
 
@@ -66,8 +51,8 @@ class ScanReport:
     points: int
     points_on_part: int
     points_on_table: int
-    error_um: ErrorSummary
-    table_error_um: ErrorSummary
+    error_um: ErrorStats
+    table_error_um: ErrorStats
     coverage: float
     coverage_tolerance_mm: float
     valid_fraction: float
@@ -86,8 +71,8 @@ class ScanReport:
     def from_dict(cls, d: dict) -> "ScanReport":
         names = {f.name for f in fields(cls)} - {"extra"}
         kwargs = {k: v for k, v in d.items() if k in names}
-        kwargs["error_um"] = ErrorSummary.from_dict(d["error_um"])
-        kwargs["table_error_um"] = ErrorSummary.from_dict(d["table_error_um"])
+        kwargs["error_um"] = ErrorStats.from_dict(d["error_um"])
+        kwargs["table_error_um"] = ErrorStats.from_dict(d["table_error_um"])
         kwargs["profiles_per_s"] = _nan(d["profiles_per_s"])
         return cls(**kwargs, extra={k: v for k, v in d.items() if k not in names})
 
