@@ -114,3 +114,24 @@ def test_missing_link_mesh_is_an_error(tmp_path):
     path.write_text(path.read_text().replace("max_deg = 170.0", 'max_deg = 170.0\nmesh = "nope.stl"', 1))
     with pytest.raises(ConfigError, match="link\\[1\\].mesh.*no such file"):
         load_robot(path)
+
+
+def test_rigs_are_read_once_and_again_only_when_the_file_changes(tmp_path, monkeypatch):
+    import os
+    import shutil
+
+    from addon.core.config import rigs, toml
+    from addon.core.config.rigs import load_probe
+
+    path = tmp_path / "probe.toml"
+    shutil.copy(toml.RIGS_DIR / "probes" / "default.toml", path)
+    reads = []
+    real = rigs.load_toml
+    monkeypatch.setattr(rigs, "load_toml", lambda p: reads.append(p) or real(p))
+    first = load_probe(path)
+    for _ in range(50):  # a panel redrawing: no file is parsed again
+        assert load_probe(path) is first
+    assert len(reads) == 1
+    path.write_text(path.read_text().replace('name = "', 'name = "Edited ', 1))
+    os.utime(path, ns=(path.stat().st_atime_ns, path.stat().st_mtime_ns + 10**9))
+    assert load_probe(path).name.startswith("Edited") and len(reads) == 2
