@@ -219,12 +219,13 @@ def run_scan(config: ScanConfig, out_dir: str | Path | None, scene=None, progres
 
     ``scene``: build the cell there (the Blender UI passes its own); None resets
     Blender to an empty scene first (headless). Nothing is written unless the whole
-    scan succeeds.
+    scan succeeds. A shorthand for ``Scanner(config=config).run()`` and its ``result``.
     """
-    run = ScanRun(config, scene, progress)
-    while not run.step():
-        pass
-    return run.finish(out_dir if write_outputs else None)
+    from .scanner import Scanner
+
+    scanner = Scanner(config=config, scene=scene)
+    scanner.run(progress)
+    return scanner.result(out_dir if write_outputs else None)
 
 
 class ScanRun:
