@@ -33,7 +33,7 @@ from .core.errors import InputError, UnreachablePose
 from .core.geometry.cloud import Cloud
 from .core.geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
 from .core.kinematics.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
-from .core.kinematics.path import Waypoints, probe_orientation, sweep as sweep_waypoints
+from .core.kinematics.path import Waypoints, sweep as sweep_waypoints
 from .core.kinematics.robot import Robot
 from .core.kinematics.transforms import check_transform
 from .core.kinematics.turntable import Turntable

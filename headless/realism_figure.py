@@ -69,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _frame(cfg, index: int, camera: int):
-    from addon.pipeline import ScanRun, _detect_all
+    from addon.core.scan.frames import detect_all as _detect_all
+    from addon.pipeline import ScanRun
 
     run = ScanRun(cfg, keep_images=True)
     while not run.step():

@@ -119,7 +119,7 @@ class SCANNER_OT_render_views(bpy.types.Operator):
         return _cell_built(context)
 
     def execute(self, context):
-        from ..pipeline import with_sensor
+        from ..core.config.render import with_sensor
         from ..core.config.render import RenderOptions
 
         s = context.scene.scanner

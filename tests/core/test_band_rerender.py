@@ -8,7 +8,7 @@ it. A line whose peak sits on the band's first or last row may run on outside th
 import numpy as np
 
 from addon.core.optics.detect import DetectParams, LineCode, detect_line
-from addon.pipeline import _needs_full_frame
+from addon.core.scan.band import needs_full_frame as _needs_full_frame
 
 ROWS, COLS = 100, 64
 BAND = (30, 60)

@@ -7,7 +7,7 @@ Blender's settings and adds nothing of its own.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..errors import InputError, check_whole
 
@@ -64,3 +64,17 @@ class RenderOptions:
             w, h = self.resolution
             check_whole(w, "image width", 2, 100_000)
             check_whole(h, "image height", 2, 100_000)
+
+
+def with_sensor(settings, sensor):
+    """``settings`` (a RenderOptions) with the sensor model's render-side effects: pixel
+    area integration (box filter of one pixel, enough samples to fill it) and motion
+    during the exposure (the shutter open for exposure × frame rate of each frame)."""
+    samples, pixel_filter, width = settings.samples, settings.pixel_filter, settings.filter_width_px
+    if sensor.integrate_pixels:
+        samples, pixel_filter, width = max(samples, 16), "BOX", 1.0
+    shutter = sensor.shutter_fraction if sensor.motion_blur else 0.0
+    if shutter > 0:
+        samples = max(samples, 16)
+    return replace(settings, samples=samples, pixel_filter=pixel_filter, filter_width_px=width,
+                   motion_blur_shutter=shutter)

@@ -22,11 +22,10 @@ Public API (kept stable)::
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError, InputError
+from ..errors import InputError
 from ..tolerances import TOL
 from .transforms import _cos_sin, check_transform
 

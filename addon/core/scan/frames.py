@@ -1,0 +1,76 @@
+"""One frame's images to one profile: detection per camera (in full-sensor rows when a band
+was rendered), lens distortion removed where the probe is calibrated, triangulation, the
+profile filter, and the two cameras fused; and the per-scan counters of what was seen."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..config.scan import ScanConfig
+from ..optics.detect import detect_line
+from ..optics.profile_filter import filter_profile
+from ..optics.triangulate import fuse_profiles, triangulate_profile
+
+
+def new_stats() -> dict:
+    """Per-scan counters: sensor columns seen and kept, frames re-rendered at full height,
+    rows rendered per frame, and columns per detection code."""
+    return dict(columns=0, valid=0, rerendered=0, band_rows=[], codes={})
+
+
+def merge_stats(parts: list[dict]) -> dict:
+    """The counters of several parts of one scan (shards), added up."""
+    out = new_stats()
+    for st in parts:
+        out["columns"] += int(st["columns"])
+        out["valid"] += int(st["valid"])
+        out["rerendered"] += int(st["rerendered"])
+        out["band_rows"] += [int(v) for v in st["band_rows"]]
+        for name, count in st["codes"].items():
+            out["codes"][name] = out["codes"].get(name, 0) + int(count)
+    return out
+
+
+def detect_all(images, rows, config: ScanConfig):
+    """Detections for each camera's image (None where the camera was not rendered), rows in full-image terms."""
+    out = []
+    for img in images:
+        if img is None:
+            out.append(None)
+            continue
+        line = detect_line(img, config.detect_method, config.detect_params, 0 if rows is None else rows[0])
+        if rows is not None:  # the image holds rows r0..r1−1 of the sensor; its rows are the sensor's
+            line.shape = (config.probe.rows_px, config.probe.cols_px)
+            # (A peak on the band's first or last row is coded EDGE; the caller re-renders
+            # such frames at full height: see _needs_full_frame.)
+        out.append(line)
+    return out
+
+
+def frame_profile(probe, lines, config: ScanConfig):
+    sensor = config.sensor
+    if sensor.distortion and sensor.undistort:  # a calibrated probe removes its lens distortion
+        undone = []
+        for ln in lines:
+            if ln is None:
+                undone.append(None)
+                continue
+            ok = ln.valid
+            u, v = ln.col.astype(np.float64), ln.row.copy()
+            u[ok], v[ok] = sensor.undistort_pixels(probe, u[ok], v[ok])
+            undone.append(replace(ln, col=u, row=v))
+        lines = undone
+    profs = [filter_profile(triangulate_profile(probe, ln, cam, config.triangulate_method), config.profile_filter)
+             for cam, ln in enumerate(lines) if ln is not None]
+    if len(profs) == 2 and config.fuse:
+        return fuse_profiles(*profs)
+    if len(profs) == 2:
+        merged = profs[0].take(np.ones(len(profs[0]), bool))
+        other = profs[1]
+        merged.points = np.concatenate([merged.points, other.points])
+        for name in ("col", "camera", "angle_rad", "sigma_mm"):
+            setattr(merged, name, np.concatenate([getattr(merged, name), getattr(other, name)]))
+        return merged
+    return profs[0]

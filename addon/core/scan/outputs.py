@@ -1,0 +1,116 @@
+"""A scan's result: the cloud measured against the truth (points nearer the part count as the
+part's, the rest as the table's), the report, and cloud.ply, report.json and preview.png
+written atomically, all at the end."""
+
+from __future__ import annotations
+
+import platform
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..config.scan import ScanConfig
+from ..files import write_bytes_atomic, write_png
+from ..geometry import metrics
+from ..geometry.cloud import save_ply
+from ..kinematics.turntable import TABLE_RADIUS_MM
+from .plan import Plan
+from .preview import render_preview
+from .report import report_json
+
+
+@dataclass
+class ScanResult:
+    """cloud (table frame); report (the report.json content); files written; per point:
+    |error| to the part in µm and whether the point counts as the part's (else the table's)."""
+
+    cloud: object
+    report: dict
+    files: dict
+    error_um: np.ndarray | None = None
+    on_part: np.ndarray | None = None
+
+
+def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, out_dir: str | Path | None,
+             t_start: float, extra: dict | None = None) -> ScanResult:
+    """The scan's result from its cloud and counters: error against the truth, the report,
+    and (with ``out_dir``) cloud.ply, report.json and preview.png written atomically."""
+    probe = config.probe
+    timing = dict(timing)
+    t = time.perf_counter()
+    quality, on_part, error_um = measure_against_truth(cloud, config)
+    timing["metrics"] = time.perf_counter() - t
+    n = int(len(stats["band_rows"]))
+    scan_time = timing.get("render", 0.0) + timing.get("detect", 0.0) + timing.get("triangulate", 0.0)
+    r = config.render
+    report = {
+        "config": {"name": config.name, "file": config.source, "robot": config.robot.name, "probe": probe.name,
+                   "sensor_px": [probe.cols_px, probe.rows_px], "workpiece": config.workpiece.source,
+                   "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
+                   "triangulate": config.triangulate_method, "fuse": config.fuse,
+                   "sensor": "ideal" if config.sensor.ideal else sensor_effects(config.sensor),
+                   "material": config.material},
+        "frames": n,
+        "points": len(cloud),
+        "valid_fraction": stats["valid"] / max(stats["columns"], 1),
+        "column_codes": stats["codes"],
+        "cameras_rendered": list(plan.cameras),
+        "frames_rerendered_full": stats["rerendered"],
+        "mean_rows_rendered": float(np.mean(stats["band_rows"])) if stats["band_rows"] else 0.0,
+        "time_s": {k: round(v, 4) for k, v in timing.items()},
+        "profiles_per_s": n / scan_time if scan_time > 0 else float("inf"),
+        **quality,
+        "warnings": plan.warnings,
+        "software": {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__},
+        **(extra or {}),
+    }
+    files = {}
+    if out_dir is not None:
+        t = time.perf_counter()
+        files = write_outputs(Path(out_dir), cloud, report, config, on_part, error_um)
+        report["time_s"]["write"] = round(time.perf_counter() - t, 4)
+    report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
+    if files:
+        write_bytes_atomic(files["report"], report_json(report).encode())
+    return ScanResult(cloud, report, files, error_um, on_part)
+
+
+def sensor_effects(sensor) -> list[str]:
+    names = ("integrate_pixels", "saturate", "noise", "speckle", "defocus", "motion_blur")
+    return [n for n in names if getattr(sensor, n)] + (["distortion"] if sensor.distortion else [])
+
+
+def measure_against_truth(cloud, config: ScanConfig) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Error against the truth: points nearer the part count as the part's, the rest as the table's.
+
+    Returns (report entries, on_part (n,) bool, |error| (n,) µm to the part)."""
+    wp = config.workpiece
+    P = cloud.points
+    if len(P) == 0:
+        return ({"points_on_part": 0, "points_on_table": 0, "error_um": metrics.error_stats([]).as_dict(),
+                 "table_error_um": metrics.error_stats([]).as_dict(), "coverage": 0.0,
+                 "coverage_tolerance_mm": config.coverage_tolerance_mm}, np.zeros(0, bool), np.zeros(0))
+    d_part, s_part = metrics.distances(P, wp.truth)
+    radial = np.hypot(P[:, 0], P[:, 1])
+    d_table = np.where(radial <= TABLE_RADIUS_MM, np.abs(P[:, 2]), np.inf)
+    on_part = d_part <= d_table
+    part = metrics.error_stats(d_part[on_part], None if s_part is None else s_part[on_part])
+    table = metrics.error_stats(d_table[~on_part], P[~on_part, 2])
+    coverage = metrics.coverage(P[on_part], wp.mesh, config.coverage_tolerance_mm)
+    return ({"points_on_part": int(on_part.sum()), "points_on_table": int((~on_part).sum()),
+             "error_um": part.as_dict(), "table_error_um": table.as_dict(), "coverage": coverage,
+             "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3)
+
+
+def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, err) -> dict:
+    e = report["error_um"]
+    title = (f"{config.name}: {len(cloud)} points, RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
+             f"coverage {report['coverage'] * 100:.0f} %")
+    picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title)
+    files = {"cloud": out / "cloud.ply", "report": out / "report.json", "preview": out / "preview.png"}
+    save_ply(cloud, files["cloud"])
+    write_png(files["preview"], picture)
+    return files

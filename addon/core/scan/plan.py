@@ -1,0 +1,96 @@
+"""A path's plan, made before anything renders: IK for every waypoint (continuous, no
+flips), then the laser fan cast against the part and the table. Unreachable waypoints
+and waypoints whose laser meets nothing inside the probe's range refuse the path here,
+with their indices; the plan keeps the cameras worth rendering and, per frame, the
+sensor rows the line can fall on."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from warnings import catch_warnings, simplefilter
+
+import numpy as np
+
+from ..config.scan import ScanConfig
+from ..errors import ScannerError, UnreachablePose
+from ..geometry.footprint import SurfaceCaster, laser_footprint
+from ..kinematics.path import solve_path
+from ..kinematics.turntable import table_top_mesh
+
+
+@dataclass
+class Plan:
+    """q (n, 6); table_rad (n,); cameras to render; predicted_rows (n, 2): lowest and highest
+    sensor row of the line in each frame from the ray casts (NaN: none), rendered cameras only."""
+
+    q: np.ndarray
+    table_rad: np.ndarray
+    cameras: tuple[int, ...]
+    predicted_rows: np.ndarray
+    warnings: list = field(default_factory=list)
+
+
+def frame_ranges(indices) -> str:
+    """[0, 1, 2, 5, 7, 8] -> '0-2, 5, 7-8' (the first 12 runs)."""
+    idx = sorted(int(i) for i in indices)
+    runs, start = [], None
+    for a, b in zip(idx, idx[1:] + [None]):
+        start = a if start is None else start
+        if b != a + 1:
+            runs.append(f"{start}" if start == a else f"{start}-{a}")
+            start = None
+    more = f" and {len(runs) - 12} more runs" if len(runs) > 12 else ""
+    return ", ".join(runs[:12]) + more
+
+
+def plan_scan(config: ScanConfig, allow_blind: bool = False) -> Plan:
+    """IK for the whole path and the laser footprint check; raises before anything renders.
+
+    ``allow_blind``: frames whose laser meets nothing in range are kept (a step-by-step
+    scanner measures nothing there) instead of refusing the path; where no camera sees
+    the line on any frame, ``cameras`` is empty and nothing needs rendering."""
+    cell = config.cell
+    wp = config.waypoints
+    sol = solve_path(cell, wp, config.q_start)
+    if not sol.ok.all():
+        bad = sol.unreachable
+        raise UnreachablePose(f"{len(bad)} of {len(wp)} waypoints cannot be reached (frames {frame_ranges(bad)}); "
+                              f"first, frame {bad[0]}: {sol.messages[bad[0]]}")
+    warnings = []
+    if sol.jumps:
+        warnings.append(f"joint jumps over {math.degrees(max(sol.max_step_rad)):.0f}° between neighbouring "
+                        f"waypoints at frames {frame_ranges(sol.jumps)} (near a singularity or a limit)")
+    return plan_frames(config, sol.q, wp.table_rad, allow_blind, warnings)
+
+
+def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_blind: bool = False,
+                warnings: list | None = None, surfaces: SurfaceCaster | None = None) -> Plan:
+    """The plan for frames whose joints are known (q (n, 6), table_rad (n,)): the laser fan cast
+    against the part and the table (``surfaces``, built here when not given) for the cameras to
+    render and the rows the line can fall on."""
+    wp_probe2table = config.cell.probe2table(q, table_rad)
+    foot = laser_footprint(config.probe, wp_probe2table, surfaces or cell_surfaces(config))
+    warnings = [] if warnings is None else warnings
+    n = len(q)
+    if foot.empty_frames and not allow_blind:
+        z0, z1 = config.probe.z_range_mm
+        raise ScannerError(f"{len(foot.empty_frames)} of {n} waypoints put no surface inside the probe's "
+                           f"range {z0:.0f}-{z1:.0f} mm (frames {frame_ranges(foot.empty_frames)}): "
+                           "move the path closer to or farther from the part")
+    cameras = foot.cameras_needed() if config.leave_out.skip_blind_cameras or allow_blind else (0, 1)
+    if not cameras and not allow_blind:
+        raise ScannerError("neither camera sees the laser line anywhere on the path (hidden or off the sensors)")
+    predicted = np.full((n, 2), np.nan)
+    if cameras:
+        with np.errstate(all="ignore"), catch_warnings():
+            simplefilter("ignore", RuntimeWarning)  # frames no camera sees: NaN, as meant
+            rows = foot.rows[:, list(cameras)]
+            predicted = np.column_stack([np.nanmin(rows[:, :, 0], axis=1), np.nanmax(rows[:, :, 1], axis=1)])
+    return Plan(np.asarray(q, dtype=np.float64), np.asarray(table_rad, dtype=np.float64), cameras, predicted,
+                warnings)
+
+
+def cell_surfaces(config: ScanConfig) -> SurfaceCaster:
+    """What the laser can meet in a scan: the part and the table top, ready for ray casts."""
+    return SurfaceCaster([config.workpiece.mesh, table_top_mesh()])
