@@ -15,6 +15,7 @@ Commands:
   bench farm           sharded scans on a local Dask cluster: 1 against 2 workers
   bench versions       the demo under several Blender releases (their interpreters), side by side
   bench measure        one Scanner.measure() against one frame of a batch scan
+  bench metrics        point-to-mesh distances: libigl's AABB tree against trimesh
   overview             a picture of the cell and the two probe camera images
   realism-figure       one probe frame seen by the ideal and by the realistic sensor
   build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
@@ -56,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     from headless.bench import stability as bench_stability
     from headless.bench import triangulate as bench_triangulate
     from headless.bench import measure as bench_measure
+    from headless.bench import metrics as bench_metrics
     from headless.bench import versions as bench_versions
 
     overview.add_arguments(sub.add_parser("overview", help=overview.__doc__.split("\n")[0]))
@@ -65,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
                          ("triangulate", bench_triangulate), ("render", bench_render), ("scan", bench_scan),
                          ("realism", bench_realism), ("accuracy", bench_accuracy),
                          ("stability", bench_stability), ("farm", bench_farm), ("versions", bench_versions),
-                         ("measure", bench_measure)):
+                         ("measure", bench_measure), ("metrics", bench_metrics)):
         module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))
     return parser
 

@@ -51,6 +51,10 @@ def parse_resolution(text: str | None):
     return w, h
 
 
+def _finite(value) -> bool:
+    return value is not None and value == value and abs(value) != float("inf")
+
+
 def _clock(seconds: float) -> str:
     seconds = int(round(seconds))
     return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}" if seconds >= 3600 else \
@@ -144,13 +148,17 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
     e = r["error_um"]
     print(f"\n  points        {r['points']} ({r['points_on_part']} on the part, {r['points_on_table']} on the table), "
           f"{r['valid_fraction'] * 100:.1f} % of sensor columns with a line")
-    print(f"  error         RMS {e['rms_um']:.1f} um, mean {e['mean_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
-          f"max {e['max_um']:.1f} um, bias {e['bias_um']:+.1f} um (part, against its exact shape)")
+    if e["n"]:
+        bias = f"bias {e['bias_um']:+.1f} um" if _finite(e["bias_um"]) else "bias n/a (an open mesh has no inside)"
+        print(f"  error         RMS {e['rms_um']:.1f} um, mean {e['mean_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
+              f"max {e['max_um']:.1f} um, {bias} (part, against its exact shape)")
+    else:
+        print("  error         none: no point on the part")
     print(f"  coverage      {r['coverage'] * 100:.1f} % of the part within {r['coverage_tolerance_mm']:g} mm of a point")
     ts = r["time_s"]
-    print(f"  time          {wall:.1f} s: plan {ts['plan']:.2f}, scene {ts.get('scene', 0):.2f}, "
-          f"render {ts.get('render', 0):.2f}, detect {ts.get('detect', 0):.2f}, "
-          f"triangulate {ts.get('triangulate', 0):.2f}, write {ts.get('write', 0):.2f}")
+    stages = ", ".join(f"{name} {ts[name]:.2f}" for name in ("plan", "scene", "render", "detect", "triangulate",
+                                                             "metrics", "write") if name in ts)
+    print(f"  time          {wall:.1f} s: {stages}")
     print(f"  speed         {r['profiles_per_s']:.1f} profiles/s (render + detect + triangulate) on "
           f"{r.get('render_device') or 'CPU'}; "
           f"cameras {r['cameras_rendered']}, {r['mean_rows_rendered']:.0f} of {r['config']['sensor_px'][1]} rows "

@@ -133,3 +133,57 @@ def test_written_files_get_the_usual_permissions(tmp_path):
     mask = os.umask(0)
     os.umask(mask)
     assert (path.stat().st_mode & 0o777) == (0o666 & ~mask)
+
+
+def _box_distance(P, half):
+    """Signed distance to an axis-aligned box centred at the origin, written out (positive outside)."""
+    q = np.abs(P) - half
+    outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+    inside = np.minimum(np.max(q, axis=1), 0.0)
+    return outside + inside
+
+
+def test_mesh_distances_are_exact_and_signed_on_a_closed_mesh():
+    import trimesh
+
+    from addon.core.geometry.metrics import mesh_distances
+
+    half = np.array([20.0, 15.0, 10.0])
+    box = trimesh.creation.box(extents=2 * half)
+    rng = np.random.default_rng(4)
+    P = rng.uniform(-35, 35, size=(3000, 3))
+    d, s = mesh_distances(P, box)
+    truth = _box_distance(P, half)
+    np.testing.assert_allclose(s, truth, atol=1e-9)
+    np.testing.assert_allclose(d, np.abs(truth), atol=1e-9)
+
+
+def test_an_open_mesh_gives_unsigned_distances_and_the_fallback_agrees(monkeypatch):
+    import sys
+
+    import trimesh
+
+    from addon.core.geometry.metrics import mesh_distances
+
+    half = np.array([20.0, 15.0, 10.0])
+    box = trimesh.creation.box(extents=2 * half)
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-2])  # one face of the box missing
+    P = np.random.default_rng(5).uniform(-35, 35, size=(400, 3))
+    d, s = mesh_distances(P, open_box)
+    assert s is None and np.all(d >= 0)
+    monkeypatch.setitem(sys.modules, "igl", None)  # as in a Blender without a libigl wheel
+    d_fallback, s_fallback = mesh_distances(P, box)
+    np.testing.assert_allclose(d_fallback, np.abs(_box_distance(P, half)), atol=1e-9)
+    assert s_fallback is None
+
+
+def test_a_mesh_workpiece_reports_a_bias_not_nan():
+    import trimesh
+
+    from addon.core.geometry.metrics import distances, error_stats
+
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=30.0)
+    P = sphere.vertices * 1.001  # 30 µm outside the vertices (which lie on the mesh)
+    d, s = distances(P, sphere)
+    stats = error_stats(d, s)
+    assert np.isfinite(stats.bias_um) and stats.bias_um > 0

@@ -181,3 +181,26 @@ def test_band_renders_give_the_full_frames_cloud_bit_for_bit():
     full = run_scan(replace(cfg, leave_out=replace(cfg.leave_out, render_band=False)), None, write_outputs=False)
     assert band.report["mean_rows_rendered"] < full.report["mean_rows_rendered"]
     np.testing.assert_array_equal(band.cloud.points, full.cloud.points)
+
+
+def test_a_mesh_part_is_measured_signed_and_the_summary_has_no_nan(tmp_path):
+    import trimesh
+
+    # The step block's bounding box as an STL (a closed mesh): exact truth by construction.
+    box = trimesh.creation.box(extents=[50.0, 50.0, 30.0])
+    box.apply_translation([0.0, 0.0, 15.0])
+    box.export(tmp_path / "block.stl")
+    text = (REPO / "rigs" / "scenes" / "step_block.toml").read_text()
+    start = text.index("[workpiece]")
+    end = text.index("[[path]]")
+    config = tmp_path / "mesh.toml"
+    config.write_text(text[:start] + '[workpiece]\nfile = "block.stl"\n\n' + text[end:]
+                      .replace('rig = "puma560"', f'rig = "{REPO / "rigs" / "robots" / "puma560.toml"}"')
+                      .replace('rig = "default"', f'rig = "{REPO / "rigs" / "probes" / "default.toml"}"'))
+    res = cli("scan", str(config), "--frames", "0:100:10", "--out", str(tmp_path / "out"), "--quiet")
+    assert res.returncode == 0, res.stderr[-1500:]
+    assert "nan" not in res.stdout.lower(), res.stdout
+    assert "metrics" in res.stdout  # the time line names every stage
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    e = report["error_um"]
+    assert e["n"] > 100 and e["bias_um"] is not None and abs(e["bias_um"]) < 20 and e["rms_um"] < 30

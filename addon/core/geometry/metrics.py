@@ -1,8 +1,11 @@
 """Ground-truth error of a cloud: point-to-surface distances, their statistics, coverage.
 
-Truth is either an analytic shape (:mod:`addon.core.shapes`, exact distances) or
-a mesh (trimesh closest-point queries, exact for the mesh's flat faces).
-Statistics are reported in micrometres.
+Truth is either an analytic shape (:mod:`addon.core.geometry.shapes`, exact distances) or
+a mesh: exact closest-point distances to its flat faces through libigl's AABB tree
+(25 000 points against 82 000 faces in under a second, where trimesh's proximity query
+took about 3 ms per point), signed (positive outside) where the mesh is closed, so that
+a mesh part has a bias too. Without libigl (a Blender whose Python it has no wheel for)
+trimesh answers the same distances, unsigned and slower. Statistics are in micrometres.
 """
 
 from __future__ import annotations
@@ -67,8 +70,27 @@ def distances(points, truth) -> tuple[np.ndarray, np.ndarray | None]:
     mesh = _check_mesh(truth)
     if len(P) == 0:
         return np.zeros(0), None
-    _, dist, _ = trimesh.proximity.closest_point(mesh, P)
-    return np.asarray(dist), None
+    return mesh_distances(P, mesh)
+
+
+def mesh_distances(points: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray | None]:
+    """(unsigned (n,) mm, signed (n,) mm positive outside, or None for an open mesh) from
+    points (n, 3) to a mesh's faces: exact closest points on the triangles."""
+    P = np.ascontiguousarray(points, dtype=np.float64)
+    try:
+        import igl
+    except ImportError:
+        _, dist, _ = trimesh.proximity.closest_point(mesh, P)
+        return np.asarray(dist), None
+    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    if mesh.is_watertight and mesh.is_winding_consistent:
+        # A closed, consistently wound mesh: the pseudonormal sign is exact (the fast winding
+        # number's distances are approximate, up to 37 µm off on a box).
+        signed = np.asarray(igl.signed_distance(P, V, F, sign_type=igl.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)[0])
+        return np.abs(signed), signed
+    d2 = np.asarray(igl.point_mesh_squared_distance(P, V, F)[0])
+    return np.sqrt(np.maximum(d2, 0.0)), None
 
 
 def evaluate(points, truth) -> ErrorStats:
