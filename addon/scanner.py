@@ -123,6 +123,7 @@ class Scanner:
         self._t0 = time.perf_counter()
         self._frames = 0
         self._cached = None  # ((frames measured, output folder), ScanResult) of the last result()
+        self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
 
     @classmethod
     def from_config(cls, name_or_path: str | Path, scene=None, **overrides) -> "Scanner":
@@ -299,6 +300,7 @@ class Scanner:
         first = self._frames
         n = len(q)
         probe2table = cfg.cell.probe2table(q, table_rad)
+        self._poses.append((np.array(q, dtype=np.float64), np.array(table_rad, dtype=np.float64)))
         if not plan.cameras:  # the laser meets nothing any camera sees: nothing to render
             out = [Profile(np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0), probe2table[i], q[i].copy(),
                            math.degrees(table_rad[i]), {}, first + i) for i in range(n)]
@@ -334,8 +336,9 @@ class Scanner:
         key = (self._frames, str(out_dir) if out_dir is not None else None)
         if self._cached is not None and self._cached[0][0] == key[0] and (out_dir is None or self._cached[0] == key):
             return self._cached[1]
-        plan = Plan(np.zeros((0, 6)), np.zeros(0), tuple(sorted(self._cameras)), np.zeros((0, 2)),
-                    list(self._warnings))
+        q = np.concatenate([p[0] for p in self._poses]) if self._poses else np.zeros((0, 6))
+        table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
+        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings))
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
                           {"render_device": getattr(self._sc, "device_used", None)})
         self._cached = (key, result)

@@ -154,7 +154,9 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
               f"max {e['max_um']:.1f} um, {bias} (part, against its exact shape)")
     else:
         print("  error         none: no point on the part")
-    print(f"  coverage      {r['coverage'] * 100:.1f} % of the part within {r['coverage_tolerance_mm']:g} mm of a point")
+    print(f"  coverage      {r['coverage_measurable'] * 100:.1f} % of the surface the path can measure "
+          f"({r['measurable_share'] * 100:.1f} % of the part), {r['coverage'] * 100:.1f} % of the whole part, "
+          f"within {r['coverage_tolerance_mm']:g} mm of a point")
     ts = r["time_s"]
     stages = ", ".join(f"{name} {ts[name]:.2f}" for name in ("plan", "scene", "render", "detect", "triangulate",
                                                              "metrics", "write") if name in ts)

@@ -187,3 +187,21 @@ def test_a_mesh_workpiece_reports_a_bias_not_nan():
     d, s = distances(P, sphere)
     stats = error_stats(d, s)
     assert np.isfinite(stats.bias_um) and stats.bias_um > 0
+
+
+def test_coverage_of_the_measurable_surface_counts_only_what_the_laser_reaches():
+    import trimesh
+
+    from addon.core.geometry.metrics import coverage_of_measurable
+
+    square = trimesh.Trimesh([[-50, -50, 0], [50, -50, 0], [50, 50, 0], [-50, 50, 0]], [[0, 1, 2], [0, 2, 3]])
+    g = np.arange(-50, 50.01, 0.25)
+    X, Y = np.meshgrid(g, g)
+    grid = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
+    reachable = grid[grid[:, 0] < 0]        # the laser reaches the left half
+    cloud = grid[grid[:, 0] < -25]          # the scan covered the left quarter
+    cov, share = coverage_of_measurable(cloud, square, reachable, tolerance_mm=1.0, samples=40000)
+    # Within 1 mm of the left half: 51 mm of 100; of that, within 1 mm of the quarter: 26 of 51.
+    assert share == pytest.approx(0.51, abs=0.01)
+    assert cov == pytest.approx(26 / 51, abs=0.01)
+    assert coverage_of_measurable(cloud, square, np.zeros((0, 3)), 1.0) == (0.0, 0.0)

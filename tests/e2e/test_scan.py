@@ -73,6 +73,10 @@ def test_report_has_the_figures(sphere_scan):
         assert r["time_s"][stage] >= 0
     assert set(r["error_um"]) == {"n", "rms_um", "mean_um", "p95_um", "max_um", "bias_um"}
     json.dumps(r)  # everything in it is plain JSON
+    # 30 profiles of the demo (every 6th): the laser reaches only strips of the sphere, and the
+    # cloud covers nearly all of what it reaches, far more than of the whole part.
+    assert 0.0 < r["measurable_share"] < 0.5
+    assert r["coverage_measurable"] > 0.9 and r["coverage_measurable"] > r["coverage"]
 
 
 def tread_points(cfg, points):

@@ -93,16 +93,7 @@ def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.
         Rf, tf = R[frame_of[lit]], t[frame_of[lit]]
         local = np.einsum("nji,nj->ni", Rf, target - tf)  # into the probe frame: Rᵀ (p − t)
         for camera in (0, 1):
-            uv = probe.project(local, camera)
-            on_sensor = np.isfinite(uv).all(axis=1)
-            # Hidden if the first surface along the camera's ray comes before the point.
-            centre = tf + np.einsum("nij,j->ni", Rf, probe.cam2probe(camera)[:3, 3])
-            to = target - centre
-            length = np.linalg.norm(to, axis=1)
-            occ_pts, occ_ray = _first_hits(caster, centre, to / length[:, None])
-            first = np.full(len(lit), np.inf)
-            first[occ_ray] = np.linalg.norm(occ_pts - centre[occ_ray], axis=1)
-            visible = on_sensor & (first >= length - OCCLUSION_EPS_MM)
+            uv, visible = _seen_by(probe, caster, camera, Rf, tf, target, local)
             np.add.at(seen[:, camera], frame_of[lit[visible]], 1)
             f, v = frame_of[lit[visible]], uv[visible, 1]
             lo = np.full(n, np.inf)
@@ -112,6 +103,58 @@ def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.
             got = np.isfinite(lo)
             rows[got, camera, 0], rows[got, camera, 1] = lo[got], hi[got]
     return Footprint(depth, in_range, seen, rows)
+
+
+def _seen_by(probe: Probe, caster, camera: int, Rf: np.ndarray, tf: np.ndarray, target: np.ndarray,
+             local: np.ndarray):
+    """Sensor coordinates (m, 2) of points ``target`` (table frame; ``local`` in the probe frame
+    of poses Rf, tf) in ``camera``, and whether the camera sees each: on its sensor, and the
+    first surface along its ray is the point itself."""
+    uv = probe.project(local, camera)
+    on_sensor = np.isfinite(uv).all(axis=1)
+    centre = tf + np.einsum("nij,j->ni", Rf, probe.cam2probe(camera)[:3, 3])
+    to = target - centre
+    length = np.linalg.norm(to, axis=1)
+    occ_pts, occ_ray = _first_hits(caster, centre, to / length[:, None])
+    first = np.full(len(target), np.inf)
+    first[occ_ray] = np.linalg.norm(occ_pts - centre[occ_ray], axis=1)
+    return uv, on_sensor & (first >= length - OCCLUSION_EPS_MM)
+
+
+def measurable_points(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCaster, part_faces: int,
+                      max_incidence_deg: float = 90.0, rays: int | None = None, chunk: int = 200) -> np.ndarray:
+    """Points (m, 3) mm, table frame, on the part that the path's laser can measure: first hits
+    of the fan (``rays`` per frame, default one per sensor column) on the part (the first
+    ``part_faces`` faces of ``surfaces``) inside the probe's range, within ``max_incidence_deg``
+    of the face's normal, and seen by at least one camera."""
+    rays = rays or probe.cols_px
+    alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
+    d_probe = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
+    normals = surfaces.mesh.face_normals
+    cos_limit = np.cos(np.radians(min(max_incidence_deg, 90.0)))
+    z0, z1 = probe.z_range_mm
+    out = []
+    for start in range(0, len(probe2table), chunk):
+        T = probe2table[start:start + chunk]
+        R, t = T[:, :3, :3], T[:, :3, 3]
+        origins = np.repeat(t, rays, axis=0)
+        dirs = np.einsum("nij,kj->nki", R, d_probe).reshape(-1, 3)
+        if len(origins) == 0:
+            continue
+        pts, ray, tri = surfaces.caster.intersects_location(origins, dirs, multiple_hits=False)
+        frame = ray // rays
+        depth = np.einsum("ij,ij->i", pts - origins[ray], R[frame][:, :, 2])  # along the beam (probe z)
+        facing = -np.einsum("ij,ij->i", dirs[ray], normals[tri])
+        keep = (tri < part_faces) & (depth >= z0) & (depth <= z1) & (facing >= cos_limit - 1e-12)
+        pts, frame = pts[keep], frame[keep]
+        if not len(pts):
+            continue
+        local = np.einsum("nji,nj->ni", R[frame], pts - t[frame])
+        seen = np.zeros(len(pts), bool)
+        for camera in (0, 1):
+            seen |= _seen_by(probe, surfaces.caster, camera, R[frame], t[frame], pts, local)[1]
+        out.append(pts[seen])
+    return np.concatenate(out) if out else np.zeros((0, 3))
 
 
 def _first_hits(caster, origins, dirs):

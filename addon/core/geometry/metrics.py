@@ -98,6 +98,27 @@ def evaluate(points, truth) -> ErrorStats:
     return error_stats(d, s)
 
 
+def coverage_of_measurable(points, mesh, reachable, tolerance_mm: float, samples: int = 20000,
+                           seed: int = 0) -> tuple[float, float]:
+    """(coverage, measurable share): of the mesh's surface within ``tolerance_mm`` of a
+    ``reachable`` point (where the path's laser can measure: see
+    ``footprint.measurable_points``), the fraction within ``tolerance_mm`` of a cloud point;
+    and that surface's share of the whole mesh. Both estimated from the same ``samples``
+    points drawn uniformly over the area (seeded); (0, 0) where nothing is measurable."""
+    mesh = _check_mesh(mesh)
+    surface, _ = trimesh.sample.sample_surface(mesh, samples, seed=seed)
+    R = np.asarray(reachable, dtype=np.float64).reshape(-1, 3)
+    if len(R) == 0:
+        return 0.0, 0.0
+    d_reach, _ = cKDTree(R).query(surface, k=1, distance_upper_bound=tolerance_mm)
+    measurable = np.isfinite(d_reach)
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if not measurable.any() or len(P) == 0:
+        return 0.0, float(np.mean(measurable))
+    d, _ = cKDTree(P).query(surface[measurable], k=1, distance_upper_bound=tolerance_mm)
+    return float(np.mean(np.isfinite(d))), float(np.mean(measurable))
+
+
 def coverage(points, mesh, tolerance_mm: float, samples: int = 20000, seed: int = 0) -> float:
     """Fraction of the mesh's area that lies within ``tolerance_mm`` of some cloud point.
 

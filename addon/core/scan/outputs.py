@@ -16,7 +16,8 @@ from ..config.scan import ScanConfig
 from ..files import write_bytes_atomic, write_png
 from ..geometry import metrics
 from ..geometry.cloud import save_ply
-from ..kinematics.turntable import TABLE_RADIUS_MM
+from ..geometry.footprint import SurfaceCaster, measurable_points
+from ..kinematics.turntable import TABLE_RADIUS_MM, table_top_mesh
 from .plan import Plan
 from .preview import render_preview
 from .report import report_json
@@ -41,7 +42,8 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     probe = config.probe
     timing = dict(timing)
     t = time.perf_counter()
-    quality, on_part, error_um = measure_against_truth(cloud, config)
+    poses = config.cell.probe2table(plan.q, plan.table_rad) if len(plan.q) else None
+    quality, on_part, error_um = measure_against_truth(cloud, config, poses)
     timing["metrics"] = time.perf_counter() - t
     n = int(len(stats["band_rows"]))
     scan_time = timing.get("render", 0.0) + timing.get("detect", 0.0) + timing.get("triangulate", 0.0)
@@ -83,15 +85,32 @@ def sensor_effects(sensor) -> list[str]:
     return [n for n in names if getattr(sensor, n)] + (["distortion"] if sensor.distortion else [])
 
 
-def measure_against_truth(cloud, config: ScanConfig) -> tuple[dict, np.ndarray, np.ndarray]:
-    """Error against the truth: points nearer the part count as the part's, the rest as the table's.
+def measurable_coverage(config: ScanConfig, probe2table: np.ndarray, part_points: np.ndarray) -> dict:
+    """The coverage of the surface the path's laser can measure (in range, within the profile
+    filter's incidence limit, seen by a camera) and that surface's share of the part."""
+    if len(probe2table) == 0:
+        return {"coverage_measurable": 0.0, "measurable_share": 0.0}
+    surfaces = SurfaceCaster([config.workpiece.mesh, table_top_mesh()])
+    reachable = measurable_points(config.probe, probe2table, surfaces, len(config.workpiece.mesh.faces),
+                                  config.profile_filter.max_incidence_deg)
+    cov, share = metrics.coverage_of_measurable(part_points, config.workpiece.mesh, reachable,
+                                                config.coverage_tolerance_mm)
+    return {"coverage_measurable": cov, "measurable_share": share}
+
+
+def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | None = None
+                          ) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Error against the truth: points nearer the part count as the part's, the rest as the table's;
+    coverage of the whole part and (given the frames' probe poses) of what the path can measure.
 
     Returns (report entries, on_part (n,) bool, |error| (n,) µm to the part)."""
     wp = config.workpiece
     P = cloud.points
+    poses = np.zeros((0, 4, 4)) if probe2table is None else probe2table
     if len(P) == 0:
         return ({"points_on_part": 0, "points_on_table": 0, "error_um": metrics.error_stats([]).as_dict(),
                  "table_error_um": metrics.error_stats([]).as_dict(), "coverage": 0.0,
+                 **measurable_coverage(config, poses, P),
                  "coverage_tolerance_mm": config.coverage_tolerance_mm}, np.zeros(0, bool), np.zeros(0))
     d_part, s_part = metrics.distances(P, wp.truth)
     radial = np.hypot(P[:, 0], P[:, 1])
@@ -102,6 +121,7 @@ def measure_against_truth(cloud, config: ScanConfig) -> tuple[dict, np.ndarray, 
     coverage = metrics.coverage(P[on_part], wp.mesh, config.coverage_tolerance_mm)
     return ({"points_on_part": int(on_part.sum()), "points_on_table": int((~on_part).sum()),
              "error_um": part.as_dict(), "table_error_um": table.as_dict(), "coverage": coverage,
+             **measurable_coverage(config, poses, P[on_part]),
              "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3)
 
 

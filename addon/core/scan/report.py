@@ -41,7 +41,9 @@ class ScanReport:
 
     frames: profiles taken; points: in the cloud (on the part / on the table); error_um: of the
     part's points against its exact shape; table_error_um: of the table's points against its
-    top; coverage: share of the part's surface within coverage_tolerance_mm of a point;
+    top; coverage: share of the part's whole surface within coverage_tolerance_mm of a point;
+    coverage_measurable: the same share of the surface the path's laser can measure (in range,
+    within the incidence limit, seen by a camera), which is measurable_share of the whole;
     column_codes: sensor columns per detection code; time_s: seconds per stage;
     profiles_per_s: frames / (render + detect + triangulate); config: what was scanned.
     """
@@ -55,6 +57,8 @@ class ScanReport:
     table_error_um: ErrorStats
     coverage: float
     coverage_tolerance_mm: float
+    coverage_measurable: float
+    measurable_share: float
     valid_fraction: float
     column_codes: dict
     cameras_rendered: list
