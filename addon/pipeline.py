@@ -23,7 +23,7 @@ from .core.config.scan import ScanConfig
 from .core.errors import InputError
 from .core.geometry.cloud import CloudAccumulator
 from .core.scan.band import Band, line_extent, needs_full_frame
-from .core.scan.frames import detect_all, frame_profile, merge_stats, new_stats
+from .core.scan.frames import add_counts, detect_all, frame_profile, merge_stats, new_stats
 from .core.scan.outputs import ScanResult, assemble
 from .core.scan.plan import Plan, cell_surfaces, frame_ranges, plan_frames, plan_scan
 
@@ -154,7 +154,9 @@ class ScanRun:
         stats = self.stats
         for i in range(size):
             t = time.perf_counter()
-            self.acc.add(frame_profile(probe, lines[i], config), self.probe2table[done + i], index + i)
+            profile = frame_profile(probe, lines[i], config)
+            add_counts(stats["points"], profile.masked)
+            self.acc.add(profile, self.probe2table[done + i], index + i)
             self.t_tri += time.perf_counter() - t
             stats["valid"] += sum(int(ln.valid.sum()) for ln in lines[i] if ln is not None)
             stats["columns"] += sum(len(ln.col) for ln in lines[i] if ln is not None)

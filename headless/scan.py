@@ -158,6 +158,10 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
           f"({r['measurable_share'] * 100:.1f} % of the part), {r['coverage'] * 100:.1f} % of the whole part, "
           f"within {r['coverage_tolerance_mm']:g} mm of a point")
     ts = r["time_s"]
+    dropped = ", ".join(f"{name.replace('_', ' ')} {count}" for name, count in sorted(r["points_dropped"].items())
+                        if count)
+    print(f"  kept          {r['points_fused']} points fused from both cameras; dropped after detection: "
+          f"{dropped or 'none'}")
     stages = ", ".join(f"{name} {ts[name]:.2f}" for name in ("plan", "scene", "render", "detect", "triangulate",
                                                              "metrics", "write") if name in ts)
     print(f"  time          {wall:.1f} s: {stages}")

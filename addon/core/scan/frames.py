@@ -16,8 +16,14 @@ from ..optics.triangulate import fuse_profiles, triangulate_profile
 
 def new_stats() -> dict:
     """Per-scan counters: sensor columns seen and kept, frames re-rendered at full height,
-    rows rendered per frame, and columns per detection code."""
-    return dict(columns=0, valid=0, rerendered=0, band_rows=[], codes={})
+    rows rendered per frame, columns per detection code, and points dropped after
+    detection by reason (``points``: the triangulation's and the profile filter's counts)."""
+    return dict(columns=0, valid=0, rerendered=0, band_rows=[], codes={}, points={})
+
+
+def add_counts(into: dict, counts: dict) -> None:
+    for name, count in counts.items():
+        into[name] = into.get(name, 0) + int(count)
 
 
 def merge_stats(parts: list[dict]) -> dict:
@@ -28,8 +34,8 @@ def merge_stats(parts: list[dict]) -> dict:
         out["valid"] += int(st["valid"])
         out["rerendered"] += int(st["rerendered"])
         out["band_rows"] += [int(v) for v in st["band_rows"]]
-        for name, count in st["codes"].items():
-            out["codes"][name] = out["codes"].get(name, 0) + int(count)
+        add_counts(out["codes"], st["codes"])
+        add_counts(out["points"], st.get("points", {}))  # (shards written before this counter have none)
     return out
 
 

@@ -59,6 +59,11 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         "points": len(cloud),
         "valid_fraction": stats["valid"] / max(stats["columns"], 1),
         "column_codes": stats["codes"],
+        # After detection: columns dropped on the way to a point, by reason (no detection, a ray
+        # grazing the laser plane, out of the range, steep, a run's edge, the cameras in conflict),
+        # and the points both cameras agreed on.
+        "points_dropped": {k: v for k, v in stats.get("points", {}).items() if k != "fused"},
+        "points_fused": int(stats.get("points", {}).get("fused", 0)),
         "cameras_rendered": list(plan.cameras),
         "frames_rerendered_full": stats["rerendered"],
         "mean_rows_rendered": float(np.mean(stats["band_rows"])) if stats["band_rows"] else 0.0,

@@ -44,7 +44,8 @@ class ScanReport:
     top; coverage: share of the part's whole surface within coverage_tolerance_mm of a point;
     coverage_measurable: the same share of the surface the path's laser can measure (in range,
     within the incidence limit, seen by a camera), which is measurable_share of the whole;
-    column_codes: sensor columns per detection code; time_s: seconds per stage;
+    column_codes: sensor columns per detection code; points_dropped: columns dropped after
+    detection, by reason; points_fused: points both cameras agreed on; time_s: seconds per stage;
     profiles_per_s: frames / (render + detect + triangulate); config: what was scanned.
     """
 
@@ -61,6 +62,8 @@ class ScanReport:
     measurable_share: float
     valid_fraction: float
     column_codes: dict
+    points_dropped: dict
+    points_fused: int
     cameras_rendered: list
     frames_rerendered_full: int
     mean_rows_rendered: float
