@@ -16,6 +16,7 @@ Commands:
   bench versions       the demo under several Blender releases (their interpreters), side by side
   bench measure        one Scanner.measure() against one frame of a batch scan
   bench metrics        point-to-mesh distances: libigl's AABB tree against trimesh
+  bench parts          CAD-like parts (holes, pockets, fillets, thin walls) against their meshes
   overview             a picture of the cell and the two probe camera images
   realism-figure       one probe frame seen by the ideal and by the realistic sensor
   build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
@@ -58,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     from headless.bench import triangulate as bench_triangulate
     from headless.bench import measure as bench_measure
     from headless.bench import metrics as bench_metrics
+    from headless.bench import parts as bench_parts
     from headless.bench import versions as bench_versions
 
     overview.add_arguments(sub.add_parser("overview", help=overview.__doc__.split("\n")[0]))
@@ -67,7 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
                          ("triangulate", bench_triangulate), ("render", bench_render), ("scan", bench_scan),
                          ("realism", bench_realism), ("accuracy", bench_accuracy),
                          ("stability", bench_stability), ("farm", bench_farm), ("versions", bench_versions),
-                         ("measure", bench_measure), ("metrics", bench_metrics)):
+                         ("measure", bench_measure), ("metrics", bench_metrics),
+                         ("parts", bench_parts)):
         module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))
     return parser
 
