@@ -79,7 +79,8 @@ class LeaveOut:
 # tilted plate they are all of the error above 8 µm (see profile_filter and the README).
 DEFAULT_FILTER = ProfileFilter(max_incidence_deg=65.0, edge_px=2)
 # Columns whose line is 1.6 times wider than the image's median are rejected: the part turns
-# away from the laser across the line there (grazing along the scan), see detect.
+# away from the laser across the line there (grazing along the scan); and 1.6 times narrower:
+# an edge of the part cuts the line across its width (see detect).
 WIDTH_RATIO = 1.6
 
 
@@ -96,7 +97,8 @@ class ScanConfig:
     render: RenderOptions = field(default_factory=RenderOptions)
     detect_method: str = "gauss"
     detect: DetectParams = field(default_factory=lambda: DetectParams(saturation=np.inf,
-                                                                      max_width_ratio=WIDTH_RATIO))
+                                                                      max_width_ratio=WIDTH_RATIO,
+                                                                      min_width_ratio=1 / WIDTH_RATIO))
     triangulate_method: str = "exact"
     fuse: bool = True
     leave_out: LeaveOut = field(default_factory=LeaveOut)
@@ -349,6 +351,7 @@ def _detect(t: Table) -> tuple[str, DetectParams]:
                                    lo_open=True),
         max_width_px=t.number("max_width_px", default=defaults.max_width_px, lo=0.0, hi=1e4, lo_open=True),
         max_width_ratio=t.number("max_width_ratio", default=WIDTH_RATIO, lo=1.0, hi=1e3),
+        min_width_ratio=t.number("min_width_ratio", default=1 / WIDTH_RATIO, lo=0.0, hi=1.0),
         smoothing_px=t.number("smoothing_px", default=None, lo=0.0, hi=100.0),
         saturation=np.inf,  # renders are linear float: nothing clips unless a sensor model says so
     )

@@ -69,6 +69,10 @@ class DetectParams:
         are TOO_WIDE (None: off). Where the surface turns away from the laser across the
         line (grazing along the scan direction) the lit strip widens on the part and its
         centre leaves the laser plane; its image widens with it.
+    min_width_ratio : columns narrower than this many times the image's median line width
+        are EDGE (None: off). An edge of the part that cuts the line across its width
+        leaves a sliver of the line's flank lit: narrower than the whole line, and its
+        centre off the laser plane, so its point would float beside the part.
     window_px : half-window around the peak used for widths and the centre of gravity
     cog_level : the centre of gravity uses contrast above this fraction of the peak
     saturation : level counted as clipped, as a fraction of full scale (default 1.0,
@@ -86,6 +90,7 @@ class DetectParams:
     exclusion_px: float | None = None
     max_width_px: float = 25.0
     max_width_ratio: float | None = None
+    min_width_ratio: float | None = None
     window_px: int = 8
     cog_level: float = 0.5
     saturation: float | None = None
@@ -203,6 +208,7 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
     width = _fwhm(C, r, peak, p.window_px)
     code[(code == 0) & ~(width <= p.max_width_px)] = LineCode.TOO_WIDE
     code[(code == 0) & _wider_than_the_line(width, code, p)] = LineCode.TOO_WIDE
+    code[(code == 0) & _narrower_than_the_line(width, code, p)] = LineCode.EDGE
     code[(code == 0) & _saturated(C if rgb is None else rgb, r, p)] = LineCode.SATURATED
     code[(code == 0) & _second_peak(S, r, peak if S is C else S[r, cols], width, p)] = LineCode.AMBIGUOUS
 
@@ -313,6 +319,13 @@ def _centre_of_gravity(C, r, peak, p: DetectParams) -> np.ndarray:
     total = w.sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         return (w * offsets).sum(axis=0) / total  # from the peak row
+
+
+def _narrower_than_the_line(width: np.ndarray, code: np.ndarray, p: DetectParams) -> np.ndarray:
+    ok = (code == 0) & np.isfinite(width)
+    if p.min_width_ratio is None or ok.sum() < 8:
+        return np.zeros(len(width), bool)
+    return width < p.min_width_ratio * float(np.median(width[ok]))
 
 
 def _wider_than_the_line(width: np.ndarray, code: np.ndarray, p: DetectParams) -> np.ndarray:
