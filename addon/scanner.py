@@ -28,8 +28,8 @@ import numpy as np
 
 from .core.config.render import RenderOptions
 from .core.config.rigs import load_probe, load_robot
-from .core.config.scan import ScanConfig, load_scan_config
-from .core.errors import InputError, UnreachablePose
+from .core.config.scan import MAX_FRAMES, ScanConfig, load_scan_config
+from .core.errors import InputError, UnreachablePose, check_whole
 from .core.geometry.cloud import Cloud
 from .core.geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
 from .core.kinematics.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
@@ -122,13 +122,17 @@ class Scanner:
         self._warnings: list[str] = []
         self._t0 = time.perf_counter()
         self._frames = 0
-        self._cached = None  # ((frames measured, output folder), ScanResult) of the last result()
+        self._cached = None  # (frames measured, ScanResult) of the last result(): report() after save() is free
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
 
     @classmethod
     def from_config(cls, name_or_path: str | Path, scene=None, **overrides) -> "Scanner":
         """A scanner for a scan config (a name under rigs/scenes/ or a path), with overrides
         as on the command line: engine, samples, resolution (W, H), detect, frames (a slice), device."""
+        allowed = ("engine", "samples", "resolution", "detect", "frames", "device")
+        unknown = sorted(set(overrides) - set(allowed))
+        if unknown:
+            raise InputError(f"Scanner.from_config: unknown override {unknown[0]!r}; allowed: {', '.join(allowed)}")
         return cls(config=load_scan_config(name_or_path).with_overrides(**overrides), scene=scene)
 
     # -- state ---------------------------------------------------------------------------
@@ -196,8 +200,8 @@ class Scanner:
 
     def turn_table(self, deg: float) -> float:
         """Turn the table by ``deg`` degrees; returns its new angle (degrees)."""
-        if not math.isfinite(deg):
-            raise InputError(f"table turn must be a finite number of degrees, got {deg}")
+        if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg):
+            raise InputError(f"table turn must be a finite number of degrees, got {deg!r}")
         self._table_rad += math.radians(deg)
         return self.table_deg
 
@@ -221,6 +225,15 @@ class Scanner:
         ``to_mm`` (table frame), beam straight down unless given, the laser line across the
         motion. Every pose is solved before anything moves or renders; the probe ends at the
         last one."""
+        check_whole(frames, "sweep frames", 1, MAX_FRAMES)
+        for name, value in (("from_mm", from_mm), ("to_mm", to_mm), ("beam", beam)):
+            v = np.asarray(value, dtype=object)
+            try:
+                ok = v.shape == (3,) and np.isfinite(np.asarray(value, dtype=np.float64)).all()
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise InputError(f"sweep {name} must be three finite numbers [x, y, z] (mm), got {value!r}")
         wp = sweep_waypoints(frames, from_mm, to_mm, beam, line, table_rad=self._table_rad)
         from .core.kinematics.path import solve_path
 
@@ -333,15 +346,18 @@ class Scanner:
         written there. Kept until the next measurement, so report() after save() is free."""
         from .pipeline import Plan, assemble, merge_stats
 
-        key = (self._frames, str(out_dir) if out_dir is not None else None)
-        if self._cached is not None and self._cached[0][0] == key[0] and (out_dir is None or self._cached[0] == key):
+        if out_dir is None and self._cached is not None and self._cached[0] == self._frames:
             return self._cached[1]
         q = np.concatenate([p[0] for p in self._poses]) if self._poses else np.zeros((0, 6))
         table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
         plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings))
+        used = getattr(self._sc, "device_used", None)
+        asked = self.config.render.device
+        if asked != "CPU" and used == "CPU" and self.config.render.engine == "cycles":
+            plan.warnings.append(f"render device {asked} asked for, but no such GPU answered: rendered on the CPU")
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
-                          {"render_device": getattr(self._sc, "device_used", None)})
-        self._cached = (key, result)
+                          {"render_device": used})
+        self._cached = (self._frames, result)
         return result
 
     def report(self) -> ScanReport:
@@ -352,4 +368,6 @@ class Scanner:
     def save(self, out_dir: str | Path) -> dict[str, Path]:
         """Write cloud.ply, report.json and preview.png into ``out_dir`` (each atomically);
         returns their paths."""
+        if not isinstance(out_dir, (str, Path)) or not str(out_dir):
+            raise InputError(f"save needs an output folder (a path), got {out_dir!r}")
         return self.result(out_dir).files

@@ -41,7 +41,10 @@ def build_parser() -> argparse.ArgumentParser:
     from headless import scan
 
     scan.add_arguments(sub.add_parser("demo", help="run the demo scan (rigs/scenes/demo.toml)"), demo=True)
-    scan.add_arguments(sub.add_parser("scan", help="run the scan a config file describes"))
+    from addon.core.config.toml import available_rigs
+
+    scan.add_arguments(sub.add_parser("scan", help="run the scan a config file describes (bundled: "
+                                      + ", ".join(available_rigs("scenes")) + ")"))
     sub.add_parser("kinematics", help="tool poses of the bundled robots and one IK solve each").set_defaults(
         run=_run_kinematics)
 
@@ -62,17 +65,26 @@ def build_parser() -> argparse.ArgumentParser:
     from headless.bench import parts as bench_parts
     from headless.bench import versions as bench_versions
 
-    overview.add_arguments(sub.add_parser("overview", help=overview.__doc__.split("\n")[0]))
-    realism_figure.add_arguments(sub.add_parser("realism-figure", help=realism_figure.__doc__.split("\n")[0]))
-    build_extension.add_arguments(sub.add_parser("build-extension", help=build_extension.__doc__.split("\n")[0]))
+    overview.add_arguments(sub.add_parser("overview", help=_summary(overview.__doc__)))
+    realism_figure.add_arguments(sub.add_parser("realism-figure", help=_summary(realism_figure.__doc__)))
+    build_extension.add_arguments(sub.add_parser("build-extension", help=_summary(build_extension.__doc__)))
     for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),
                          ("triangulate", bench_triangulate), ("render", bench_render), ("scan", bench_scan),
                          ("realism", bench_realism), ("accuracy", bench_accuracy),
                          ("stability", bench_stability), ("farm", bench_farm), ("versions", bench_versions),
                          ("measure", bench_measure), ("metrics", bench_metrics),
                          ("parts", bench_parts)):
-        module.add_arguments(bench_sub.add_parser(name, help=module.__doc__.split("\n")[0]))
+        module.add_arguments(bench_sub.add_parser(name, help=_summary(module.__doc__)))
     return parser
+
+
+def _summary(doc: str) -> str:
+    """A module docstring's first sentence, without a leading "``command``:" label."""
+    text = " ".join(doc.strip().split("\n\n")[0].split())
+    if text.startswith("``") and "``:" in text:
+        text = text.split("``:", 1)[1].strip()
+    sentence = text.split(". ")[0].rstrip(".")
+    return sentence[0].upper() + sentence[1:] if sentence else sentence
 
 
 def _run_kinematics(args: argparse.Namespace) -> int:

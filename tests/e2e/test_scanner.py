@@ -121,3 +121,19 @@ def test_the_readme_example_runs_as_written(tmp_path):
     assert out.returncode == 0, out.stderr[-2000:]
     assert re.search(r"\d+ points, RMS \d+\.\d um", out.stdout), out.stdout
     assert (tmp_path / "out" / "adaptive-example" / "report.json").is_file()
+
+
+def test_save_writes_every_time_and_bad_arguments_are_named(scanner, tmp_path):
+    import shutil
+
+    files = scanner.save(tmp_path / "a")
+    shutil.rmtree(tmp_path / "a")
+    files = scanner.save(tmp_path / "a")  # the same frames, the same folder: written again
+    assert all(p.is_file() for p in files.values())
+    for call, message in ((lambda: scanner.turn_table("30"), "finite number of degrees"),
+                          (lambda: scanner.sweep([0, 0], [10, 0, 210], 5), "from_mm must be three"),
+                          (lambda: scanner.sweep([0, 0, 210], [10, 0, 210], 2.5), "whole number"),
+                          (lambda: scanner.save(None), "output folder"),
+                          (lambda: Scanner.from_config("demo", bogus=1), "unknown override 'bogus'")):
+        with pytest.raises(InputError, match=message):
+            call()
