@@ -107,7 +107,8 @@ class Scanner:
             config = replace(base, name="Scanner", source="", robot=_robot(robot), probe=_probe(probe),
                              table=table or Turntable(), workpiece=_workpiece(workpiece),
                              waypoints=Waypoints(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0, int)),
-                             q_start=None, render=render or base.render)
+                             q_start=base.q_start if robot == "adept_viper_s650" else None,
+                             render=render or base.render)
             config = config.with_overrides(detect=detect)
         self.config = config
         self._scene = scene
@@ -122,8 +123,19 @@ class Scanner:
         self._warnings: list[str] = []
         self._t0 = time.perf_counter()
         self._frames = 0
+        if not len(config.waypoints):
+            self._look_at_the_table()
         self._cached = None  # (frames measured, ScanResult) of the last result(): report() after save() is free
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
+
+    def _look_at_the_table(self) -> None:
+        """Without a path, start with the probe looking straight down at the table's centre from
+        the middle of its range, where the robot can reach that (else at the start joints)."""
+        z0, z1 = self.config.probe.z_range_mm
+        try:
+            self.move_to(((0.0, 0.0, 0.5 * (z0 + z1)), (90.0, 180.0, 0.0)))
+        except UnreachablePose:
+            pass
 
     @classmethod
     def from_config(cls, name_or_path: str | Path, scene=None, **overrides) -> "Scanner":

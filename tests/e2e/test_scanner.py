@@ -137,3 +137,12 @@ def test_save_writes_every_time_and_bad_arguments_are_named(scanner, tmp_path):
                           (lambda: Scanner.from_config("demo", bogus=1), "unknown override 'bogus'")):
         with pytest.raises(InputError, match=message):
             call()
+
+
+def test_a_scanner_from_objects_starts_looking_at_the_table():
+    s = Scanner(robot="puma560", probe="default", workpiece="sphere")
+    z0, z1 = s.config.probe.z_range_mm
+    np.testing.assert_allclose(s.pose()[:3, 3], [0.0, 0.0, (z0 + z1) / 2], atol=1e-6)
+    np.testing.assert_allclose(s.pose()[:3, 2], [0.0, 0.0, -1.0], atol=1e-9)  # the beam straight down
+    p = s.measure()
+    assert len(p) > 50 and np.sqrt(np.mean(sphere_error_um(p.points[p.points[:, 2] > 1]) ** 2)) < 20

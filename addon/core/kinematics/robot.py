@@ -142,7 +142,8 @@ class Robot:
             raise InputError(f"{name} must have shape (6,) or (n, 6), got {q.shape}")
         if not np.all(np.isfinite(q)):
             idx = np.argwhere(~np.isfinite(q))[0]
-            raise InputError(f"{name}{list(idx)} is {q[tuple(idx)]}: joint angles must be finite numbers (radians)")
+            where = ", ".join(str(int(i)) for i in idx)
+            raise InputError(f"{name}[{where}] is {float(q[tuple(idx)])}: joint angles must be finite numbers (radians)")
         return q
 
     def within_limits(self, q, tol_rad: float = TOL.joint_limit_rad) -> np.ndarray | bool:
