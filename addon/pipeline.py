@@ -27,7 +27,7 @@ from .core.scan.frames import add_counts, detect_all, frame_profile, merge_stats
 from .core.scan.outputs import ScanResult, assemble
 from .core.scan.plan import Plan, cell_surfaces, frame_ranges, plan_frames, plan_scan
 
-__all__ = ["Plan", "ScanResult", "ScanRun", "assemble", "cell_surfaces", "frame_ranges", "merge_stats", "new_stats",
+__all__ = ["Plan", "ScanResult", "ScanRun", "assemble", "build_scan_cell", "cell_surfaces", "frame_ranges", "merge_stats", "new_stats",
            "plan_frames", "plan_scan", "render_settings", "run_scan"]
 
 Progress = Callable[[str, int, int], None]
@@ -46,6 +46,19 @@ def run_scan(config: ScanConfig, out_dir: str | Path | None, scene=None, progres
     scanner = Scanner(config=config, scene=scene)
     scanner.run(progress)
     return scanner.result(out_dir if write_outputs else None)
+
+
+def build_scan_cell(config: ScanConfig, scene=None):
+    """The Blender cell a config scans in: in ``scene``, or in a new empty scene (headless)."""
+    from .scene.cell import build_cell
+    from .scene.laser import laser_power_w
+    from .scene.session import new_scene
+
+    if scene is None:
+        scene = new_scene(config.render.device)
+    return build_cell(scene, config.cell, config.probe, config.workpiece, config.render.laser,
+                      laser_power_w(config.probe, peak=config.render.laser_peak), material=config.material,
+                      roughness=config.roughness)
 
 
 class ScanRun:
@@ -79,19 +92,9 @@ class ScanRun:
         a, b = frames.start, frames.stop
         self.first = a
 
-        from .scene.cell import build_cell
-        from .scene.laser import laser_power_w
-        from .scene.session import new_scene
-
         t = time.perf_counter()
         probe = config.probe
-        if scene_cell is None:
-            if scene is None:
-                scene = new_scene(config.render.device)
-            scene_cell = build_cell(scene, config.cell, probe, config.workpiece, config.render.laser,
-                                    laser_power_w(probe, peak=config.render.laser_peak), material=config.material,
-                                    roughness=config.roughness)
-        self.sc = scene_cell
+        self.sc = scene_cell if scene_cell is not None else build_scan_cell(config, scene)
         # The frames either side are keyframed too, so that motion during the exposure
         # (linear between keys) is the same whatever part of the path is scanned.
         lo, hi = max(0, a - 1), min(total, b + 1)
@@ -186,13 +189,8 @@ class ScanRun:
     def finish(self, out_dir: str | Path | None) -> ScanResult:
         """Measure against the truth, build the report and (with ``out_dir``) write the files."""
         self.timing.update(render=self.t_render, detect=self.t_detect, triangulate=self.t_tri)
-        used = getattr(self.sc, "device_used", None)
-        asked = self.config.render.device
-        if asked != "CPU" and used == "CPU" and self.config.render.engine == "cycles":
-            self.plan.warnings.append(f"render device {asked} asked for, but no such GPU answered: "
-                                      "rendered on the CPU")
         return assemble(self.config, self.plan, self.acc.cloud(), self.stats, self.timing, out_dir, self.t_all,
-                        {"render_device": used})
+                        {"render_device": getattr(self.sc, "device_used", None)})
 
 
 def render_settings(config: ScanConfig) -> RenderOptions:

@@ -122,11 +122,15 @@ class Scanner:
         self._cameras: set[int] = set()
         self._warnings: list[str] = []
         self._t0 = time.perf_counter()
-        self._frames = 0
-        if not len(config.waypoints):
-            self._look_at_the_table()
         self._cached = None  # (frames measured, ScanResult) of the last result(): report() after save() is free
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
+        if not len(config.waypoints):
+            self._look_at_the_table()
+
+    @property
+    def _frames(self) -> int:
+        """Measurements taken so far (the next one's frame number)."""
+        return sum(len(q) for q, _ in self._poses)
 
     def _look_at_the_table(self) -> None:
         """Without a path, start with the probe looking straight down at the table's centre from
@@ -239,12 +243,11 @@ class Scanner:
         last one."""
         check_whole(frames, "sweep frames", 1, MAX_FRAMES)
         for name, value in (("from_mm", from_mm), ("to_mm", to_mm), ("beam", beam)):
-            v = np.asarray(value, dtype=object)
             try:
-                ok = v.shape == (3,) and np.isfinite(np.asarray(value, dtype=np.float64)).all()
+                v = np.asarray(value, dtype=np.float64)
             except (TypeError, ValueError):
-                ok = False
-            if not ok:
+                v = np.full(0, np.nan)
+            if v.shape != (3,) or not np.isfinite(v).all():
                 raise InputError(f"sweep {name} must be three finite numbers [x, y, z] (mm), got {value!r}")
         wp = sweep_waypoints(frames, from_mm, to_mm, beam, line, table_rad=self._table_rad)
         from .core.kinematics.path import solve_path
@@ -287,16 +290,10 @@ class Scanner:
 
     def _scene_cell(self):
         if self._sc is None:
-            from .scene.cell import build_cell
-            from .scene.laser import laser_power_w
-            from .scene.session import new_scene
+            from .pipeline import build_scan_cell
 
             t = time.perf_counter()
-            cfg = self.config
-            scene = self._scene if self._scene is not None else new_scene(cfg.render.device)
-            self._sc = build_cell(scene, cfg.cell, cfg.probe, cfg.workpiece, cfg.render.laser,
-                                  laser_power_w(cfg.probe, peak=cfg.render.laser_peak), material=cfg.material,
-                                  roughness=cfg.roughness)
+            self._sc = build_scan_cell(self.config, self._scene)
             self._timing["scene"] += time.perf_counter() - t
         return self._sc
 
@@ -329,7 +326,6 @@ class Scanner:
         if not plan.cameras:  # the laser meets nothing any camera sees: nothing to render
             out = [Profile(np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0), probe2table[i], q[i].copy(),
                            math.degrees(table_rad[i]), {}, first + i) for i in range(n)]
-            self._frames += n
             return out
         run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, np.zeros(n, int))), None, progress,
                       plan=plan, scene_cell=self._scene_cell())
@@ -348,7 +344,6 @@ class Scanner:
             self._parts.append(part)
             out.append(Profile(part.points, part.camera, part.quality.astype(np.float64), probe2table[i],
                                q[i].copy(), math.degrees(table_rad[i]), run.frame_codes.get(i, {}), first + i))
-        self._frames += n
         return out
 
     # -- results -------------------------------------------------------------------------
@@ -363,12 +358,8 @@ class Scanner:
         q = np.concatenate([p[0] for p in self._poses]) if self._poses else np.zeros((0, 6))
         table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
         plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings))
-        used = getattr(self._sc, "device_used", None)
-        asked = self.config.render.device
-        if asked != "CPU" and used == "CPU" and self.config.render.engine == "cycles":
-            plan.warnings.append(f"render device {asked} asked for, but no such GPU answered: rendered on the CPU")
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
-                          {"render_device": used})
+                          {"render_device": getattr(self._sc, "device_used", None)})
         self._cached = (self._frames, result)
         return result
 

@@ -90,8 +90,10 @@ def default_output_dir() -> Path:
     return folder
 
 
-def output_dir(s, config_name: str) -> Path:
-    base = Path(bpy.path.abspath(s.output_dir)) if s.output_dir else default_output_dir()
+def output_dir(folder: str, config_name: str) -> Path:
+    """A scan's output folder: ``config_name`` (made file-safe) inside ``folder`` (a Blender
+    path; empty: the extension's user folder)."""
+    base = Path(bpy.path.abspath(folder)) if folder else default_output_dir()
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in config_name) or "scan"
     return base / safe
 

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import math
 
-from pathlib import Path
-
 import bpy
 import numpy as np
 from bpy.props import StringProperty
@@ -198,10 +196,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
         return cfg
 
     def _output_dir(self, context, name: str):
-        if self.output_dir:
-            safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name) or "scan"
-            return Path(bpy.path.abspath(self.output_dir)) / safe
-        return models.output_dir(context.scene.scanner, name)
+        return models.output_dir(self.output_dir or context.scene.scanner.output_dir, name)
 
     def _start(self, context):
         from ..scanner import Scanner

@@ -48,6 +48,10 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     n = int(len(stats["band_rows"]))
     scan_time = timing.get("render", 0.0) + timing.get("detect", 0.0) + timing.get("triangulate", 0.0)
     r = config.render
+    warnings = list(plan.warnings)
+    used = (extra or {}).get("render_device")
+    if r.engine == "cycles" and r.device != "CPU" and used == "CPU":
+        warnings.append(f"render device {r.device} asked for, but no such GPU answered: rendered on the CPU")
     report = {
         "config": {"name": config.name, "file": config.source, "robot": config.robot.name, "probe": probe.name,
                    "sensor_px": [probe.cols_px, probe.rows_px], "workpiece": config.workpiece.source,
@@ -70,7 +74,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         "time_s": {k: round(v, 4) for k, v in timing.items()},
         "profiles_per_s": n / scan_time if scan_time > 0 else float("inf"),
         **quality,
-        "warnings": plan.warnings,
+        "warnings": warnings,
         "software": {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__},
         **(extra or {}),
     }
