@@ -17,53 +17,9 @@ from dataclasses import replace
 OUTLIER_MM = 0.2
 
 
-def _parts():
-    """{name: closed trimesh} in mm, standing on z = 0 around the table's axis."""
-    import numpy as np
-    import trimesh
-    from trimesh.creation import box, cylinder
-
-    def on_table(mesh):
-        mesh.apply_translation([-mesh.bounds[:, 0].mean(), -mesh.bounds[:, 1].mean(), -mesh.bounds[0, 2]])
-        return mesh
-
-    def at(mesh, xyz):
-        mesh.apply_translation(xyz)
-        return mesh
-
-    parts = {}
-    # A block with a through hole and a rectangular pocket: sharp edges, a cavity.
-    block = box(extents=[60.0, 40.0, 30.0])
-    block = block.difference(cylinder(radius=7.0, height=50.0, sections=96))
-    block = block.difference(at(box(extents=[16.0, 24.0, 14.0]), [-19.0, 0.0, 9.0]))
-    parts["block with hole and pocket"] = on_table(block)
-    # An L-bracket with a concave fillet in its inner corner.
-    base = at(box(extents=[60.0, 40.0, 10.0]), [0.0, 0.0, 5.0])
-    wall = at(box(extents=[10.0, 40.0, 50.0]), [-25.0, 0.0, 25.0])
-    fillet_block = at(box(extents=[8.0, 40.0, 8.0]), [-16.0, 0.0, 14.0])
-    fillet_cut = cylinder(radius=8.0, height=44.0, sections=96)
-    fillet_cut.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
-    fillet_cut.apply_translation([-12.0, 0.0, 18.0])
-    bracket = base.union(wall).union(fillet_block.difference(fillet_cut))
-    parts["L-bracket with fillet"] = on_table(bracket)
-    # A thin-walled tube: 1.5 mm walls, open both ends.
-    tube = cylinder(radius=22.0, height=45.0, sections=128).difference(cylinder(radius=20.5, height=50.0,
-                                                                                sections=128))
-    parts["thin-walled tube"] = on_table(tube)
-    # A stepped shaft with a groove, standing on its end.
-    shaft = cylinder(radius=18.0, height=25.0, sections=128)
-    shaft = shaft.union(at(cylinder(radius=11.0, height=30.0, sections=128), [0.0, 0.0, 25.0]))
-    shaft = shaft.difference(at(cylinder(radius=25.0, height=4.0, sections=128).difference(
-        cylinder(radius=15.0, height=6.0, sections=128)), [0.0, 0.0, 8.0]))
-    parts["stepped shaft with groove"] = on_table(shaft)
-    for name, mesh in parts.items():
-        if not mesh.is_watertight:
-            raise SystemExit(f"error: the part {name!r} did not come out closed")
-    return parts
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", default="::2", help="part of the demo path, as A:B:STEP (default ::2)")
+    parser.add_argument("--only", default="", help="scan only the parts whose name contains this text")
     parser.set_defaults(run=run)
 
 
@@ -77,7 +33,11 @@ def run(args: argparse.Namespace) -> int:
 
     base = load_scan_config("demo").with_overrides(frames=parse_frames(args.frames, "--frames"))
     rows = []
-    for name, mesh in _parts().items():
+    from headless.parts import all_parts
+
+    for name, mesh in all_parts().items():
+        if args.only.lower() not in name.lower():
+            continue
         wp = Workpiece(name, mesh, mesh, f"bench:{name}", np.eye(4))
         cfg = replace(base, name=name, workpiece=wp)
         t = time.perf_counter()

@@ -5,7 +5,7 @@ import pytest
 
 pytest.importorskip("manifold3d", reason="trimesh booleans need manifold3d (installed by the README's set-up)")
 
-from headless.bench.parts import _parts  # noqa: E402
+from headless.parts import cad_parts as _parts  # noqa: E402
 
 
 def test_every_part_is_closed_standing_on_the_table_and_45_to_70_mm():

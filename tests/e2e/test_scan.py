@@ -76,7 +76,7 @@ def test_report_has_the_figures(sphere_scan):
     # 30 profiles of the demo (every 6th): the laser reaches only strips of the sphere, and the
     # cloud covers nearly all of what it reaches, far more than of the whole part.
     # Every drop is counted by its reason; the sphere's flanks beyond the filter's 65° are among them.
-    assert set(r["points_dropped"]) >= {"no_detection", "grazing", "out_of_range", "steep", "edge", "conflicts"}
+    assert set(r["points_dropped"]) >= {"no_detection", "grazing", "out_of_range", "steep", "edge", "camera_conflict"}
     assert r["points_dropped"]["steep"] > 0 and 0 < r["points_fused"] <= r["points"]
     assert 0.0 < r["measurable_share"] < 0.5
     assert r["coverage_measurable"] > 0.9 and r["coverage_measurable"] > r["coverage"]

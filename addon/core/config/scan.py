@@ -79,9 +79,13 @@ class LeaveOut:
 # tilted plate they are all of the error above 8 µm (see profile_filter and the README).
 DEFAULT_FILTER = ProfileFilter(max_incidence_deg=65.0, edge_px=2)
 # Columns whose line is 1.6 times wider than the image's median are rejected: the part turns
-# away from the laser across the line there (grazing along the scan); and 1.6 times narrower:
-# an edge of the part cuts the line across its width (see detect).
+# away from the laser across the line there (grazing along the scan); and those whose profile
+# is narrower than 0.8 times the median (σ₃, see detect): an edge of the part cuts the line
+# across its width. On the real-parts bench, 95 % of the columns of whole lines lie within
+# 0.8..1.2 of their image's median, and 216 of 227 points off their part by more than
+# 0.2 mm below 0.8.
 WIDTH_RATIO = 1.6
+NARROW_RATIO = 0.8
 
 
 @dataclass(frozen=True)
@@ -98,7 +102,7 @@ class ScanConfig:
     detect_method: str = "gauss"
     detect: DetectParams = field(default_factory=lambda: DetectParams(saturation=np.inf,
                                                                       max_width_ratio=WIDTH_RATIO,
-                                                                      min_width_ratio=1 / WIDTH_RATIO))
+                                                                      min_width_ratio=NARROW_RATIO))
     triangulate_method: str = "exact"
     fuse: bool = True
     leave_out: LeaveOut = field(default_factory=LeaveOut)
@@ -351,7 +355,7 @@ def _detect(t: Table) -> tuple[str, DetectParams]:
                                    lo_open=True),
         max_width_px=t.number("max_width_px", default=defaults.max_width_px, lo=0.0, hi=1e4, lo_open=True),
         max_width_ratio=t.number("max_width_ratio", default=WIDTH_RATIO, lo=1.0, hi=1e3),
-        min_width_ratio=t.number("min_width_ratio", default=1 / WIDTH_RATIO, lo=0.0, hi=1.0),
+        min_width_ratio=t.number("min_width_ratio", default=NARROW_RATIO, lo=0.0, hi=1.0),
         smoothing_px=t.number("smoothing_px", default=None, lo=0.0, hi=100.0),
         saturation=np.inf,  # renders are linear float: nothing clips unless a sensor model says so
     )

@@ -29,6 +29,18 @@ Methods (``detect_line(image, method=...)``):
 Every method reports per column a code (:class:`LineCode`). A column with a
 second, separated peak (a reflection) is AMBIGUOUS and gets no position: the two
 are never averaged. Everything is vectorised over columns.
+
+Shape of the line and the centre's uncertainty. The laser's profile across the line
+is a Gaussian; near the peak its logarithm is a parabola whose curvature gives the
+profile's own width σ₃ (from the peak sample and its two neighbours). The line's
+width in the image hardly depends on depth (the beam widens with range as the
+image shrinks), so the image's median σ₃ is what a whole, unobstructed line looks
+like here. A column whose line is cut across its width (an edge of the part, a
+ridge hiding part of the strip) is narrower than that: its centre is no longer on
+the laser plane, and it is coded EDGE (``min_width_ratio``). For the rest, the two
+flanks of the profile each give the centre if the width is the image's, and the
+two answers differ by |σ_med²/σ₃² − 1| pixels: half of that, with the image noise's
+effect on the fit, is the centre's uncertainty ``sigma_px``.
 """
 
 from __future__ import annotations
@@ -69,10 +81,12 @@ class DetectParams:
         are TOO_WIDE (None: off). Where the surface turns away from the laser across the
         line (grazing along the scan direction) the lit strip widens on the part and its
         centre leaves the laser plane; its image widens with it.
-    min_width_ratio : columns narrower than this many times the image's median line width
-        are EDGE (None: off). An edge of the part that cuts the line across its width
-        leaves a sliver of the line's flank lit: narrower than the whole line, and its
-        centre off the laser plane, so its point would float beside the part.
+    min_width_ratio : columns whose line is narrower than this many times the image's
+        median are EDGE (None: off). An edge of the part that cuts the line across its
+        width leaves part of the line's profile lit: narrower than the whole line, and its
+        centre off the laser plane, so its point would float beside the part. The width
+        compared is the profile's own, σ₃ from the curvature at the peak (FWHM for a
+        flat-topped line, which has no curvature there).
     window_px : half-window around the peak used for widths and the centre of gravity
     cog_level : the centre of gravity uses contrast above this fraction of the peak
     saturation : level counted as clipped, as a fraction of full scale (default 1.0,
@@ -111,6 +125,8 @@ class LineDetection:
     code : (W,) uint8, a LineCode per column
     peak_row : (W,) int, sensor row of each column's brightest pixel, whatever its code
                (None where a detection was made up from given rows)
+    sigma_px : (W,) float, uncertainty of ``row`` in pixels (NaN where code != OK; None
+               where a detection was made up from given rows: unknown)
     """
 
     col: np.ndarray
@@ -121,6 +137,7 @@ class LineDetection:
     method: str
     shape: tuple[int, int]
     peak_row: np.ndarray | None = None
+    sigma_px: np.ndarray | None = None
 
     @property
     def valid(self) -> np.ndarray:
@@ -208,7 +225,11 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
     width = _fwhm(C, r, peak, p.window_px)
     code[(code == 0) & ~(width <= p.max_width_px)] = LineCode.TOO_WIDE
     code[(code == 0) & _wider_than_the_line(width, code, p)] = LineCode.TOO_WIDE
-    code[(code == 0) & _narrower_than_the_line(width, code, p)] = LineCode.EDGE
+    shape = width / 2.355 if p.flat_top else _profile_sigma(S, r, cols)
+    shape_ok = (code == 0) & np.isfinite(shape)
+    shape_median = float(np.median(shape[shape_ok])) if shape_ok.sum() >= 8 else np.nan
+    if p.min_width_ratio is not None and np.isfinite(shape_median):
+        code[(code == 0) & ~(shape >= p.min_width_ratio * shape_median)] = LineCode.EDGE
     code[(code == 0) & _saturated(C if rgb is None else rgb, r, p)] = LineCode.SATURATED
     code[(code == 0) & _second_peak(S, r, peak if S is C else S[r, cols], width, p)] = LineCode.AMBIGUOUS
 
@@ -229,7 +250,10 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
         row[ok] = base[ok] + _steger(C, S, rr, sigma_s)[ok]
     code[ok & ~np.isfinite(row)] = LineCode.NO_LINE
     row[code != 0] = np.nan
-    return LineDetection(cols, row, peak.astype(np.float64), width, code, method, (H, W), r + int(row_offset))
+    sigma_px = _centre_sigma(C, S, r, cols, shape, shape_median, p)
+    sigma_px[code != 0] = np.nan
+    return LineDetection(cols, row, peak.astype(np.float64), width, code, method, (H, W), r + int(row_offset),
+                         sigma_px)
 
 
 # -- per-column pieces --------------------------------------------------------------------
@@ -321,11 +345,64 @@ def _centre_of_gravity(C, r, peak, p: DetectParams) -> np.ndarray:
         return (w * offsets).sum(axis=0) / total  # from the peak row
 
 
-def _narrower_than_the_line(width: np.ndarray, code: np.ndarray, p: DetectParams) -> np.ndarray:
-    ok = (code == 0) & np.isfinite(width)
-    if p.min_width_ratio is None or ok.sum() < 8:
-        return np.zeros(len(width), bool)
-    return width < p.min_width_ratio * float(np.median(width[ok]))
+CENTRE_FLOOR_PX = 0.002  # the centre's uncertainty on a whole, noise-free line (point-sampled Gaussian)
+LOCAL_WIDTH_COLUMNS = 9  # the reference width for a column's uncertainty: the median over this many
+THRESHOLD_SIGMA_PX = 0.5 / np.sqrt(3.0)  # the mean of two ends each uniform over ±0.5 px
+
+
+def _profile_sigma(S: np.ndarray, r: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """σ₃ (W,) px: the width of a Gaussian through the peak sample and its two neighbours
+    (NaN where the three do not make a peak)."""
+    H = S.shape[0]
+    rr = np.clip(r, 1, H - 2)
+    tiny = 1e-12
+    with np.errstate(divide="ignore", invalid="ignore"):
+        l0 = np.log(np.maximum(S[rr, cols].astype(np.float64), tiny))
+        den = (np.log(np.maximum(S[rr - 1, cols].astype(np.float64), tiny)) - l0
+               + np.log(np.maximum(S[rr + 1, cols].astype(np.float64), tiny)) - l0)
+        return np.where(den < 0, np.sqrt(-1.0 / den), np.nan)
+
+
+def _image_noise(C: np.ndarray, p: DetectParams) -> float:
+    """Standard deviation of the contrast where there is no line (robust: from the median
+    absolute deviation of the pixels below half the detection threshold)."""
+    dark = C[C < 0.5 * p.min_peak]
+    if dark.size < 16:
+        return 0.0
+    dark = dark[:: max(1, dark.size // 20000)]
+    return float(1.4826 * np.median(np.abs(dark - np.median(dark))))
+
+
+def _local_median(values: np.ndarray, ok: np.ndarray, n: int) -> np.ndarray:
+    """Running median of ``values`` over ``n`` neighbouring ``ok`` entries (NaN elsewhere)."""
+    out = np.full(len(values), np.nan)
+    idx = np.flatnonzero(ok)
+    if len(idx) == 0:
+        return out
+    v = values[idx]
+    half = n // 2
+    padded = np.concatenate([np.full(half, v[0]), v, np.full(half, v[-1])])
+    out[idx] = np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
+    return out
+
+
+def _centre_sigma(C, S, r, cols, shape, shape_median, p: DetectParams) -> np.ndarray:
+    """Uncertainty (W,) px of each column's centre: the disagreement of the profile's two
+    flanks if the line is as wide as its neighbours' (half of |σ_ref²/σ₃² − 1|, σ_ref the
+    median over LOCAL_WIDTH_COLUMNS columns: the whole line's width changes along the line
+    with the surface's slope, a cut one from one column to the next), the image noise
+    through the three-point fit, and a floor, added in quadrature."""
+    H = S.shape[0]
+    rr = np.clip(r, 1, H - 2)
+    reference = _local_median(shape, np.isfinite(shape), LOCAL_WIDTH_COLUMNS)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        flanks = 0.5 * np.abs(reference ** 2 / shape ** 2 - 1.0)
+        noise = _image_noise(C, p)
+        s2 = (shape_median if np.isfinite(shape_median) else 1.0) ** 2
+        fit = 0.5 * s2 * noise * np.hypot(1.0 / S[rr - 1, cols], 1.0 / S[rr + 1, cols])
+    flanks = np.minimum(np.nan_to_num(flanks, nan=0.5, posinf=0.5), 0.5)
+    fit = np.minimum(np.nan_to_num(fit, nan=0.5, posinf=0.5), 0.5)
+    return np.minimum(np.sqrt(CENTRE_FLOOR_PX ** 2 + flanks ** 2 + fit ** 2), 0.5)
 
 
 def _wider_than_the_line(width: np.ndarray, code: np.ndarray, p: DetectParams) -> np.ndarray:
@@ -427,4 +504,7 @@ def _detect_threshold(C, rgb, p: DetectParams, code: np.ndarray, row_offset: int
     r = _argmax_rows(C)
     code[(code == 0) & _saturated(C if rgb is None else rgb, r, p)] = LineCode.SATURATED
     row = np.where(code == 0, 0.5 * ((first + row_offset) + (last + row_offset)), np.nan)
-    return LineDetection(cols, row, peak.astype(np.float64), width, code, "threshold", (H, W), r + row_offset)
+    # The centre of a run of whole pixels: its ends are each uncertain by up to half a pixel.
+    sigma_px = np.where(code == 0, THRESHOLD_SIGMA_PX, np.nan)
+    return LineDetection(cols, row, peak.astype(np.float64), width, code, "threshold", (H, W), r + row_offset,
+                         sigma_px)

@@ -19,8 +19,9 @@ Stability: a ray that meets the laser plane at a shallow angle (the paper's
 and counted, never returned as inf, NaN or huge values.
 
 Per point, the result also carries the triangulation angle (between viewing ray
-and laser plane) and the depth uncertainty that 0.1 px of detection error along
-the triangulation direction causes.
+and laser plane) and its depth uncertainty: the detector's uncertainty of the line
+centre (``LineDetection.sigma_px``) times how far the point moves per pixel along
+the triangulation direction.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from .probe import Probe, _check_camera
 
 TRIANGULATION_METHODS = ("exact", "paper")
 MIN_ANGLE_DEG = 2.0
-DETECTION_ERROR_PX = 0.1
+UNKNOWN_SIGMA_PX = 0.1  # a detection that states no uncertainty (made up from given rows)
 CAMERA_BITS = {0: 1, 1: 2}  # Profile.camera: 1 = camera 0, 2 = camera 1, 3 = both (fused)
 
 
@@ -47,8 +48,10 @@ class Profile:
     col : (n,) float, sensor column the point came from (camera 0's for fused points)
     camera : (n,) uint8, 1 = camera 0, 2 = camera 1, 3 = both cameras (fused)
     angle_rad : (n,) triangulation angle between viewing ray and laser plane
-    sigma_mm : (n,) distance the point moves for 0.1 px of detection error
-    masked : counts of dropped columns by reason ("no_detection", "grazing", "out_of_range")
+    sigma_mm : (n,) depth uncertainty, mm: the line centre's uncertainty times the distance
+        the point moves per pixel
+    masked : counts of dropped columns by reason ("no_detection", "grazing", "out_of_range",
+        and after fusion "camera_conflict")
     """
 
     points: np.ndarray
@@ -108,6 +111,7 @@ def triangulate_profile(probe: Probe, line: LineDetection, camera: int = 0, meth
     masked = {"no_detection": int(np.sum(~ok))}
     u = line.col[ok].astype(np.float64)
     v = line.row[ok].astype(np.float64)
+    sigma_px = np.full(len(u), UNKNOWN_SIGMA_PX) if line.sigma_px is None else line.sigma_px[ok].astype(np.float64)
     P, angle = _laser_plane_hits(probe, u, v, camera, method)
     grazing = ~np.isfinite(P).all(axis=1) | (angle < np.radians(min_angle_deg))
     z0, z1 = probe.z_range_mm
@@ -117,12 +121,12 @@ def triangulate_profile(probe: Probe, line: LineDetection, camera: int = 0, meth
     masked["grazing"] = int(np.sum(grazing))
     masked["out_of_range"] = int(np.sum(outside))
     keep = ~grazing & ~outside
-    u, v, P, angle = u[keep], v[keep], P[keep], angle[keep]
-    # Sensitivity: how far the point moves for ±0.05 px along the triangulation direction.
-    half = 0.5 * DETECTION_ERROR_PX
-    Pa, _ = _laser_plane_hits(probe, u, v - half, camera, method)
-    Pb, _ = _laser_plane_hits(probe, u, v + half, camera, method)
-    sigma = np.linalg.norm(Pa - Pb, axis=1)
+    u, v, P, angle, sigma_px = u[keep], v[keep], P[keep], angle[keep], sigma_px[keep]
+    # Sensitivity: how far the point moves per pixel along the triangulation direction
+    # (from ±0.05 px, where the ray's direction is as good as linear).
+    Pa, _ = _laser_plane_hits(probe, u, v - 0.05, camera, method)
+    Pb, _ = _laser_plane_hits(probe, u, v + 0.05, camera, method)
+    sigma = 10.0 * np.linalg.norm(Pa - Pb, axis=1) * sigma_px
     return Profile(P, u, np.full(len(P), CAMERA_BITS[camera], np.uint8), angle, sigma, masked)
 
 
@@ -142,11 +146,13 @@ def fuse_profiles(p0: Profile, p1: Profile, *, gate_sigmas: float = 5.0, gate_fl
     Both cameras see the same laser line, sampled at different Y. Where camera 1's
     profile covers a camera-0 point (neighbours on both sides in Y, no gap wider
     than ``max_gap_factor`` × its typical spacing), its Z is interpolated there and
-    the two are averaged with weights 1/σ²; the point is marked 3 (both). Where
-    the two disagree by more than the gate (gate_sigmas·σ combined, at least
-    gate_floor_mm: an occlusion edge or a reflection), both points are kept with
-    their own camera. Points only one camera sees are kept as they are, so one
-    camera fills in where the other is occluded.
+    the two are averaged with weights 1/σ²; the point is marked 3 (both) and its σ
+    is the larger of the average's and half the two cameras' difference. Where the two
+    disagree by more than the gate (gate_sigmas·σ combined, at least gate_floor_mm),
+    at least one camera sees something other than the lit strip on the laser plane (an
+    occlusion edge hiding part of it, a reflection): neither can be trusted, and both
+    are dropped (counted as "camera_conflict"). Points only one camera sees are kept
+    as they are, so one camera fills in where the other is occluded.
     """
     if len(p0) == 0 or len(p1) == 0:
         other = p1 if len(p0) == 0 else p0
@@ -188,14 +194,23 @@ def fuse_profiles(p0: Profile, p1: Profile, *, gate_sigmas: float = 5.0, gate_fl
     fused = a.take(np.ones(len(a), bool))
     wa, wb = 1.0 / a.sigma_mm[agree] ** 2, 1.0 / s1_at[agree] ** 2
     fused.points[agree, 2] = (wa * a.points[agree, 2] + wb * z1_at[agree]) / (wa + wb)
-    fused.sigma_mm[agree] = 1.0 / np.sqrt(wa + wb)
+    fused.sigma_mm[agree] = np.maximum(1.0 / np.sqrt(wa + wb), 0.5 * np.abs(a.points[agree, 2] - z1_at[agree]))
     fused.camera[agree] = 3
-    # Camera-1 points are dropped where camera 0's profile covers them and agrees.
+    # Camera-1 points that camera 0's profile covers are dropped: they agreed (and are in the
+    # average) or they conflict with it (and neither camera's point is kept).
     k, cov1 = covered(y1, y0)
     near0 = np.where(cov1, np.minimum(np.abs(y1 - y0[k - 1]), np.abs(y1 - y0[k])), np.inf)
     conflict0 = cov0 & ~agree
-    drop1 = cov1 & ~(conflict0[k - 1] | conflict0[k]) & np.isfinite(near0)
+    drop1 = cov1 & np.isfinite(near0)
+    conflict1 = drop1 & (conflict0[k - 1] | conflict0[k])
+    # A point only one camera sees has no second opinion: its σ also carries how far each
+    # camera's points stray from the other's in this frame (the RMS of half the differences
+    # on the fused points, each camera's share of them).
+    spread = float(np.sqrt(np.mean((a.points[agree, 2] - z1_at[agree]) ** 2) / 2.0)) if agree.any() else 0.0
+    fused.sigma_mm[~agree] = np.hypot(fused.sigma_mm[~agree], spread)
+    fused = fused.take(~conflict0)
     extra = b.take(~drop1)
+    extra.sigma_mm = np.hypot(extra.sigma_mm, spread)
     out = Profile(
         np.concatenate([fused.points, extra.points]),
         np.concatenate([fused.col, extra.col]),
@@ -205,7 +220,7 @@ def fuse_profiles(p0: Profile, p1: Profile, *, gate_sigmas: float = 5.0, gate_fl
         _merge_counts(p0.masked, p1.masked),
     )
     out.masked["fused"] = int(np.sum(agree))
-    out.masked["conflicts"] = int(np.sum(conflict0))
+    out.masked["camera_conflict"] = int(np.sum(conflict0) + np.sum(conflict1))
     order = np.argsort(out.points[:, 1], kind="stable")
     return out.take(order)
 

@@ -1,0 +1,165 @@
+"""The error a probe of this design makes because its laser line has a width.
+
+The laser lights a strip across the line, not a curve: the beam is a Gaussian of
+1/e² full width ``line_width_mm`` at mid-range, keeping its angle, so a Gaussian
+in the angle β out of the laser plane. On a flat surface the strip's image is
+centred on where the laser plane meets the surface and the probe measures the
+surface exactly. On a curved surface, near an edge, or where part of the strip
+is hidden from the camera, the lit strip's image is no longer centred on that
+point: even a perfect detector finds the centre of what the camera sees, and the
+point triangulated from it lies off the part.
+
+:func:`line_width_floor` computes that point for each measured point from the
+geometry alone (no rendering): it casts the beam as ``samples`` rays across its
+width from the laser, through the measured point's direction in the laser plane,
+against the part and the table; weights each first hit by the beam's Gaussian and
+by how much light a matt surface sends towards the camera (the cosine between its
+normal and the way to the camera, zero where the camera cannot see the hit); takes
+the image a pixel-sampled sensor makes of it; finds the line's row there as the
+detector does (the three-point Gaussian fit at the brightest pixel; a line cut
+beside that pixel has no floor, as the detector rejects it); and triangulates that
+pixel on the laser
+plane, as the probe does. Its distance from the part is the floor of the error for
+that point: what the line's width alone costs, with a noise-free sensor and this
+probe's detector.
+Fused points average their two cameras' floors.
+
+Embree's hits are single precision; each is recomputed in double precision on the
+triangle Embree found, so that the floor of a flat face is zero to rounding.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..optics.probe import Probe
+from .footprint import SurfaceCaster
+
+FLOOR_SAMPLES = 41         # rays across the beam
+FLOOR_SPAN_SIGMAS = 4.0    # the rays cover ±this many beam σ
+OCCLUSION_EPS_MM = 0.01
+
+
+def _exact_hits(mesh, origins, dirs, tri) -> np.ndarray:
+    """Ray parameter t of each ray on the plane of its hit triangle, in double precision."""
+    n = mesh.face_normals[tri]
+    v0 = mesh.vertices[mesh.faces[tri, 0]]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.einsum("ij,ij->i", n, v0 - origins) / np.einsum("ij,ij->i", n, dirs)
+
+
+def _first_hits(caster: SurfaceCaster, origins, dirs):
+    """(t (m,) mm along each ray, NaN where it hits nothing; face index (m,), −1 where none)."""
+    t = np.full(len(origins), np.nan)
+    face = np.full(len(origins), -1)
+    if not len(origins):
+        return t, face
+    tri, ray = caster.caster.intersects_id(origins, dirs, multiple_hits=False)[:2]
+    t[ray] = _exact_hits(caster.mesh, origins[ray], dirs[ray], tri)
+    face[ray] = tri
+    return t, face
+
+
+def _image_profile(v: np.ndarray, w: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Light (n, r) at sensor rows ``rows`` (n, r) of strips sampled at rows ``v`` (n, k) with
+    light ``w`` (n, k): a pixel sees the surface point imaged at its centre, so its light is
+    interpolated between the two samples around it that lie on one continuous, lit piece of
+    surface (less than a pixel apart); the brightest such piece where several cover a row."""
+    v0, v1, w0, w1 = v[:, :-1], v[:, 1:], w[:, :-1], w[:, 1:]
+    joined = (w0 > 0) & (w1 > 0) & (np.abs(v1 - v0) < 1.0)
+    lo, hi = np.minimum(v0, v1), np.maximum(v0, v1)
+    out = np.zeros(rows.shape)
+    for j in range(rows.shape[1]):
+        r = rows[:, j:j + 1]
+        inside = joined & (r >= lo) & (r <= hi)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            a = np.where(v1 != v0, (r - v0) / (v1 - v0), 0.0)
+        # Between two samples of the Gaussian beam the light's logarithm is as good as linear.
+        light = np.exp((1 - a) * np.log(np.maximum(w0, 1e-300)) + a * np.log(np.maximum(w1, 1e-300)))
+        out[:, j] = np.where(inside, light, 0.0).max(axis=1, initial=0.0)
+    return out
+
+
+def _fitted_rows(v: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """The row (n,) the three-point Gaussian fit finds on each strip's image, as the
+    detector does: around the brightest pixel, from it and its two neighbours. NaN where
+    a neighbour gets no light (the detector rejects such a cut line)."""
+    n = len(v)
+    best = np.argmax(w, axis=1)
+    centre = np.rint(v[np.arange(n), best])
+    rows = centre[:, None] + np.arange(-2, 3)[None, :]
+    light = _image_profile(v, w, rows)
+    # The brightest of the pixels around the brightest sample.
+    k = 1 + np.argmax(light[:, 1:4], axis=1)
+    lm, l0, lp = (light[np.arange(n), k + d] for d in (-1, 0, 1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        a, b, c = np.log(lm), np.log(l0), np.log(lp)
+        den = a - 2.0 * b + c
+        offset = 0.5 * (a - c) / den
+    good = (lm > 0) & (l0 > 0) & (lp > 0) & (den < 0) & (np.abs(offset) <= 1.0)
+    return np.where(good, rows[np.arange(n), k] + offset, np.nan)
+
+
+def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, frame: np.ndarray,
+                     camera: np.ndarray, surfaces: SurfaceCaster, samples: int = FLOOR_SAMPLES) -> np.ndarray:
+    """Floor points (n, 3), table frame: where a perfect detector of this probe would put
+    each measured point (``points`` (n, 3) table frame, ``frame`` (n,) index into
+    ``probe2table`` (m, 4, 4), ``camera`` (n,) 1, 2 or 3 = both). NaN where the camera
+    sees none of the strip."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    n = len(points)
+    T = np.asarray(probe2table, dtype=np.float64)[np.asarray(frame, dtype=int)]
+    R, t = T[:, :3, :3], T[:, :3, 3]
+    local = np.einsum("nji,nj->ni", R, points - t)  # probe frame
+    # The measured point's direction in the laser plane, and the beam's angular σ.
+    in_plane = local.copy()
+    in_plane[:, 0] = 0.0
+    ahead = in_plane / np.linalg.norm(in_plane, axis=1, keepdims=True)
+    z0, z1 = probe.z_range_mm
+    sigma_beta = probe.line_width_mm / 4.0 / (0.5 * (z0 + z1))
+    beta = np.linspace(-FLOOR_SPAN_SIGMAS, FLOOR_SPAN_SIGMAS, samples) * sigma_beta
+    gauss = np.exp(-0.5 * (beta / sigma_beta) ** 2)
+    # Ray k of point i: direction ahead_i tilted by β_k out of the laser plane (probe x).
+    d_local = ahead[:, None, :] + np.tan(beta)[None, :, None] * np.array([1.0, 0.0, 0.0])
+    d_local /= np.linalg.norm(d_local, axis=2, keepdims=True)
+    dirs = np.einsum("nij,nkj->nki", R, d_local).reshape(-1, 3)
+    origins = np.repeat(t, samples, axis=0)
+    hit_t, face = _first_hits(surfaces, origins, dirs)
+    hits = origins + hit_t[:, None] * dirs
+    normals = surfaces.mesh.face_normals[np.maximum(face, 0)]
+    hit_local = np.einsum("nji,nkj->nki", R, hits.reshape(n, samples, 3) - t[:, None, :]).reshape(-1, 3)
+    frame_of = np.repeat(np.arange(n), samples)
+
+    floors = []
+    for cam in (0, 1):
+        centre_local = probe.cam2probe(cam)[:3, 3]
+        centre = t + np.einsum("nij,j->ni", R, centre_local)
+        to_cam = centre[frame_of] - hits
+        dist = np.linalg.norm(to_cam, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            to_cam_u = to_cam / dist[:, None]
+            facing = np.einsum("ij,ij->i", normals, to_cam_u)
+        ok = np.isfinite(hit_t) & (face >= 0) & (facing > 0)
+        # Hidden from the camera: something on the way from the hit to the camera.
+        look_t, _ = _first_hits(surfaces, centre[frame_of][ok], -to_cam_u[ok])
+        visible = np.zeros(len(hits), bool)
+        visible[np.flatnonzero(ok)] = ~(look_t < dist[ok] - OCCLUSION_EPS_MM)
+        w = np.where(visible, np.tile(gauss, n) * np.where(ok, facing, 0.0), 0.0).reshape(n, samples)
+        uv = probe.project(hit_local, cam).reshape(n, samples, 2)
+        w = np.where(np.isfinite(uv).all(axis=2), w, 0.0)
+        v, u = np.nan_to_num(uv[:, :, 1]), np.nan_to_num(uv[:, :, 0])
+        row = _fitted_rows(v, w)
+        best = np.argmax(w, axis=1)
+        col = u[np.arange(n), best]
+        origin, ray = probe.pixel_rays(np.column_stack([col, np.nan_to_num(row)]), cam)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = -origin[0] / ray[:, 0]
+        F = origin + s[:, None] * ray
+        F[:, 0] = 0.0
+        F[~np.isfinite(row)] = np.nan
+        floors.append(F)
+    cam = np.asarray(camera, dtype=int)
+    chosen = np.where((cam == 1)[:, None], floors[0], floors[1])
+    both = 0.5 * (floors[0] + floors[1])
+    chosen = np.where((cam == 3)[:, None], both, chosen)
+    return np.einsum("nij,nj->ni", R, chosen) + t
