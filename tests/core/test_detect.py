@@ -185,3 +185,38 @@ def test_a_flat_topped_line_is_always_smoothed():
     assert not plain.valid.any()  # unsmoothed, a neighbour row is dark: the fit has no flank
     assert flat.valid.all()
     np.testing.assert_allclose(flat.row, 30.2, atol=0.15)  # near the lit run's centre of mass
+
+
+def test_a_line_cut_across_its_width_is_rejected_and_a_whole_one_states_a_small_sigma():
+    # A point-sampled Gaussian line; in 20 columns an edge of the part dims everything from
+    # 0.6 σ beside the centre on to a seventh (the strip's far side lies on a surface
+    # turned away, still lit: no row is dark, so only the profile's shape tells).
+    sigma = 0.8
+    centre = smooth_line(seed=3)
+    img = line_image(H, centre, sigma, integrate=False, background=0.0)
+    rows = np.arange(H)[:, None]
+    cut = np.zeros(W, bool)
+    cut[60:80] = True
+    img[(rows > centre[None, :] + 0.6 * sigma) & cut[None, :]] *= 1.0 / 7.0
+    params = DetectParams(min_width_ratio=0.8, smoothing_px=0.0)
+    line = detect_line(img, "gauss", params)
+    assert np.all(line.code[cut] == LineCode.EDGE), line.code[cut]
+    whole = ~cut & line.valid
+    assert whole.mean() > 0.85
+    err = np.abs(line.row - centre)[whole]
+    # The stated σ is small where the line is whole and covers its error there.
+    assert np.median(line.sigma_px[whole]) < 0.02
+    assert np.mean(err <= 2 * line.sigma_px[whole]) >= 0.9
+    # Without the check, those columns are measured off the line's true centre.
+    loose = detect_line(img, "gauss", DetectParams(min_width_ratio=None, smoothing_px=0.0))
+    assert np.nanmax(np.abs(loose.row - centre)[cut]) > 0.1
+
+
+def test_sigma_grows_with_the_image_noise():
+    centre = smooth_line(seed=4)
+    quiet = detect_line(line_image(H, centre, 1.0, integrate=False), "gauss", DetectParams(smoothing_px=0.0))
+    noisy = detect_line(line_image(H, centre, 1.0, integrate=False, noise=0.03, rng=np.random.default_rng(2)),
+                        "gauss", DetectParams(smoothing_px=0.0))
+    assert np.nanmedian(noisy.sigma_px) > 3 * np.nanmedian(quiet.sigma_px)
+    err = np.abs(noisy.row - centre)[noisy.valid]
+    assert np.mean(err <= 2 * noisy.sigma_px[noisy.valid]) >= 0.9

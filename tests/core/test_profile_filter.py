@@ -63,3 +63,17 @@ def test_off_filter_changes_nothing_and_bad_settings_are_refused():
     for kw in (dict(max_incidence_deg=0.0), dict(max_incidence_deg=95.0), dict(edge_px=-1), dict(edge_px=1.5)):
         with pytest.raises(InputError):
             ProfileFilter(**kw)
+
+
+def test_points_less_certain_than_the_limit_are_dropped_and_counted():
+    from addon.core.optics.profile_filter import ProfileFilter, drop_uncertain
+    from addon.core.optics.triangulate import Profile
+
+    sigma = np.array([0.001, 0.2, 0.01, 0.06, 0.05])
+    p = Profile(np.zeros((5, 3)), np.arange(5.0), np.ones(5, np.uint8), np.ones(5), sigma, {"uncertain": 1})
+    out = drop_uncertain(p, ProfileFilter(max_sigma_mm=0.05))
+    np.testing.assert_array_equal(out.sigma_mm, [0.001, 0.01, 0.05])
+    assert out.masked["uncertain"] == 3
+    assert len(drop_uncertain(p, ProfileFilter())) == 5  # off by default
+    with pytest.raises(InputError):
+        ProfileFilter(max_sigma_mm=0.0)

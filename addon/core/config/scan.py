@@ -19,7 +19,8 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
                  smoothing_px (default: none on noise-free images of the gobo line; otherwise matched
                  to the line, none for lines under 0.8 px σ; the slit's flat top always smoothed)
     [triangulate] method (exact|paper), fuse (both cameras into one profile),
-                 max_incidence_deg (65), edge_px (2): see addon.core.profile_filter
+                 max_incidence_deg (65), edge_px (2), max_sigma_mm (0.05): see
+                 addon.core.optics.profile_filter
     [leave_out]  render_band, skip_blind_cameras, hide_robot, chunk_frames, band_margin_px
     [sensor]     the realistic sensor (all off by default): integrate_pixels, saturate, noise,
                  speckle, defocus, distortion = [k1, k2, p1, p2(, k3)], undistort, motion_blur, and
@@ -77,7 +78,9 @@ class LeaveOut:
 
 # Steep points and the ends of runs are dropped unless a config says otherwise: on the
 # tilted plate they are all of the error above 8 µm (see profile_filter and the README).
-DEFAULT_FILTER = ProfileFilter(max_incidence_deg=65.0, edge_px=2)
+# A point whose own σ (see triangulate and detect) exceeds 50 µm is dropped: a quarter of the
+# 0.2 mm a point may stray from the part, so that what is kept strays less than that.
+DEFAULT_FILTER = ProfileFilter(max_incidence_deg=65.0, edge_px=2, max_sigma_mm=0.05)
 # Columns whose line is 1.6 times wider than the image's median are rejected: the part turns
 # away from the laser across the line there (grazing along the scan); and those whose profile
 # is narrower than 0.8 times the median (σ₃, see detect): an edge of the part cuts the line
@@ -256,7 +259,9 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     profile_filter = ProfileFilter(
         max_incidence_deg=tri.number("max_incidence_deg", default=DEFAULT_FILTER.max_incidence_deg, lo=0.0, hi=90.0,
                                      lo_open=True),
-        edge_px=tri.integer("edge_px", default=DEFAULT_FILTER.edge_px, lo=0, hi=1000))
+        edge_px=tri.integer("edge_px", default=DEFAULT_FILTER.edge_px, lo=0, hi=1000),
+        max_sigma_mm=tri.number("max_sigma_mm", default=DEFAULT_FILTER.max_sigma_mm, lo=0.0, hi=float("inf"),
+                                lo_open=True))
     tri.finish()
     lo = top.table("leave_out", default={})
     leave_out = LeaveOut(lo.boolean("render_band", default=True), lo.boolean("skip_blind_cameras", default=True),

@@ -12,10 +12,10 @@ point triangulated from it lies off the part.
 :func:`line_width_floor` computes that point for each measured point from the
 geometry alone (no rendering): it casts the beam as ``samples`` rays across its
 width from the laser, through the measured point's direction in the laser plane,
-against the part and the table; weights each first hit by the beam's Gaussian and
-by how much light a matt surface sends towards the camera (the cosine between its
-normal and the way to the camera, zero where the camera cannot see the hit); takes
-the image a pixel-sampled sensor makes of it; finds the line's row there as the
+against the part and the table; gives each first hit the radiance a matt surface
+shows there (the beam's Gaussian, the cosine of incidence, the inverse square of the
+distance from the laser; nothing where the camera cannot see the hit); takes the
+image a pixel-sampled sensor makes of it; finds the line's row there as the
 detector does (the three-point Gaussian fit at the brightest pixel; a line cut
 beside that pixel has no floor, as the detector rejects it); and triangulates that
 pixel on the laser
@@ -73,7 +73,7 @@ def _image_profile(v: np.ndarray, w: np.ndarray, rows: np.ndarray) -> np.ndarray
         r = rows[:, j:j + 1]
         inside = joined & (r >= lo) & (r <= hi)
         with np.errstate(invalid="ignore", divide="ignore"):
-            a = np.where(v1 != v0, (r - v0) / (v1 - v0), 0.0)
+            a = np.clip(np.where(v1 != v0, (r - v0) / (v1 - v0), 0.0), 0.0, 1.0)
         # Between two samples of the Gaussian beam the light's logarithm is as good as linear.
         light = np.exp((1 - a) * np.log(np.maximum(w0, 1e-300)) + a * np.log(np.maximum(w1, 1e-300)))
         out[:, j] = np.where(inside, light, 0.0).max(axis=1, initial=0.0)
@@ -129,6 +129,11 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
     normals = surfaces.mesh.face_normals[np.maximum(face, 0)]
     hit_local = np.einsum("nji,nkj->nki", R, hits.reshape(n, samples, 3) - t[:, None, :]).reshape(-1, 3)
     frame_of = np.repeat(np.arange(n), samples)
+    # A pixel sees the surface's radiance, which for a matt surface is its irradiance: the
+    # beam's intensity, the cosine of incidence, and the inverse square of the distance.
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lit = np.maximum(-np.einsum("ij,ij->i", normals, dirs), 0.0) / hit_t ** 2
+    lit = np.nan_to_num(lit)
 
     floors = []
     for cam in (0, 1):
@@ -139,12 +144,12 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
         with np.errstate(invalid="ignore", divide="ignore"):
             to_cam_u = to_cam / dist[:, None]
             facing = np.einsum("ij,ij->i", normals, to_cam_u)
-        ok = np.isfinite(hit_t) & (face >= 0) & (facing > 0)
+        ok = np.isfinite(hit_t) & (face >= 0) & (facing > 0) & (lit > 0)
         # Hidden from the camera: something on the way from the hit to the camera.
         look_t, _ = _first_hits(surfaces, centre[frame_of][ok], -to_cam_u[ok])
         visible = np.zeros(len(hits), bool)
         visible[np.flatnonzero(ok)] = ~(look_t < dist[ok] - OCCLUSION_EPS_MM)
-        w = np.where(visible, np.tile(gauss, n) * np.where(ok, facing, 0.0), 0.0).reshape(n, samples)
+        w = np.where(visible, np.tile(gauss, n) * np.where(ok, lit, 0.0), 0.0).reshape(n, samples)
         uv = probe.project(hit_local, cam).reshape(n, samples, 2)
         w = np.where(np.isfinite(uv).all(axis=2), w, 0.0)
         v, u = np.nan_to_num(uv[:, :, 1]), np.nan_to_num(uv[:, :, 0])

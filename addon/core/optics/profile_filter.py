@@ -41,15 +41,19 @@ from .triangulate import Profile
 @dataclass(frozen=True)
 class ProfileFilter:
     """max_incidence_deg: drop points whose in-plane incidence exceeds it (90: keep all);
-    edge_px: columns dropped at each end of every run of points (0: none)."""
+    edge_px: columns dropped at each end of every run of points (0: none);
+    max_sigma_mm: after fusion, drop points whose depth uncertainty exceeds it (inf: keep all)."""
 
     max_incidence_deg: float = 90.0
     edge_px: int = 0
+    max_sigma_mm: float = float("inf")
 
     def __post_init__(self) -> None:
         if not (isinstance(self.max_incidence_deg, (int, float)) and 0 < self.max_incidence_deg <= 90):
             raise InputError(f"max_incidence_deg must be in (0, 90], got {self.max_incidence_deg!r}")
         check_whole(self.edge_px, "edge_px", 0, 1000)
+        if not (isinstance(self.max_sigma_mm, (int, float)) and self.max_sigma_mm > 0):
+            raise InputError(f"max_sigma_mm must be > 0 (inf: keep every point), got {self.max_sigma_mm!r}")
 
     @property
     def off(self) -> bool:
@@ -111,6 +115,16 @@ def _bend(points: np.ndarray, run_id: np.ndarray) -> np.ndarray:
     for i in np.flatnonzero(~np.r_[False, same, False]):
         j = i + 1 if i + 1 < n and run_id[i + 1] == run_id[i] else i - 1
         out[i] = out[j] if 0 <= j < n and run_id[j] == run_id[i] else 0.0
+    return out
+
+
+def drop_uncertain(profile: Profile, f: ProfileFilter) -> Profile:
+    """The profile without the points whose σ exceeds ``f.max_sigma_mm`` (counted as
+    "uncertain"): the fused profile's last cleaning, once each point's σ is final."""
+    keep = ~(profile.sigma_mm > f.max_sigma_mm)
+    out = profile.take(keep)
+    out.masked = dict(profile.masked)
+    out.masked["uncertain"] = out.masked.get("uncertain", 0) + int(np.sum(~keep))
     return out
 
 

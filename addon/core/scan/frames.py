@@ -10,7 +10,7 @@ import numpy as np
 
 from ..config.scan import ScanConfig
 from ..optics.detect import detect_line
-from ..optics.profile_filter import filter_profile
+from ..optics.profile_filter import drop_uncertain, filter_profile
 from ..optics.triangulate import fuse_profiles, triangulate_profile
 
 
@@ -71,12 +71,12 @@ def frame_profile(probe, lines, config: ScanConfig):
     profs = [filter_profile(triangulate_profile(probe, ln, cam, config.triangulate_method), config.profile_filter)
              for cam, ln in enumerate(lines) if ln is not None]
     if len(profs) == 2 and config.fuse:
-        return fuse_profiles(*profs)
+        return drop_uncertain(fuse_profiles(*profs), config.profile_filter)
     if len(profs) == 2:
         merged = profs[0].take(np.ones(len(profs[0]), bool))
         other = profs[1]
         merged.points = np.concatenate([merged.points, other.points])
         for name in ("col", "camera", "angle_rad", "sigma_mm"):
             setattr(merged, name, np.concatenate([getattr(merged, name), getattr(other, name)]))
-        return merged
-    return profs[0]
+        return drop_uncertain(merged, config.profile_filter)
+    return drop_uncertain(profs[0], config.profile_filter)

@@ -1,0 +1,51 @@
+"""The line-width floor: what a perfect detector of this probe measures, from geometry alone."""
+
+import numpy as np
+import trimesh
+
+from addon.core.config.rigs import load_probe
+from addon.core.geometry.footprint import SurfaceCaster
+from addon.core.geometry.line_floor import line_width_floor
+from addon.core.kinematics.path import DOWN, probe_orientation
+from addon.core.kinematics.transforms import make_pose
+
+
+def _down_at(height):
+    """The probe straight above the origin, ``height`` mm up, its laser plane x = 0."""
+    return make_pose(probe_orientation(DOWN, (0.0, 1.0, 0.0)), [0.0, 0.0, height])[None]
+
+
+def _floor(mesh, height, ys, z, camera=3):
+    probe = load_probe("default")
+    pts = np.column_stack([np.zeros(len(ys)), ys, np.full(len(ys), z)])
+    return line_width_floor(probe, _down_at(height), pts, np.zeros(len(ys), int), np.full(len(ys), camera),
+                            SurfaceCaster([mesh]))
+
+
+def test_a_flat_face_square_to_the_beam_is_measured_where_it_is():
+    plate = trimesh.creation.box(extents=[80.0, 80.0, 10.0])  # top at z = 5
+    ys = np.linspace(-20.0, 20.0, 9)
+    for camera in (1, 2, 3):
+        F = _floor(plate, 165.0, ys, 5.0, camera)
+        assert np.isfinite(F).all()
+        # On the face: the strip is symmetric about the laser plane up to perspective.
+        assert np.max(np.abs(F[:, 2] - 5.0)) < 0.004, F[:, 2] - 5.0
+        assert np.max(np.abs(F[:, 1] - ys)) < 0.01
+
+
+def test_a_step_inside_the_strip_moves_or_rejects_the_point():
+    # Two levels meet along x = 0.25 mm, a little under one beam σ beside the laser plane:
+    # part of the strip falls 10 mm lower. Far from the step the face reads true.
+    high = trimesh.creation.box(extents=[40.0, 80.0, 20.0])
+    high.apply_translation([-20.0 + 0.25, 0.0, 0.0])   # top at z = 10, for x < 0.25
+    low = trimesh.creation.box(extents=[40.0, 80.0, 0.1])
+    low.apply_translation([20.0 + 0.25, 0.0, -0.05])   # top at z = 0, for x > 0.25
+    step = trimesh.util.concatenate([high, low])
+    ys = np.linspace(-10.0, 10.0, 5)
+    F = _floor(step, 170.0, ys, 10.0, 1)
+    off = np.where(np.isfinite(F[:, 2]), np.abs(F[:, 2] - 10.0), np.inf)
+    assert np.all(off > 0.005), off  # biased by more than 5 µm, or rejected (no finite floor)
+    far = trimesh.creation.box(extents=[40.0, 80.0, 20.0])
+    far.apply_translation([-20.0 + 5.0, 0.0, 0.0])     # the same step 5 mm away
+    F = _floor(far, 170.0, ys, 10.0, 1)
+    assert np.max(np.abs(F[:, 2] - 10.0)) < 0.004
