@@ -49,7 +49,7 @@ class Profile:
 
     points : (n, 3) float, mm, table frame
     camera : (n,) uint8, 1 = camera 0, 2 = camera 1, 3 = both (fused)
-    sigma_mm : (n,) float, depth uncertainty: how far the point moves for 0.1 px of detection error
+    sigma_mm : (n,) float, mm, each point's depth uncertainty (see docs/optics.md, point quality)
     quality : (n,) float, 0..1, 1 for points both cameras agree on, lower the less sure the point
     probe2table : (4, 4) float, mm, the probe pose in the table frame
     q : (6,) rad, the robot's joints; table_deg : the table's angle

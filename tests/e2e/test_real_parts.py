@@ -7,7 +7,6 @@ casting the beam against the mesh: addon.core.geometry.line_floor); at least 90 
 points lie within twice their stated σ; and no point of the nut (flat faces and a bore,
 nothing finer than the line) lies 0.2 mm from it."""
 
-import numpy as np
 import pytest
 
 pytest.importorskip("bpy")

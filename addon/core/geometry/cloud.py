@@ -4,7 +4,7 @@ Each frame's profile is measured in the probe frame; ``probe2table`` =
 ``base2table(θ_R) @ probe2base(q)`` (see :mod:`addon.core.cell`) takes it into the
 table frame, where clouds from every frame, table angle and camera accumulate.
 Every point keeps the frame it came from, which camera(s) saw it and its
-quality (the depth uncertainty for 0.1 px of detection error).
+quality (its depth uncertainty σ in mm: see optics.triangulate).
 
 PLY files are binary, written through trimesh, with per-vertex properties
 ``frame`` (int), ``camera`` (uchar: 1, 2 or 3 = both) and ``quality`` (float, mm).
