@@ -10,8 +10,8 @@ cell from core models; ``addon.ui`` holds the panel, operators and properties. T
 below are imported on first use, so that importing this package stays light.
 """
 
-__all__ = ["Profile", "RenderOptions", "ScanConfig", "ScanReport", "Scanner", "UnreachablePose", "ScannerError",
-           "load_probe", "load_robot", "load_scan_config", "load_workpiece", "report_json"]
+__all__ = ["CollisionError", "Profile", "RenderOptions", "ScanConfig", "ScanReport", "Scanner", "UnreachablePose",
+           "ScannerError", "load_probe", "load_robot", "load_scan_config", "load_workpiece", "report_json"]
 
 _HOMES = {
     "Scanner": ".scanner", "Profile": ".scanner",
@@ -20,7 +20,7 @@ _HOMES = {
     "ScanConfig": ".core.config.scan", "load_scan_config": ".core.config.scan",
     "load_probe": ".core.config.rigs", "load_robot": ".core.config.rigs",
     "load_workpiece": ".core.geometry.workpiece",
-    "UnreachablePose": ".core.errors", "ScannerError": ".core.errors",
+    "UnreachablePose": ".core.errors", "ScannerError": ".core.errors", "CollisionError": ".core.errors",
 }
 
 

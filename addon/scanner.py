@@ -29,7 +29,7 @@ import numpy as np
 from .core.config.render import RenderOptions
 from .core.config.rigs import load_probe, load_robot
 from .core.config.scan import MAX_FRAMES, ScanConfig, load_scan_config
-from .core.errors import InputError, UnreachablePose, check_whole
+from .core.errors import CollisionError, InputError, UnreachablePose, check_whole
 from .core.geometry.cloud import Cloud
 from .core.geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
 from .core.kinematics.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
@@ -124,6 +124,7 @@ class Scanner:
         self._t0 = time.perf_counter()
         self._cached = None  # (frames measured, ScanResult) of the last result(): report() after save() is free
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
+        self._clearances: list = []  # the collision check of every move and path (PathClearance)
         if not len(config.waypoints):
             self._look_at_the_table()
 
@@ -138,7 +139,7 @@ class Scanner:
         z0, z1 = self.config.probe.z_range_mm
         try:
             self.move_to(((0.0, 0.0, 0.5 * (z0 + z1)), (90.0, 180.0, 0.0)))
-        except UnreachablePose:
+        except (UnreachablePose, CollisionError):
             pass
 
     @classmethod
@@ -190,7 +191,9 @@ class Scanner:
     def move_to(self, pose, relative_to: str = "table") -> np.ndarray:
         """Put the probe at ``pose``: a (4, 4) transform, or (xyz_mm, yzz_deg), relative to the
         table or the robot base. IK takes the branch nearest the current joints. Returns the
-        new joints; raises UnreachablePose (and moves nothing) where the pose cannot be reached."""
+        new joints; raises UnreachablePose where the pose cannot be reached and CollisionError
+        where the pose or the motion to it comes too near the table, the part or a fixture (or
+        the robot to itself), naming the two bodies: in either case nothing moves."""
         T = self._as_pose(pose)
         if relative_to not in RELATIVE_TO:
             raise InputError(f"relative_to must be one of {', '.join(RELATIVE_TO)}, got {relative_to!r}")
@@ -200,26 +203,58 @@ class Scanner:
             raise UnreachablePose(f"probe pose {np.round(xyz, 3).tolist()} mm, YZZ' "
                                   f"{np.round(np.degrees(yzz), 3).tolist()} deg relative to the {relative_to} "
                                   f"cannot be reached: {res.message}", res)
+        self._check_move(np.asarray(res.q, dtype=np.float64), self._table_rad)
         self._q = np.array(res.q, dtype=np.float64)
         return self.q
 
     def move_joints(self, q) -> np.ndarray:
-        """Set the robot's joints (6,) rad; raises UnreachablePose (and moves nothing) outside the limits."""
+        """Set the robot's joints (6,) rad; raises UnreachablePose outside the limits and
+        CollisionError where the pose or the motion to it collides (and moves nothing)."""
         q = self.config.robot.check_q(q)
         if q.shape != (6,):
             raise InputError(f"move_joints takes 6 joint angles, got shape {q.shape}")
         bad = self.config.robot.limit_violations(q)
         if bad:
             raise UnreachablePose("joints outside the robot's limits: " + "; ".join(bad))
+        self._check_move(np.array(q, dtype=np.float64), self._table_rad)
         self._q = np.array(q, dtype=np.float64)
         return self.q
 
     def turn_table(self, deg: float) -> float:
-        """Turn the table by ``deg`` degrees; returns its new angle (degrees)."""
+        """Turn the table by ``deg`` degrees; returns its new angle (degrees). Raises
+        CollisionError (and turns nothing) where the part or a fixture would hit the robot."""
         if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg):
             raise InputError(f"table turn must be a finite number of degrees, got {deg!r}")
+        self._check_move(self._q, self._table_rad + math.radians(deg))
         self._table_rad += math.radians(deg)
         return self.table_deg
+
+    def _check_move(self, q: np.ndarray, table_rad: float) -> None:
+        """Collision checks on the motion from the current joints and table angle to these."""
+        self._check_path(q[None, :], np.array([table_rad]), "move")
+
+    def _check_path(self, q: np.ndarray, table_rad: np.ndarray, what: str = "sweep") -> None:
+        """Collision checks on the motion from the current joints and table angle through q (n, 6)."""
+        from .core.scan.plan import check_motion
+
+        t = time.perf_counter()
+        try:
+            found = check_motion(self.config, q, table_rad, None, self._q, self._table_rad)
+        except CollisionError as exc:
+            raise CollisionError(f"{what} refused, nothing moved: {exc}") from None
+        finally:
+            self._timing["plan"] += time.perf_counter() - t
+        if found is not None:
+            self._clearances.append(found)
+
+    def clearance(self):
+        """The collision check of the current pose (a PathClearance: ``nearest`` gives the
+        smallest clearance and its bodies); None where the config turns the checks off."""
+        from .core.scan.plan import collision_model
+
+        if not self.config.safety.check:
+            return None
+        return collision_model(self.config).clearance_at(self._q, self._table_rad)
 
     @staticmethod
     def _as_pose(pose) -> np.ndarray:
@@ -259,6 +294,7 @@ class Scanner:
             bad = sol.unreachable
             raise UnreachablePose(f"{len(bad)} of {frames} poses of the sweep cannot be reached "
                                   f"(steps {frame_ranges(bad)}): {sol.messages[bad[0]]}")
+        self._check_path(sol.q, wp.table_rad)
         profiles = self._scan_frames(sol.q, wp.table_rad)
         self._q = np.array(sol.q[-1], dtype=np.float64)
         return profiles
@@ -284,6 +320,8 @@ class Scanner:
         plan = plan_scan(cfg)
         self._timing["plan"] += time.perf_counter() - t
         self._warnings += plan.warnings
+        if plan.clearance is not None:
+            self._clearances.append(plan.clearance)
         yield from self._frames_steps(plan.q, plan.table_rad, plan=plan, progress=progress)
         self._q = np.array(plan.q[-1], dtype=np.float64)
         self._table_rad = float(plan.table_rad[-1])
@@ -357,7 +395,10 @@ class Scanner:
             return self._cached[1]
         q = np.concatenate([p[0] for p in self._poses]) if self._poses else np.zeros((0, 6))
         table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
-        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings))
+        from .core.safety import PathClearance
+
+        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings),
+                    PathClearance.merge(self._clearances) if self._clearances else None)
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
                           {"render_device": getattr(self._sc, "device_used", None)})
         self._cached = (self._frames, result)

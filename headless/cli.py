@@ -16,7 +16,10 @@ Commands:
   bench versions       the demo under several Blender releases (their interpreters), side by side
   bench measure        one Scanner.measure() against one frame of a batch scan
   bench metrics        point-to-mesh distances: libigl's AABB tree against trimesh
-  bench parts          CAD-like parts (holes, pockets, fillets, thin walls) against their meshes
+  bench parts          real parts (CAD-like and scanned meshes) against their meshes, beside the line-width floor
+  bench collision      collision checks along a 10 000-frame path: frames/s, pairs/s
+  bench ik-bridge      IK from a controller over TCP/IP against the local solver: agreement, latency
+  ik-server            serve this project's IK over TCP/IP with the controller protocol
   overview             a picture of the cell and the two probe camera images
   realism-figure       one probe frame seen by the ideal and by the realistic sensor
   build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
@@ -63,9 +66,14 @@ def build_parser() -> argparse.ArgumentParser:
     from headless.bench import measure as bench_measure
     from headless.bench import metrics as bench_metrics
     from headless.bench import parts as bench_parts
+    from headless.bench import collision as bench_collision
+    from headless.bench import ik_bridge as bench_ik_bridge
     from headless.bench import versions as bench_versions
 
     overview.add_arguments(sub.add_parser("overview", help=_summary(overview.__doc__)))
+    from headless import ik_server
+
+    ik_server.add_arguments(sub.add_parser("ik-server", help=_summary(ik_server.__doc__)))
     realism_figure.add_arguments(sub.add_parser("realism-figure", help=_summary(realism_figure.__doc__)))
     build_extension.add_arguments(sub.add_parser("build-extension", help=_summary(build_extension.__doc__)))
     for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),
@@ -73,7 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
                          ("realism", bench_realism), ("accuracy", bench_accuracy),
                          ("stability", bench_stability), ("farm", bench_farm), ("versions", bench_versions),
                          ("measure", bench_measure), ("metrics", bench_metrics),
-                         ("parts", bench_parts)):
+                         ("parts", bench_parts), ("collision", bench_collision),
+                         ("ik-bridge", bench_ik_bridge)):
         module.add_arguments(bench_sub.add_parser(name, help=_summary(module.__doc__)))
     return parser
 

@@ -157,6 +157,10 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
     print(f"  coverage      {r['coverage_measurable'] * 100:.1f} % of the surface the path can measure "
           f"({r['measurable_share'] * 100:.1f} % of the part), {r['coverage'] * 100:.1f} % of the whole part, "
           f"within {r['coverage_tolerance_mm']:g} mm of a point")
+    c = (r.get("clearance") or {}).get("nearest")
+    if c:
+        print(f"  clearance     {c['clearance_mm']:.1f} mm at least, {c['bodies'][0]} to {c['bodies'][1]} at frame "
+              f"{c['frame']} (at least {r['clearance']['min_clearance_mm']:g} mm allowed)")
     ts = r["time_s"]
     dropped = ", ".join(f"{name.replace('_', ' ')} {count}" for name, count in sorted(r["points_dropped"].items())
                         if count)

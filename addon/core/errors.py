@@ -22,6 +22,10 @@ class InputError(ScannerError, ValueError):
     """A value passed to a function is malformed (wrong shape, non-finite, non-rigid)."""
 
 
+class CollisionError(ScannerError):
+    """A pose or a motion would bring the robot or the probe into (or too near) something."""
+
+
 class UnreachablePose(ScannerError):
     """Inverse kinematics found no joint vector within limits for a target pose.
 

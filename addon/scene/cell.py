@@ -276,8 +276,9 @@ def add_probe(collection, probe: Probe, laser: str = "gobo", laser_power_w: floa
     probe_frame.empty_display_type = "ARROWS"
     probe_frame.empty_display_size = 0.03
     collection.objects.link(probe_frame)
-    housing = trimesh.creation.box([2 * probe.a_mm + 30.0, 40.0, 50.0])
-    housing.apply_translation([0.0, 0.0, -33.0])  # behind the cameras and the laser (z < 0)
+    _, extents, centre = probe.body_boxes()[0]  # behind the cameras and the laser (z < 0)
+    housing = trimesh.creation.box(extents)
+    housing.apply_translation(centre)
     body = mesh_object("Probe housing", housing, housing_collection or collection,
                        diffuse("Probe housing", (0.08, 0.08, 0.1)))
     body.parent = probe_frame

@@ -23,6 +23,7 @@ import bpy
 import numpy as np
 import trimesh
 
+from ..core.kinematics.link_shapes import link_cylinders
 from ..core.kinematics.robot import N_JOINTS, Robot
 from ..core.kinematics.transforms import rigid_inverse, rot_x
 from ..core.geometry.workpiece import check_mesh
@@ -145,9 +146,9 @@ def _segment(p0, p1, radius) -> trimesh.Trimesh | None:
 
 
 def _add_link_geometry(collection, obj, robot: Robot, frames0: np.ndarray) -> None:
-    """Procedural links (or the rig's meshes), parented to their bones at q = 0."""
-    size = max(float(np.max(np.abs(np.r_[robot.a_mm, robot.d_mm]))), 1e-3)
-    r_link, r_joint = 0.05 * size, 0.07 * size
+    """Procedural links (or the rig's meshes), parented to their bones at q = 0: the cylinders
+    of :func:`link_cylinders`, which the collision model uses too."""
+    shapes = link_cylinders(robot)
     paint = diffuse("Robot paint", (0.85, 0.45, 0.1))
     joints = diffuse("Robot joints", (0.2, 0.2, 0.22))
     for k in range(N_JOINTS):
@@ -159,12 +160,16 @@ def _add_link_geometry(collection, obj, robot: Robot, frames0: np.ndarray) -> No
             part = mesh_object(f"Link{k + 1}", mesh, collection, paint)
             parent_to_bone(part, obj, bone, np.eye(4))
             continue
-        o_prev, z_prev = frames0[k][:3, 3], frames0[k][:3, 2]
-        elbow = o_prev + robot.d_mm[k] * z_prev
-        pieces = [p for p in (_segment(o_prev, elbow, r_link), _segment(elbow, frames0[k + 1][:3, 3], r_link)) if p]
+        F = frames0[k + 1]
+
+        def world(p):
+            return F[:3, :3] @ p + F[:3, 3]
+
+        pieces = [_segment(world(c.p0), world(c.p1), c.radius_mm) for c in shapes[k] if c.kind == "link"]
         if pieces:
             part = mesh_object(f"Link{k + 1}", trimesh.util.concatenate(pieces), collection, paint)
             parent_to_bone(part, obj, bone, np.eye(4))
-        housing = _segment(o_prev - 1.2 * r_joint * z_prev, o_prev + 1.2 * r_joint * z_prev, r_joint)
-        part = mesh_object(f"Joint{k + 1}", housing, collection, joints)
-        parent_to_bone(part, obj, bone, np.eye(4))
+        for c in shapes[k]:
+            if c.kind == "joint":
+                part = mesh_object(f"Joint{k + 1}", _segment(world(c.p0), world(c.p1), c.radius_mm), collection, joints)
+                parent_to_bone(part, obj, bone, np.eye(4))

@@ -81,6 +81,47 @@ def find_robot(scene):
     return cell_object("Robot")
 
 
+_CLEARANCE_MODELS: dict = {}  # the panel's collision model per robot, probe and workpiece choice
+
+
+def collision_model(s):
+    """The collision model of the panel's robot, probe and workpiece (built once per choice)."""
+    from ..core.safety import CollisionModel, Safety
+
+    key = (s.robot, s.robot_file, s.probe, s.probe_file, s.probe_a, s.probe_b, s.probe_phi, s.probe_gamma,
+           s.workpiece, s.workpiece_file)
+    model = _CLEARANCE_MODELS.get(key)
+    if model is None:
+        probe = probe_from(s)
+        cell = Cell(robot_from(s).with_tool(probe.mount), Turntable())
+        model = CollisionModel(cell.robot, probe, cell.table, workpiece_from(s).mesh, (), Safety().min_clearance_mm)
+        _CLEARANCE_MODELS.clear()
+        _CLEARANCE_MODELS[key] = model
+    return model
+
+
+def clearance_readout(context):
+    """(clearance mm, body, other body, colliding) of the built cell's current pose, for the
+    panel; None where there is no cell or the choices cannot be read (the panel says so
+    elsewhere). Uses the default clearance of a scan config."""
+    from ..core.errors import ScannerError
+    from ..scene.rig import get_joints
+
+    s = context.scene.scanner
+    robot_obj, table_obj = find_robot(context.scene), cell_object("Turntable")
+    if robot_obj is None or table_obj is None:
+        return None
+    try:
+        found = collision_model(s).clearance_at(get_joints(robot_obj), float(table_obj.rotation_euler[2]))
+    except (ScannerError, OSError, ValueError):
+        return None
+    if found.collisions:
+        c = found.first_collision[0]
+        return c.distance_mm, c.body_a, c.body_b, True
+    c = found.nearest.get(0)
+    return None if c is None else (c.distance_mm, c.body_a, c.body_b, False)
+
+
 def default_output_dir() -> Path:
     """The extension's user folder when running as an extension, else a temporary folder."""
     if ROOT_PACKAGE.startswith("bl_ext."):

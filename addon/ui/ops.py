@@ -66,7 +66,7 @@ class SCANNER_OT_load_probe(bpy.types.Operator):
 
 
 class SCANNER_OT_go(bpy.types.Operator):
-    """Move the robot so the tool reaches the Cartesian target (inverse kinematics); nothing moves if it cannot"""
+    """Move the robot so the tool reaches the Cartesian target (inverse kinematics); nothing moves if it cannot or if the move would collide"""
 
     bl_idname = "scanner.go"
     bl_label = "Go"
@@ -99,6 +99,15 @@ class SCANNER_OT_go(bpy.types.Operator):
             return {"CANCELLED"}
         if not res.success:
             self.report({"ERROR"}, f"Unreachable, the robot stays put: {res.message}")
+            return {"CANCELLED"}
+        try:
+            found = models.collision_model(s).check(np.asarray(res.q)[None, :], np.array([s.table_angle]),
+                                                    q_start=rig.get_joints(robot_obj), table_start=s.table_angle)
+        except ScannerError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        if not found.ok:
+            self.report({"ERROR"}, f"Colliding, the robot stays put: {found.message()}")
             return {"CANCELLED"}
         rig.set_joints(robot_obj, res.q)
         self.report({"INFO"}, "Reached: joints " + ", ".join(f"{math.degrees(v):.1f}" for v in res.q) + " deg")

@@ -1,7 +1,7 @@
 """The core is grouped by stage and each stage imports only from stages below it.
 
 Stages, bottom to top: the base modules at addon/core's root (errors, tolerances,
-files, exr), kinematics, optics, geometry, config, scan. The imports are read from
+files, exr), kinematics, optics, geometry, safety, config, scan. The imports are read from
 the source (ast), so a violation is caught even where no test runs that line.
 """
 
@@ -9,7 +9,7 @@ import ast
 from pathlib import Path
 
 CORE = Path(__file__).resolve().parents[2] / "addon" / "core"
-STAGES = ["kinematics", "optics", "geometry", "config", "scan"]
+STAGES = ["kinematics", "optics", "geometry", "safety", "config", "scan"]
 
 
 def stage_of(parts: list[str]) -> int:

@@ -146,3 +146,29 @@ def test_a_scanner_from_objects_starts_looking_at_the_table():
     np.testing.assert_allclose(s.pose()[:3, 2], [0.0, 0.0, -1.0], atol=1e-9)  # the beam straight down
     p = s.measure()
     assert len(p) > 50 and np.sqrt(np.mean(sphere_error_um(p.points[p.points[:, 2] > 1]) ** 2)) < 20
+
+
+def test_a_scan_whose_ik_comes_over_the_bridge_gives_the_local_cloud(tmp_path):
+    """The demo, its IK from an ik-server on loopback: the same cloud as with the local solver."""
+    from addon.core.config.scan import load_scan_config
+    from addon.core.config.rigs import load_robot
+    from headless.ik_server import IKServer
+
+    server = IKServer(load_robot("adept_viper_s650"), "127.0.0.1", 0).start()
+    try:
+        text = open(load_scan_config("demo").source).read()
+        f = tmp_path / "bridge.toml"
+        f.write_text(text.replace("start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]   # elbow up, wrist down",
+                                  "start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]\nik = \"controller\"\n"
+                                  f"[robot.controller]\nport = {server.port}\n"))
+        bridged = Scanner.from_config(f, frames=slice(None, None, 12))
+        assert bridged.config.robot.ik_via is not None
+        bridged.run()
+        local = Scanner.from_config("demo", frames=slice(None, None, 12))
+        local.run()
+    finally:
+        server.shutdown()
+        server.server_close()
+    a, b = bridged.cloud, local.cloud
+    assert len(a) == len(b) > 1000
+    np.testing.assert_allclose(a.points, b.points, atol=1e-6)

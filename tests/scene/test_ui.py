@@ -346,3 +346,27 @@ def test_an_unexpected_failure_midway_puts_the_scene_back(panel, tmp_path, monke
         bpy.ops.scanner.scan(config="demo", frames="0:10", output_dir=str(tmp_path))
     assert _settings_of(panel) == before
     assert not list(tmp_path.rglob("*.ply")) and bpy.data.objects.get("Scan cloud") is None
+
+
+def test_the_joints_box_shows_the_clearance_and_a_collision(panel):
+    bpy.ops.scanner.build_cell()
+    labels = draw_all(bpy.context)
+    shown = [t for t in labels if t.startswith("Clearance")]
+    assert len(shown) == 1 and " mm (" in shown[0] and " to " in shown[0], labels
+    assert float(shown[0].split()[1]) > 2.0  # the rest pose is clear
+    q = np.radians([-18.7, 125.3, -99.6, -49.3, 39.5, 148.1])  # link 4 in the table (see tests/core/test_safety)
+    for k in range(6):
+        robot_obj()[f"q{k + 1}"] = float(q[k])
+    assert any(t == "Collision: link 4 and table" for t in draw_all(bpy.context))
+
+
+def test_go_refuses_a_colliding_target_and_leaves_the_robot_still(panel):
+    bpy.ops.scanner.build_cell()
+    before = rig.get_joints(robot_obj()).copy()
+    s = panel.scanner
+    s.target_frame = "table"
+    s.target_location = (0.0, 0.0, 20.0)  # the probe's origin 20 mm up: inside the 30 mm sphere
+    s.target_rotation = (0.0, math.pi, 0.0)
+    with pytest.raises(RuntimeError, match="Colliding, the robot stays put"):
+        bpy.ops.scanner.go()
+    np.testing.assert_array_equal(rig.get_joints(robot_obj()), before)

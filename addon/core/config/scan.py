@@ -3,7 +3,9 @@
 Sections (units in the key names; every key is checked, unknown keys are errors)::
 
     name = "..."                      description = "..."
-    [robot]      rig (name or path), start_deg = [6 joint angles] (IK seed, optional)
+    [robot]      rig (name or path), start_deg = [6 joint angles] (IK seed, optional),
+                 ik = "local" | "controller", [robot.controller] host, port, timeout_s (IK from
+                 the robot controller over TCP/IP: addon.core.kinematics.ik_remote)
     [probe]      rig (name or path), [probe.mount] xyz_mm, yzz_deg (optional T_L^6 override)
     [table]      a_mm, d_mm (Eq. 4 placement; defaults −500, −200)
     [workpiece]  shape = plane|sphere|cylinder|step_block (+ its size keys) or file (+ scale),
@@ -28,6 +30,10 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
                  electrons_per_unit, read_noise_e, dark_offset_dn, prnu, sensor_width_mm,
                  pixel_pitch_um, f_number, focus_mm, wavelength_nm, frame_rate_hz, seed
                  (see addon.core.sensor)
+    [safety]     check (true), min_clearance_mm (2): the least distance between the robot or the
+                 probe and the table, the workpiece or a fixture (see addon.core.safety)
+    [[fixture]]  name, file (+ scale), [fixture.pose] xyz_mm, yzz_deg, on = "table" (turns with
+                 it, default) | "world": solids the robot must keep clear of
     [truth]      coverage_tolerance_mm
 
 Paths in the file (robot/probe rigs, workpiece files) are relative to the file.
@@ -42,6 +48,7 @@ import numpy as np
 
 from ..kinematics import path as scanpath
 from ..kinematics.cell import Cell
+from ..kinematics.ik_remote import DEFAULT_PORT, Controller, ControllerIK
 from .toml import Table, load_toml, resolve_rig
 from ..optics.detect import METHODS as DETECT_METHODS
 from ..optics.detect import DetectParams
@@ -56,6 +63,7 @@ from ..optics.profile_filter import ProfileFilter
 from ..optics.triangulate import TRIANGULATION_METHODS
 from ..kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, Turntable
 from ..geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
+from ..safety import FIXTURE_CARRIERS, Fixture, Safety
 
 PATH_KINDS = ("sweep", "turntable")
 MATERIALS = ("grey", "dark", "glossy", "mirror")
@@ -115,6 +123,8 @@ class ScanConfig:
     material: str = "grey"
     roughness: float = 0.2
     profile_filter: ProfileFilter = field(default_factory=lambda: DEFAULT_FILTER)
+    safety: Safety = field(default_factory=Safety)
+    fixtures: tuple = ()
 
     @property
     def detect_params(self) -> DetectParams:
@@ -228,6 +238,13 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     except ConfigError as exc:
         raise ConfigError(f"{path}: robot.rig: {exc}") from None
     q_start = np.radians(rt.numbers("start_deg", 6, lo=-720, hi=720)) if rt.has("start_deg") else None
+    if rt.string("ik", default="local", choices=["local", "controller"]) == "controller":
+        ct = rt.table("controller", default={})
+        controller = Controller(ct.string("host", default="127.0.0.1"),
+                                ct.integer("port", default=DEFAULT_PORT, lo=1, hi=65535),
+                                ct.number("timeout_s", default=2.0, lo=0.0, hi=600.0, lo_open=True))
+        ct.finish()
+        robot = replace(robot, ik_via=ControllerIK(controller))
     rt.finish()
 
     pt = top.table("probe")
@@ -269,6 +286,11 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
                          lo.integer("band_margin_px", default=6, lo=0, hi=10000))
     lo.finish()
     sensor = _sensor(top.table("sensor", default={}))
+    st = top.table("safety", default={})
+    safety = Safety(st.boolean("check", default=True),
+                    st.number("min_clearance_mm", default=Safety().min_clearance_mm, lo=0.0, hi=1e4))
+    st.finish()
+    fixtures = _fixtures(top, base)
     truth = top.table("truth", default={})
     cov = truth.number("coverage_tolerance_mm", default=1.0, lo=0.0, hi=1e3, lo_open=True)
     truth.finish()
@@ -277,8 +299,27 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
         raise ConfigError(f"{path}: render.laser: 'gobo' does not render in Eevee (it ignores light node trees); "
                           "use laser = \"slit\" with engine = \"eevee\"")
     cfg = ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
-                     detect, tri_method, fuse, leave_out, cov, description, profile_filter=profile_filter)
+                     detect, tri_method, fuse, leave_out, cov, description, profile_filter=profile_filter,
+                     safety=safety, fixtures=fixtures)
     return cfg.with_realism(sensor, material, roughness)
+
+
+def _fixtures(top: Table, base: Path) -> tuple:
+    out = []
+    for i, t in enumerate(top.tables("fixture") if top.has("fixture") else []):
+        name = t.string("name", default=f"fixture {i + 1}")
+        if not name.startswith("fixture"):
+            name = f"fixture {name}"
+        f = Path(t.string("file"))
+        scale = t.number("scale", default=0.0, lo=0.0) or None
+        on = t.string("on", default="table", choices=list(FIXTURE_CARRIERS))
+        try:
+            mesh = load_workpiece(f if f.is_absolute() else base / f, t.pose("pose"), scale).mesh
+        except (InputError, ConfigError) as exc:
+            raise t.error("file", str(exc)) from None
+        t.finish()
+        out.append(Fixture(name, mesh, on))
+    return tuple(out)
 
 
 def _workpiece(t: Table, base: Path) -> Workpiece:

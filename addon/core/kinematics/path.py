@@ -137,7 +137,7 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
     targets = cell.table.table2base(waypoints.table_rad) @ waypoints.probe2table
     n = len(waypoints)
     q_prev = default_seed(robot) if q_start is None else robot.check_q(q_start, "q_start")
-    arm, _ = spherical_wrist_arm(robot)
+    arm, _ = spherical_wrist_arm(robot) if robot.ik_via is None else (None, None)  # a controller answers each
     q = np.zeros((n, 6))
     ok = np.zeros(n, dtype=bool)
     messages = [""] * n

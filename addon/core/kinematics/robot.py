@@ -53,6 +53,8 @@ class Robot:
     tool : (4, 4) pose of the tool frame in the flange frame, the paper's T_L^6
     link_meshes : per link, (mesh file or "", (4, 4) pose of the mesh in DH frame k)
         for display only; empty tuple when the rig names no meshes
+    ik_via : where IK comes from when not from this project's solver: a
+        ``ik_remote.ControllerIK`` (the robot controller over TCP/IP); None: the local solver
     """
 
     name: str
@@ -66,6 +68,7 @@ class Robot:
     tool: np.ndarray = field(default_factory=lambda: np.eye(4))
     source: str = ""
     link_meshes: tuple = ()
+    ik_via: object = None
 
     def __post_init__(self) -> None:
         for label in ("a_mm", "d_mm", "alpha_rad", "theta_offset_rad", "q_min_rad", "q_max_rad"):
@@ -314,9 +317,12 @@ class Robot:
 
     # -- inverse kinematics -------------------------------------------------------
     def ik(self, T_target, q0=None, **options):
-        """Joint vector reaching tool pose ``T_target`` (4, 4, world frame); see :func:`addon.core.ik.solve`."""
-        from .ik import solve
+        """Joint vector reaching tool pose ``T_target`` (4, 4, world frame); see :func:`addon.core.ik.solve`,
+        or from the robot controller where ``ik_via`` names one (``options`` are the local solver's)."""
+        from .ik import default_seed, solve
 
+        if self.ik_via is not None:
+            return self.ik_via.solve(self, T_target, default_seed(self) if q0 is None else q0)
         return solve(self, T_target, q0, **options)
 
     def ik_batch(self, T_targets, q0=None, **options):

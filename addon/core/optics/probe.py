@@ -39,6 +39,7 @@ from ..kinematics.transforms import check_transform, make_pose, rigid_inverse
 CAMERAS = (0, 1)
 MAX_PIXELS = 100_000
 EDGE_TOL_PX = TOL.sensor_edge_px
+HOUSING_MARGIN_MM = 30.0  # the housing reaches this much beyond the two cameras, in all
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,6 +199,18 @@ class Probe:
         T = self.cam2probe(camera)
         d = d_cam @ T[:3, :3].T
         return T[:3, 3].copy(), d / np.linalg.norm(d, axis=1, keepdims=True)
+
+    def body_boxes(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """The probe's body as boxes in the probe frame: (name, extents (3,) mm, centre (3,) mm).
+
+        The housing behind the cameras and the laser (what the Blender cell draws), and the
+        three heads that reach forward to z = +2 mm: both cameras and the laser."""
+        width = 2.0 * self.a_mm + HOUSING_MARGIN_MM
+        heads = [("camera 0 head", [self.a_mm, 0.0, self.b_mm - 8.0]),
+                 ("camera 1 head", [-self.a_mm, 0.0, self.b_mm - 8.0]),
+                 ("laser head", [0.0, 0.0, -8.0])]
+        return ([("housing", np.array([width, 40.0, 50.0]), np.array([0.0, 0.0, -33.0]))]
+                + [(name, np.array([24.0, 24.0, 20.0]), np.array(c, dtype=np.float64)) for name, c in heads])
 
     def with_resolution(self, rows_px: int, cols_px: int) -> "Probe":
         """The same optics (a, b, φ, γ) on another sensor."""

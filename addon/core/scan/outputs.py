@@ -74,6 +74,9 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         "time_s": {k: round(v, 4) for k, v in timing.items()},
         "profiles_per_s": n / scan_time if scan_time > 0 else float("inf"),
         **quality,
+        # The smallest distance between the robot or the probe and the table, the workpiece or a
+        # fixture, over the whole motion and per path entry, with where it occurs (None: not checked).
+        "clearance": None if plan.clearance is None else plan.clearance.report(),
         "warnings": warnings,
         "software": {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__},
         **(extra or {}),

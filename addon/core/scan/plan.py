@@ -1,8 +1,9 @@
 """A path's plan, made before anything renders: IK for every waypoint (continuous, no
-flips), then the laser fan cast against the part and the table. Unreachable waypoints
-and waypoints whose laser meets nothing inside the probe's range refuse the path here,
-with their indices; the plan keeps the cameras worth rendering and, per frame, the
-sensor rows the line can fall on."""
+flips), collision checks along the whole motion, then the laser fan cast against the
+part and the table. Unreachable waypoints, a colliding motion (naming the frames and
+the two bodies) and waypoints whose laser meets nothing inside the probe's range
+refuse the path here, in that order; the plan keeps the clearance found, the cameras
+worth rendering and, per frame, the sensor rows the line can fall on."""
 
 from __future__ import annotations
 
@@ -13,10 +14,11 @@ from warnings import catch_warnings, simplefilter
 import numpy as np
 
 from ..config.scan import ScanConfig
-from ..errors import ScannerError, UnreachablePose
+from ..errors import CollisionError, ScannerError, UnreachablePose
 from ..geometry.footprint import SurfaceCaster, laser_footprint
 from ..kinematics.path import solve_path
 from ..kinematics.turntable import table_top_mesh
+from ..safety import CollisionModel, PathClearance
 
 
 @dataclass
@@ -29,6 +31,7 @@ class Plan:
     cameras: tuple[int, ...]
     predicted_rows: np.ndarray
     warnings: list = field(default_factory=list)
+    clearance: PathClearance | None = None
 
 
 def frame_ranges(indices) -> str:
@@ -57,11 +60,45 @@ def plan_scan(config: ScanConfig, allow_blind: bool = False) -> Plan:
         bad = sol.unreachable
         raise UnreachablePose(f"{len(bad)} of {len(wp)} waypoints cannot be reached (frames {frame_ranges(bad)}); "
                               f"first, frame {bad[0]}: {sol.messages[bad[0]]}")
+    clearance = check_motion(config, sol.q, wp.table_rad, wp.segment, config.q_start)
     warnings = []
     if sol.jumps:
         warnings.append(f"joint jumps over {math.degrees(max(sol.max_step_rad)):.0f}° between neighbouring "
                         f"waypoints at frames {frame_ranges(sol.jumps)} (near a singularity or a limit)")
-    return plan_frames(config, sol.q, wp.table_rad, allow_blind, warnings)
+    plan = plan_frames(config, sol.q, wp.table_rad, allow_blind, warnings)
+    plan.clearance = clearance
+    return plan
+
+
+_MODELS: list = []  # the last few collision models, with the objects they were built from
+
+
+def collision_model(config: ScanConfig) -> CollisionModel:
+    """The cell's collision model for this config (built once per robot, probe, table,
+    workpiece, fixtures and clearance: a scanner checks every move with the same one)."""
+    same = (config.robot, config.probe, config.workpiece, config.fixtures)  # the very objects
+    equal = (config.table, config.safety.min_clearance_mm)
+    for (s, e), model in _MODELS:
+        if all(a is b for a, b in zip(s, same)) and e == equal:
+            return model
+    model = CollisionModel(config.cell.robot, config.probe, config.table, config.workpiece.mesh,
+                           [(f.name, f.mesh, f.on) for f in config.fixtures], config.safety.min_clearance_mm)
+    _MODELS.insert(0, ((same, equal), model))
+    del _MODELS[4:]
+    return model
+
+
+def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, table_start=None
+                 ) -> PathClearance | None:
+    """Collision checks along the motion through joints q (n, 6) and table angles (n,), from
+    ``q_start`` where given; raises CollisionError naming the first frames and the two bodies.
+    None where the config turns the checks off."""
+    if not config.safety.check:
+        return None
+    result = collision_model(config).check(q, table_rad, segment, q_start, table_start)
+    if not result.ok:
+        raise CollisionError(result.message())
+    return result
 
 
 def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_blind: bool = False,

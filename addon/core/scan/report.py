@@ -46,7 +46,10 @@ class ScanReport:
     within the incidence limit, seen by a camera), which is measurable_share of the whole;
     column_codes: sensor columns per detection code; points_dropped: columns dropped after
     detection, by reason; points_fused: points both cameras agreed on; time_s: seconds per stage;
-    profiles_per_s: frames / (render + detect + triangulate); config: what was scanned.
+    profiles_per_s: frames / (render + detect + triangulate); config: what was scanned;
+    clearance: the smallest distance between the robot or the probe and the table, the workpiece
+    or a fixture over the motion (``nearest``) and per path entry (``per_path``), each with its
+    bodies, frame and point (None where the config turns collision checks off).
     """
 
     config: dict
@@ -70,6 +73,7 @@ class ScanReport:
     time_s: dict
     profiles_per_s: float
     warnings: list = field(default_factory=list)
+    clearance: dict | None = None
     software: dict = field(default_factory=dict)
     render_device: str | None = None
     extra: dict = field(default_factory=dict)  # anything else a run adds (a farm's shard counts)

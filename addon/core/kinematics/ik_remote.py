@@ -1,0 +1,179 @@
+"""Inverse kinematics from a robot controller over TCP/IP (line-delimited JSON).
+
+The paper's simulator can ask the real controller for IK instead of its own solver;
+the controller's answers differ slightly (the branch it picks depends on the seed).
+This is the client; ``python -m headless ik-server`` serves the project's own IK
+with the same protocol, so a team can put an adapter for its controller behind it.
+
+Protocol, version 1: one JSON object per line, UTF-8, each way.
+
+Request ``{"op": "ik", "id": 7, "target_mm": [[4 × 4]], "seed_rad": [6], "tool_mm": [[4 × 4]]}``:
+the tool pose to reach in the robot's base frame (mm), the joints to start from, and
+the tool frame in the flange frame (the paper's T_L^6). Answer
+``{"id": 7, "joints_rad": [6], "success": true, "reason": "ok"}``; on failure
+``success`` is false and ``reason`` says why in words (``joints_rad`` may be the best
+attempt or absent). ``{"op": "ping", "id": 1}`` answers ``{"id": 1, "protocol": 1,
+"robot": "<name>"}``. A request the server cannot read answers
+``{"id": ..., "success": false, "reason": "malformed request: ..."}``.
+
+The client keeps one connection, waits ``timeout_s`` for each answer, and tries once
+more (on a new connection) after a timeout or a dropped connection; every failure is
+one line naming the host and port. A controller's answer counts as reaching the
+target only when this cell's own forward kinematics confirm it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import socket
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ScannerError
+from .ik import ROT_TOL_RAD, IKResult, default_pos_tol, pose_errors
+
+PROTOCOL = 1
+DEFAULT_PORT = 5757
+
+
+class ControllerError(ScannerError):
+    """The IK controller could not be reached or answered something unreadable."""
+
+
+@dataclass(frozen=True)
+class Controller:
+    host: str = "127.0.0.1"
+    port: int = DEFAULT_PORT
+    timeout_s: float = 2.0
+
+    @property
+    def where(self) -> str:
+        return f"{self.host}:{self.port}"
+
+
+class ControllerIK:
+    """The client: ``solve(robot, T_target, q0)`` gives an IKResult, as the local solver does."""
+
+    def __init__(self, controller: Controller):
+        self.controller = controller
+        self._sock: socket.socket | None = None
+        self._buffer = b""
+        self._next_id = 0
+
+    def __repr__(self) -> str:
+        return f"ControllerIK({self.controller.where})"
+
+    def __getstate__(self) -> dict:  # a farm ships configs to its workers: each connects anew
+        return {"controller": self.controller}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["controller"])
+
+    # -- the connection -------------------------------------------------------------
+    def close(self) -> None:
+        if self._sock is not None:
+            try:
+                self._sock.close()
+            finally:
+                self._sock = None
+                self._buffer = b""
+
+    def _connect(self) -> socket.socket:
+        if self._sock is None:
+            c = self.controller
+            self._sock = socket.create_connection((c.host, c.port), timeout=c.timeout_s)
+            self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        return self._sock
+
+    def _exchange(self, line: bytes) -> bytes:
+        sock = self._connect()
+        sock.sendall(line)
+        while b"\n" not in self._buffer:
+            chunk = sock.recv(65536)
+            if not chunk:
+                raise ConnectionResetError("the controller closed the connection")
+            self._buffer += chunk
+            if len(self._buffer) > 1_000_000:
+                raise ControllerError(f"IK controller at {self.controller.where}: an answer longer than 1 MB")
+        answer, self._buffer = self._buffer.split(b"\n", 1)
+        return answer
+
+    def call(self, request: dict) -> dict:
+        """Send one request and return its answer (a dict), retrying once on a new connection."""
+        self._next_id += 1
+        request = {**request, "id": self._next_id}
+        line = (json.dumps(request) + "\n").encode("utf-8")
+        where = self.controller.where
+        for attempt in (1, 2):
+            try:
+                raw = self._exchange(line)
+                break
+            except socket.timeout:
+                self.close()
+                if attempt == 2:
+                    raise ControllerError(f"IK controller at {where}: no answer within "
+                                          f"{self.controller.timeout_s:g} s (twice)") from None
+            except ConnectionRefusedError:
+                self.close()
+                if attempt == 2:
+                    raise ControllerError(f"IK controller at {where}: nothing is listening there (connection "
+                                          "refused twice); start it, e.g. python -m headless ik-server") from None
+            except OSError as exc:
+                self.close()
+                if attempt == 2:
+                    raise ControllerError(f"IK controller at {where}: {exc.strerror or exc} (twice)") from None
+        try:
+            answer = json.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            self.close()
+            raise ControllerError(f"IK controller at {where}: the answer is not JSON: {raw[:80]!r}") from None
+        if not isinstance(answer, dict) or answer.get("id") != request["id"]:
+            self.close()
+            raise ControllerError(f"IK controller at {where}: the answer is not a JSON object for request "
+                                  f"{request['id']}: {raw[:80]!r}")
+        return answer
+
+    def ping(self) -> dict:
+        answer = self.call({"op": "ping"})
+        if answer.get("protocol") != PROTOCOL:
+            raise ControllerError(f"IK controller at {self.controller.where} speaks protocol "
+                                  f"{answer.get('protocol')!r}, this client {PROTOCOL}")
+        return answer
+
+    # -- IK -------------------------------------------------------------------------
+    def solve(self, robot, T_target, q0) -> IKResult:
+        """IK for ``robot`` (its tool included) from the controller, checked with this cell's FK."""
+        T = np.asarray(T_target, dtype=np.float64)
+        seed = np.asarray(q0, dtype=np.float64).reshape(6)
+        answer = self.call({"op": "ik", "target_mm": T.tolist(), "seed_rad": seed.tolist(),
+                            "tool_mm": np.asarray(robot.tool).tolist()})
+        where = self.controller.where
+        success, reason = answer.get("success"), answer.get("reason", "")
+        if not isinstance(success, bool) or not isinstance(reason, str):
+            raise ControllerError(f"IK controller at {where}: the answer lacks 'success' (true/false) and "
+                                  f"'reason' (text): {json.dumps(answer)[:120]}")
+        joints = answer.get("joints_rad")
+        q = None
+        if joints is not None:
+            if not (isinstance(joints, list) and len(joints) == 6 and all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in joints)):
+                raise ControllerError(f"IK controller at {where}: 'joints_rad' must be 6 finite numbers, got "
+                                      f"{json.dumps(joints)[:120]}")
+            q = np.array(joints, dtype=np.float64)
+        if not success:
+            return IKResult(seed if q is None else q, False, math.inf, math.inf, 0,
+                            f"the controller at {where} found no solution: {reason}", "controller", "out_of_reach")
+        if q is None:
+            raise ControllerError(f"IK controller at {where}: a successful answer without 'joints_rad'")
+        pos_err, rot_err = pose_errors(robot, q[None, :], T[None])
+        pos, rot = float(pos_err[0]), float(rot_err[0])
+        inside = bool(robot.within_limits(q))
+        ok = pos <= default_pos_tol(robot) and rot <= ROT_TOL_RAD and inside
+        if ok:
+            return IKResult(q, True, pos, rot, 0, "ok", "controller", "ok")
+        why = ("outside this cell's joint limits" if not inside else
+               f"{pos:.3g} mm and {math.degrees(rot):.3g}° from the target in this cell's kinematics")
+        return IKResult(q, False, pos, rot, 0, f"the controller at {where} answered joints {why}", "controller",
+                        "joint_limits" if not inside else "numerical")

@@ -1,0 +1,382 @@
+"""Collision checks along a path: every waypoint and the motion between them.
+
+A path is a list of joint vectors and table angles. Between two of them the robot
+moves in joint space and the table turns, both linearly; the motion is sampled so
+that no point of the arm, the probe or anything on the table moves more than
+``STEP_MM`` between two samples (a bound from each joint's lever arm and the table
+radius), and every sample is checked.
+
+Distances are exact (python-fcl: GJK on the primitives, BVH distance on meshes),
+found cheaply: a bounding-sphere bound in numpy for every pair and sample, then a
+convex-hull distance (a lower bound of the exact one, GJK in a few µs), then the
+exact distance only where those bounds cannot decide. The smallest clearance of
+each path entry, over its waypoints (the poses where the probe measures), is found by
+branch and bound over the same lower bounds, so it is exact too; the motion between
+waypoints is checked against the allowed clearance, not searched for its minimum.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import trimesh
+
+from ..errors import InputError
+from ..kinematics.robot import Robot
+from ..kinematics.turntable import TABLE_RADIUS_MM, Turntable
+from ..optics.probe import Probe
+from .bodies import Body, _fcl, carrier_poses, environment_bodies, robot_bodies
+
+STEP_MM = 1.0             # no point moves farther than this between two checked samples
+DEFAULT_CLEARANCE_MM = 2.0
+CONTACT_MM = 1e-6         # robot bodies closer than this to each other touch
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Two bodies at one sample of the path. ``position``: the path position (waypoint index,
+    fractional between waypoints); ``distance_mm`` ≤ 0 where they touch or overlap;
+    ``point_a`` / ``point_b``: their nearest points (table frame, mm; NaN where they overlap)."""
+
+    distance_mm: float
+    body_a: str
+    body_b: str
+    position: float
+    point_a: tuple = (math.nan, math.nan, math.nan)
+    point_b: tuple = (math.nan, math.nan, math.nan)
+
+    @property
+    def frame(self) -> int:
+        """The waypoint at or just after the sample."""
+        return int(math.ceil(self.position - 1e-9))
+
+    def as_dict(self) -> dict:
+        def xyz(p):
+            return [None if not math.isfinite(v) else round(float(v), 3) for v in p]
+
+        return {"clearance_mm": round(float(self.distance_mm), 4), "bodies": [self.body_a, self.body_b],
+                "frame": self.frame, "position": round(float(self.position), 4),
+                "points_mm": [xyz(self.point_a), xyz(self.point_b)]}
+
+
+@dataclass
+class PathClearance:
+    """``collisions``: per offending pair, the first and last sample of its first run of samples
+    below the allowed clearance; ``nearest``: the smallest clearance to the table, the
+    workpiece or a fixture at the waypoints of each path entry (segment number: Contact);
+    ``samples``: how many poses were checked; ``exact_queries``: how many exact distances
+    that took."""
+
+    min_clearance_mm: float
+    collisions: list[tuple[Contact, Contact]] = field(default_factory=list)
+    nearest: dict[int, Contact] = field(default_factory=dict)
+    samples: int = 0
+    exact_queries: int = 0
+    bound_queries: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return not self.collisions
+
+    @property
+    def first_collision(self) -> tuple[Contact, Contact] | None:
+        return min(self.collisions, key=lambda c: c[0].position) if self.collisions else None
+
+    def message(self) -> str:
+        """One line naming the first frames and the two bodies ('' when the path is clear)."""
+        hit = self.first_collision
+        if hit is None:
+            return ""
+        first, last = hit
+        if first.position < 0:  # the pose the motion starts from
+            on = "" if last.frame <= 0 else f" and on to frame {last.frame}"
+            where = f"at the start pose{on}" if first.position <= -1 else f"moving to frame 0{on}"
+        else:
+            frames = f"frame {first.frame}" if first.frame == last.frame else f"frames {first.frame}-{last.frame}"
+            where = f"at {frames}" if float(first.position).is_integer() else f"moving to {frames}"
+        how = ("touches" if first.distance_mm <= 0 else
+               f"comes within {first.distance_mm:.2f} mm of")
+        allowed = ("they must not touch" if _robot_pair(first) else
+                   f"at least {self.min_clearance_mm:g} mm allowed ([safety] min_clearance_mm)")
+        return f"{where}: the {first.body_a} {how} the {first.body_b}; {allowed}"
+
+    @staticmethod
+    def merge(parts: list["PathClearance"]) -> "PathClearance":
+        """One record of several checks (a scanner's moves): their path entries numbered on."""
+        out = PathClearance(parts[0].min_clearance_mm)
+        for p in parts:
+            base = len(out.nearest)
+            out.nearest.update({base + i: c for i, (_, c) in enumerate(sorted(p.nearest.items()))})
+            out.collisions += p.collisions
+            out.samples += p.samples
+            out.exact_queries += p.exact_queries
+            out.bound_queries += p.bound_queries
+        return out
+
+    def report(self) -> dict:
+        overall = min(self.nearest.values(), key=lambda c: c.distance_mm) if self.nearest else None
+        return {"min_clearance_mm": self.min_clearance_mm,
+                "nearest": None if overall is None else overall.as_dict(),
+                "per_path": {str(k): v.as_dict() for k, v in sorted(self.nearest.items())},
+                "samples_checked": self.samples}
+
+
+def _robot_pair(c: Contact) -> bool:
+    return not any(name in ("table", "workpiece") or name.startswith("fixture") for name in (c.body_a, c.body_b))
+
+
+def _convex(fcl, points: np.ndarray):
+    # Joggled (QJ), so that a flat body (a plate) still has a hull; GJK reads only its points.
+    hull = trimesh.convex.convex_hull(points, qhull_options="QbB Pp Qt QJ", repair=False)
+    faces = np.column_stack([np.full(len(hull.faces), 3), hull.faces]).ravel().astype(np.int64)
+    return fcl.CollisionObject(fcl.Convex(np.ascontiguousarray(hull.vertices, dtype=np.float64), len(hull.faces),
+                                          faces), fcl.Transform())
+
+
+def _hull_points(body: Body) -> np.ndarray:
+    """Points whose convex hull holds the body (cylinders by a circumscribed polygon)."""
+    pts = []
+    for s in body.shapes:
+        g = s.geometry
+        name = type(g).__name__
+        if name == "Box":
+            e = np.asarray(g.side, dtype=np.float64) / 2
+            local = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * e
+        elif name == "Cylinder":
+            n = 24
+            r = g.radius / math.cos(math.pi / n)
+            a = np.linspace(0, 2 * math.pi, n, endpoint=False)
+            ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
+            local = np.vstack([np.column_stack([ring, np.full(n, -g.lz / 2)]),
+                               np.column_stack([ring, np.full(n, g.lz / 2)])])
+        else:  # a mesh: its hull's corners (trimesh keeps the hull with the mesh)
+            local = s.hull_vertices
+        pts.append(local @ s.local[:3, :3].T + s.local[:3, 3])
+    return np.vstack(pts)
+
+
+class CollisionModel:
+    """The cell's bodies and the pairs to check; see the module and :mod:`.bodies`."""
+
+    def __init__(self, robot: Robot, probe: Probe, table: Turntable, workpiece_mesh=None, fixtures=(),
+                 min_clearance_mm: float = DEFAULT_CLEARANCE_MM):
+        if not (isinstance(min_clearance_mm, (int, float)) and math.isfinite(min_clearance_mm)
+                and min_clearance_mm >= 0):
+            raise InputError(f"min_clearance_mm must be a finite number >= 0, got {min_clearance_mm!r}")
+        self.fcl = _fcl()
+        self.robot, self.probe, self.table = robot, probe, table
+        self.min_clearance_mm = float(min_clearance_mm)
+        self.bodies = robot_bodies(robot, probe) + environment_bodies(workpiece_mesh, fixtures)
+        for b in self.bodies:
+            b.hull = _convex(self.fcl, _hull_points(b))
+        self.index = {b.name: i for i, b in enumerate(self.bodies)}
+        self.pairs = self._pairs()
+        # Lever arm bound for the motion sampling: the farthest any robot point gets from a joint axis.
+        self.arm_mm = robot.reach_bound_mm + max(b.radius + np.linalg.norm(b.centre) for b in self.bodies
+                                                 if b.name == "probe")
+        # The table's disc turns into itself; what stands on it moves by its radius.
+        self.table_mm = max([0.0] + [float(np.max(np.linalg.norm(b.support[:, :2], axis=1) + b.support_r))
+                                     for b in self.bodies if b.carrier == "table" and b.name != "table"])
+
+    # -- pairs ----------------------------------------------------------------------
+    def _pairs(self) -> list[tuple[int, int, float]]:
+        robot = [i for i, b in enumerate(self.bodies) if b.robot]
+        env = [i for i, b in enumerate(self.bodies) if not b.robot]
+        # The probe first: it is nearest the part on a scan path, so the branch and bound that
+        # finds the smallest clearance (shared by all pairs) prunes the links at once.
+        robot = sorted(robot, key=lambda i: self.bodies[i].name != "probe")
+        pairs = [(i, j, self.min_clearance_mm) for i in robot for j in env]
+        q0 = np.zeros((1, 6))
+        carriers = carrier_poses(self.robot, self.table, q0, np.zeros(1))
+        for a in range(len(robot)):
+            for b in range(a + 1, len(robot)):
+                i, j = robot[a], robot[b]
+                ni, nj = self.bodies[i].name, self.bodies[j].name
+                ki = 7 if ni == "probe" else int(ni.split()[-1])
+                kj = 7 if nj == "probe" else int(nj.split()[-1])
+                if abs(ki - kj) < 2 or (7 in (ki, kj) and min(ki, kj) >= 5):
+                    continue  # neighbours in the chain (the probe sits on links 5 and 6)
+                if self._exact(i, j, carriers, 0)[0] <= CONTACT_MM:
+                    continue  # touching at rest: part of the rig's design
+                pairs.append((i, j, CONTACT_MM))
+        return pairs
+
+    # -- distances ------------------------------------------------------------------
+    def _place(self, obj, T: np.ndarray) -> None:
+        obj.setTransform(self.fcl.Transform(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3])))
+
+    def _hull_distance(self, i: int, j: int, carriers, s: int) -> float:
+        a, b = self.bodies[i], self.bodies[j]
+        self._place(a.hull, carriers[a.carrier][s])
+        self._place(b.hull, carriers[b.carrier][s])
+        return float(self.fcl.distance(a.hull, b.hull, self.fcl.DistanceRequest(), self.fcl.DistanceResult()))
+
+    def _exact(self, i: int, j: int, carriers, s: int, hulls_overlap: bool = True
+               ) -> tuple[float, np.ndarray, np.ndarray]:
+        """Exact distance of bodies i and j at sample s (≤ 0: touching), and the nearest points.
+        ``hulls_overlap``: their convex hulls meet, so one may lie wholly inside the other."""
+        a, b = self.bodies[i], self.bodies[j]
+        Ta, Tb = carriers[a.carrier][s], carriers[b.carrier][s]
+        best = (math.inf, np.full(3, np.nan), np.full(3, np.nan))
+        req = self.fcl.DistanceRequest(enable_nearest_points=True)
+        for sa in a.shapes:
+            self._place(sa.obj, Ta @ sa.local)
+            for sb in b.shapes:
+                self._place(sb.obj, Tb @ sb.local)
+                res = self.fcl.DistanceResult()
+                d = float(self.fcl.distance(sa.obj, sb.obj, req, res))
+                if d < best[0]:
+                    pa, pb = (np.full(3, np.nan), np.full(3, np.nan)) if d <= 0 else \
+                        (np.asarray(res.nearest_points[0], float), np.asarray(res.nearest_points[1], float))
+                    best = (d, pa, pb)
+        if best[0] > 0 and hulls_overlap:
+            best = self._inside(a, b, Ta, Tb, best)
+        return best
+
+    def _inside(self, a: Body, b: Body, Ta, Tb, best):
+        """A body wholly inside a closed mesh of the other counts as touching it."""
+        for outer, inner, To, Ti in ((b, a, Tb, Ta), (a, b, Ta, Tb)):
+            if outer.mesh is None:
+                continue
+            centres = np.array([(Ti @ s.local)[:3, 3] for s in inner.shapes])
+            local = (centres - To[:3, 3]) @ To[:3, :3]
+            if np.any(outer.mesh.contains(local)):
+                return (0.0, np.full(3, np.nan), np.full(3, np.nan))
+        return best
+
+    # -- the path -------------------------------------------------------------------
+    def samples(self, q: np.ndarray, table_rad: np.ndarray, q_start=None, table_start=None):
+        """Joint vectors (m, 6), table angles (m,) and path positions (m,) of the poses to check:
+        each waypoint, and enough poses between it and the one before (or the start) that
+        nothing moves more than STEP_MM from one to the next."""
+        q = np.asarray(q, dtype=np.float64).reshape(-1, 6)
+        th = np.asarray(table_rad, dtype=np.float64).reshape(-1)
+        if q_start is not None:
+            q = np.vstack([np.asarray(q_start, dtype=np.float64).reshape(1, 6), q])
+            th = np.r_[th[0] if table_start is None else float(table_start), th]
+        offset = -1.0 if q_start is not None else 0.0
+        out_q, out_t, out_p = [q[:1]], [th[:1]], [np.array([offset])]
+        for i in range(1, len(q)):
+            dq, dt = q[i] - q[i - 1], th[i] - th[i - 1]
+            move = float(np.sum(np.abs(dq)) * self.arm_mm + abs(dt) * self.table_mm)
+            m = max(1, int(math.ceil(move / STEP_MM)))
+            f = np.arange(1, m + 1) / m
+            out_q.append(q[i - 1] + f[:, None] * dq)
+            out_t.append(th[i - 1] + f * dt)
+            out_p.append(offset + i - 1 + f)
+        return np.vstack(out_q), np.concatenate(out_t), np.concatenate(out_p)
+
+    def check(self, q, table_rad, segment=None, q_start=None, table_start=None) -> PathClearance:
+        """Check the path (and the move onto it from ``q_start``); see :class:`PathClearance`."""
+        qs, ts, pos = self.samples(q, table_rad, q_start, table_start)
+        n_way = len(np.asarray(table_rad).reshape(-1))
+        seg = np.zeros(n_way, int) if segment is None else np.asarray(segment, int).reshape(-1)
+        seg_of = seg[np.clip(np.ceil(pos - 1e-9).astype(int), 0, n_way - 1)]
+        carriers = carrier_poses(self.robot, self.table, qs, ts)
+        centres, support = {}, {}
+        for i, b in enumerate(self.bodies):
+            T = carriers[b.carrier]
+            centres[i] = np.einsum("nij,j->ni", T[:, :3, :3], b.centre) + T[:, :3, 3]
+            support[i] = np.einsum("nij,kj->nki", T[:, :3, :3], b.support) + T[:, None, :3, 3]
+        up = carriers["table"][:, :3, 2]
+        out = PathClearance(self.min_clearance_mm, samples=len(qs))
+        nearest: dict[int, Contact] = {}
+        for i, j, limit in self.pairs:
+            a, b = self.bodies[i], self.bodies[j]
+            bound = self._bound(i, j, centres, support, up)
+            env = limit != CONTACT_MM
+            # Collisions: the samples whose bound says they might be too close, in path order.
+            run: list[Contact] = []
+            for s in np.flatnonzero(bound < limit):
+                out.bound_queries += 1
+                hull = self._hull_distance(i, j, carriers, s)
+                if hull >= limit:
+                    continue
+                out.exact_queries += 1
+                d, pa, pb = self._exact(i, j, carriers, s, hull <= 0)
+                if d < limit:
+                    c = self._contact(d, i, j, float(pos[s]), pa, pb, carriers, s)
+                    if run and s != last + 1:
+                        break  # the first run of this pair is over
+                    run.append(c)
+                    last = s
+                elif run:
+                    break
+            if run:
+                out.collisions.append((run[0], run[-1]))
+            if env:
+                self._nearest(i, j, carriers, bound, pos, seg_of, nearest, out)
+        out.nearest = nearest
+        return out
+
+    def _bound(self, i, j, centres, support, up) -> np.ndarray:
+        """A lower bound (n,) of the distance of bodies i and j at every sample: the best of
+        their bounding spheres and of their separation along three axes (the table's axis,
+        the line between their centres, and its horizontal part), each from the bodies'
+        support points and margins."""
+        a, b = self.bodies[i], self.bodies[j]
+        along = centres[i] - centres[j]
+        bound = np.linalg.norm(along, axis=1) - a.radius - b.radius
+        flat = along - np.sum(along * up, axis=1)[:, None] * up
+        for n in (up, along, flat):
+            norm = np.linalg.norm(n, axis=1, keepdims=True)
+            n = np.where(norm > 1e-9, n / np.maximum(norm, 1e-300), 0.0)
+            pa = np.einsum("nki,ni->nk", support[i], n)
+            pb = np.einsum("nki,ni->nk", support[j], n)
+            gap = np.maximum((pa - a.support_r).min(axis=1) - (pb + b.support_r).max(axis=1),
+                             (pb - b.support_r).min(axis=1) - (pa + a.support_r).max(axis=1))
+            bound = np.maximum(bound, np.where(norm[:, 0] > 1e-9, gap, -np.inf))
+        return bound
+
+    def _contact(self, d, i: int, j: int, position: float, pa, pb, carriers, s: int) -> Contact:
+        """A Contact with its points in the table frame, the first on body i. (FCL's nearest
+        points come in either order for a primitive against a mesh: each is given to the
+        body it lies on.)"""
+        a, b = self.bodies[i], self.bodies[j]
+        if np.isfinite(pa).all() and self._gap(j, pa, carriers, s) < self._gap(j, pb, carriers, s):
+            pa, pb = pb, pa
+        table2world = carriers["table"][s]
+        R, t = table2world[:3, :3], table2world[:3, 3]
+        return Contact(d, a.name, b.name, position, tuple((pa - t) @ R), tuple((pb - t) @ R))
+
+    def _gap(self, j: int, p: np.ndarray, carriers, s: int) -> float:
+        """Distance of the world point p from body j."""
+        probe = self.fcl.CollisionObject(self.fcl.Sphere(1e-6), self.fcl.Transform(np.eye(3), np.asarray(p, float)))
+        b = self.bodies[j]
+        best = math.inf
+        for sh in b.shapes:
+            self._place(sh.obj, carriers[b.carrier][s] @ sh.local)
+            best = min(best, abs(float(self.fcl.distance(probe, sh.obj, self.fcl.DistanceRequest(),
+                                                           self.fcl.DistanceResult()))))
+        return best
+
+    def _nearest(self, i, j, carriers, bound, pos, seg_of, nearest, out) -> None:
+        """Branch and bound: the smallest exact distance of pair (i, j) in each path entry."""
+        a, b = self.bodies[i], self.bodies[j]
+        waypoint = (pos >= 0) & (np.abs(pos - np.round(pos)) < 1e-9)
+        for k in np.unique(seg_of[waypoint]):
+            idx = np.flatnonzero((seg_of == k) & waypoint)
+            best = nearest.get(int(k))
+            best_d = math.inf if best is None else best.distance_mm
+            for s in idx[np.argsort(bound[idx], kind="stable")]:
+                if bound[s] >= best_d:
+                    break  # every later sample's bound is larger still
+                out.bound_queries += 1
+                hull = self._hull_distance(i, j, carriers, s)
+                if hull >= best_d:
+                    continue
+                out.exact_queries += 1
+                d, pa, pb = self._exact(i, j, carriers, s, hull <= 0)
+                if d < best_d:
+                    best_d = d
+                    best = self._contact(d, i, j, float(pos[s]), pa, pb, carriers, s)
+            if best is not None:
+                nearest[int(k)] = best
+
+    def clearance_at(self, q, table_rad: float = 0.0) -> PathClearance:
+        """The check of a single pose (the panel's clearance readout)."""
+        return self.check(np.asarray(q, dtype=np.float64).reshape(1, 6), np.array([float(table_rad)]))
+
+

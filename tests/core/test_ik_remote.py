@@ -1,0 +1,128 @@
+"""IK from a controller over TCP/IP, on loopback: the protocol, each failure as one line naming
+host and port, and a scan planned through the bridge giving the local joints."""
+
+import json
+import re
+import socket
+import threading
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from addon.core.config.rigs import load_robot
+from addon.core.config.scan import load_scan_config
+from addon.core.kinematics.ik_remote import Controller, ControllerError, ControllerIK
+from headless.ik_server import IKServer
+
+
+@pytest.fixture(scope="module")
+def server():
+    srv = IKServer(load_robot("adept_viper_s650"), "127.0.0.1", 0).start()
+    yield srv
+    srv.shutdown()
+    srv.server_close()
+
+
+def _client(port, timeout=2.0):
+    return ControllerIK(Controller("127.0.0.1", port, timeout))
+
+
+def test_the_bridge_answers_as_the_local_solver_and_fk_confirms(server):
+    robot = load_robot("adept_viper_s650")
+    remote = replace(robot, ik_via=_client(server.port))
+    assert remote.ik_via.ping()["robot"] == robot.name
+    rng = np.random.default_rng(3)
+    q = robot.random_q(20, rng)
+    T = robot.fk(q)
+    seeds = robot.random_q(20, rng)
+    for i in range(20):
+        loc, rem = robot.ik(T[i], seeds[i]), remote.ik(T[i], seeds[i])
+        assert rem.success and loc.success and rem.method == "controller"
+        np.testing.assert_allclose(rem.q, loc.q, atol=1e-9)
+        np.testing.assert_allclose(robot.fk(rem.q), T[i], atol=1e-6)
+
+
+def test_an_unreachable_target_is_a_failed_solve_with_the_controllers_reason(server):
+    robot = load_robot("adept_viper_s650")
+    far = np.eye(4)
+    far[:3, 3] = [5000.0, 0.0, 0.0]
+    res = replace(robot, ik_via=_client(server.port)).ik(far, np.zeros(6))
+    assert not res.success and "found no solution" in res.message and f":{server.port}" in res.message
+
+
+def test_nothing_listening_is_one_line_naming_host_and_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # a port nothing listens on once closed
+    with pytest.raises(ControllerError, match=f"127.0.0.1:{port}: nothing is listening"):
+        _client(port).ping()
+
+
+def _fake_server(reply):
+    """A server that answers every line with ``reply(line)`` (None: never answers)."""
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen()
+    stop = threading.Event()
+
+    def serve():
+        srv.settimeout(0.2)
+        while not stop.is_set():
+            try:
+                conn, _ = srv.accept()
+            except OSError:
+                continue
+            with conn:
+                buf = b""
+                conn.settimeout(0.2)
+                while not stop.is_set():
+                    try:
+                        chunk = conn.recv(4096)
+                    except OSError:
+                        continue
+                    if not chunk:
+                        break
+                    buf += chunk
+                    while b"\n" in buf:
+                        line, buf = buf.split(b"\n", 1)
+                        out = reply(json.loads(line))
+                        if out is not None:
+                            conn.sendall(out)
+
+    threading.Thread(target=serve, daemon=True).start()
+    return srv, stop
+
+
+@pytest.mark.parametrize("reply, message", [
+    (lambda req: b"this is not json\n", "the answer is not JSON"),
+    (lambda req: (json.dumps({"id": req["id"], "joints_rad": [0, 1], "success": True, "reason": "ok"}) + "\n")
+     .encode(), "'joints_rad' must be 6 finite numbers"),
+    (lambda req: (json.dumps({"id": req["id"]}) + "\n").encode(), "lacks 'success'"),
+    (lambda req: None, "no answer within 0.3 s (twice)"),
+])
+def test_bad_answers_and_silence_are_one_line_naming_host_and_port(reply, message):
+    srv, stop = _fake_server(reply)
+    port = srv.getsockname()[1]
+    robot = replace(load_robot("adept_viper_s650"), ik_via=_client(port, 0.3))
+    try:
+        with pytest.raises(ControllerError, match=re.escape(f"127.0.0.1:{port}") + ".*" + re.escape(message)):
+            robot.ik(robot.fk(np.zeros(6)), np.zeros(6))
+    finally:
+        stop.set()
+        srv.close()
+
+
+def test_a_scan_planned_through_the_bridge_gets_the_local_joints(server, tmp_path):
+    from addon.core.scan.plan import plan_scan
+
+    text = open(load_scan_config("demo").source).read()
+    f = tmp_path / "bridge.toml"
+    f.write_text(text.replace('start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]   # elbow up, wrist down',
+                              'start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]\nik = "controller"\n'
+                              f'[robot.controller]\nport = {server.port}\n'))
+    bridged = load_scan_config(f).with_overrides(frames=slice(None, None, 6))
+    local = load_scan_config("demo").with_overrides(frames=slice(None, None, 6))
+    assert bridged.robot.ik_via is not None
+    a, b = plan_scan(bridged), plan_scan(local)
+    np.testing.assert_allclose(a.q, b.q, atol=1e-9)

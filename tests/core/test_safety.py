@@ -1,0 +1,161 @@
+"""Collision checks with answers from geometry: gaps to a block, a sweep that dips into it, a
+link driven into the table, fixtures, and every bundled scene clear."""
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+pytest.importorskip("fcl", reason="collision checks need python-fcl (installed by the README's set-up)")
+
+from addon.core.config.scan import load_scan_config  # noqa: E402
+from addon.core.errors import CollisionError, ConfigError, InputError  # noqa: E402
+from addon.core.geometry.workpiece import Workpiece  # noqa: E402
+from addon.core.kinematics.link_shapes import link_cylinders  # noqa: E402
+from addon.core.kinematics.turntable import TABLE_RADIUS_MM, TABLE_THICKNESS_MM  # noqa: E402
+from addon.core.safety import CollisionModel  # noqa: E402
+from addon.core.scan.plan import check_motion, plan_scan  # noqa: E402
+from addon.scanner import Scanner  # noqa: E402
+from dataclasses import replace  # noqa: E402
+
+# The probe's body reaches 2 mm beyond its origin along the beam (the camera and laser heads).
+HEAD_REACH_MM = 2.0
+HEAD_X_MM = 60.0 + 12.0  # the camera heads' far edges, along the probe's x
+
+
+def block_part(top=30.0):
+    box = trimesh.creation.box([60.0, 40.0, top])
+    box.apply_translation([0.0, 0.0, top / 2])
+    return Workpiece("block", box, box, "test block", np.eye(4))
+
+
+def demo_with(workpiece, **changes):
+    return replace(load_scan_config("demo"), workpiece=workpiece, **changes)
+
+
+def test_the_clearance_above_a_block_is_the_gap_geometry_gives():
+    cfg = demo_with(block_part())
+    model = CollisionModel(cfg.cell.robot, cfg.probe, cfg.table, cfg.workpiece.mesh)
+    for gap in (10.0, 25.0, 3.5):
+        height = 30.0 + HEAD_REACH_MM + gap
+        T = np.eye(4)
+        T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # beam straight down
+        T[:3, 3] = [5.0, -3.0, height]
+        res = cfg.cell.ik(T, cfg.q_start, relative_to="table", table_angle_rad=0.0)
+        assert res.success
+        c = model.clearance_at(res.q, 0.0).nearest[0]
+        assert c.distance_mm == pytest.approx(gap, abs=0.1)
+        assert (c.body_a, c.body_b) == ("probe", "workpiece")
+        assert c.point_a[2] == pytest.approx(30.0 + gap, abs=0.1)  # on the probe's heads
+        assert c.point_b[2] == pytest.approx(30.0, abs=0.1)        # on the block's top
+
+
+def test_a_sweep_dipping_2_mm_into_a_block_is_refused_at_the_frame_geometry_gives():
+    scanner = Scanner(workpiece=block_part())
+    start = -110.0
+    scanner.move_to(((0.0, start, 60.0), (0.0, 180.0, 0.0)))
+    scanner.move_to(((0.0, start, 30.0), (0.0, 180.0, 0.0)))  # heads at 28 mm: 2 mm below the top
+    q_before = scanner.q
+    step = 5.0
+    with pytest.raises(CollisionError) as err:
+        scanner.sweep([0.0, start, 30.0], [0.0, -start, 30.0], 45)
+    # The leading camera head (72 mm ahead along the motion) comes within the 2 mm clearance of the
+    # block's side at y = -20 once the probe passes y = -20 - 2 - 72 = -94: between frames 3 and 4.
+    first = math.ceil((-20.0 - 2.0 - HEAD_X_MM - start) / step)
+    msg = str(err.value)
+    assert f"moving to frames {first}-" in msg and "probe" in msg and "workpiece" in msg, msg
+    np.testing.assert_array_equal(scanner.q, q_before)  # nothing moved
+
+
+def _inside_the_table(points_table: np.ndarray) -> np.ndarray:
+    r = np.hypot(points_table[:, 0], points_table[:, 1])
+    return (r <= TABLE_RADIUS_MM) & (points_table[:, 2] <= 0.0) & (points_table[:, 2] >= -TABLE_THICKNESS_MM)
+
+
+def test_a_pose_with_a_link_in_the_table_is_refused_naming_that_link():
+    scanner = Scanner()
+    cfg = scanner.config
+    q = np.radians([-18.7, 125.3, -99.6, -49.3, 39.5, 148.1])
+    # The premise, from geometry alone: link 4's cylinders reach into the table's disc.
+    frames = cfg.cell.robot.link_frames(q)
+    base2table = cfg.table.base2table(0.0)
+    pts = []
+    for c in link_cylinders(cfg.cell.robot)[3]:
+        mesh = trimesh.creation.cylinder(radius=c.radius_mm, segment=np.array([c.p0, c.p1]), sections=32)
+        surface = trimesh.sample.sample_surface_even(mesh, 4000, seed=1)[0]
+        world = surface @ frames[4][:3, :3].T + frames[4][:3, 3]
+        pts.append(world @ base2table[:3, :3].T + base2table[:3, 3])
+    assert _inside_the_table(np.vstack(pts)).any()
+    # The pose itself is refused naming the link.
+    with pytest.raises(CollisionError, match="at frame 0: the link 4 touches the table"):
+        check_motion(cfg, q[None, :], np.zeros(1))
+    # A scanner refuses to move there (the probe sweeps through the table on the way first) and
+    # stays where it was, clear.
+    q_before = scanner.q
+    with pytest.raises(CollisionError, match="move refused, nothing moved"):
+        scanner.move_joints(q)
+    np.testing.assert_array_equal(scanner.q, q_before)
+    assert not scanner.clearance().collisions
+
+
+def test_a_probe_wholly_inside_a_closed_part_touches_it():
+    big = trimesh.creation.box([400.0, 400.0, 400.0])
+    big.apply_translation([0.0, 0.0, 200.0])
+    cfg = demo_with(Workpiece("crate", big, big, "test", np.eye(4)))
+    model = CollisionModel(cfg.cell.robot, cfg.probe, cfg.table, cfg.workpiece.mesh)
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T[:3, 3] = [0.0, 0.0, 210.0]  # the probe sits 190 mm deep inside the 400 mm crate
+    res = cfg.cell.ik(T, cfg.q_start, relative_to="table", table_angle_rad=0.0)
+    found = model.clearance_at(res.q, 0.0)
+    assert any(a.body_a == "probe" and a.body_b == "workpiece" and a.distance_mm <= 0 for a, _ in found.collisions)
+
+
+def test_every_bundled_scene_is_clear_and_reports_its_clearance():
+    from addon.core.config.toml import RIGS_DIR
+
+    for path in sorted((RIGS_DIR / "scenes").glob("*.toml")):
+        plan = plan_scan(load_scan_config(path))
+        rep = plan.clearance.report()
+        assert rep["nearest"]["clearance_mm"] > rep["min_clearance_mm"], path.name
+        assert set(rep["per_path"]) == {str(k) for k in np.unique(load_scan_config(path).waypoints.segment)}
+
+
+def test_a_fixture_in_the_way_is_refused_before_the_range_check(tmp_path):
+    clamp = trimesh.creation.box([20.0, 20.0, 300.0])  # a post 300 mm tall beside the sphere: into the probe
+    clamp.apply_translation([0.0, 45.0, 150.0])
+    clamp.export(tmp_path / "post.stl")
+    text = open(load_scan_config("demo").source).read()
+    cfg_file = tmp_path / "scan.toml"
+    cfg_file.write_text(text.replace("[[path]]", '[[fixture]]\nname = "post"\nfile = "post.stl"\n\n[[path]]', 1))
+    cfg = load_scan_config(cfg_file)
+    assert cfg.fixtures and cfg.fixtures[0].name == "fixture post"
+    with pytest.raises(CollisionError, match="fixture post"):
+        plan_scan(cfg)
+    # Checks off: the same path plans (and its range check passes).
+    assert plan_scan(replace(cfg, safety=replace(cfg.safety, check=False))).clearance is None
+
+
+def test_a_config_asks_for_its_clearance_and_bad_values_are_refused(tmp_path):
+    text = open(load_scan_config("demo").source).read()
+    for value, ok in (("5.0", True), ("-1", False), ('"two"', False)):
+        f = tmp_path / "c.toml"
+        f.write_text(text + f"\n[safety]\nmin_clearance_mm = {value}\n")
+        if ok:
+            assert load_scan_config(f).safety.min_clearance_mm == 5.0
+        else:
+            with pytest.raises(ConfigError, match="min_clearance_mm"):
+                load_scan_config(f)
+    with pytest.raises(InputError):
+        CollisionModel(load_scan_config("demo").cell.robot, load_scan_config("demo").probe,
+                       load_scan_config("demo").table, None, min_clearance_mm=float("nan"))
+
+
+def test_neighbouring_links_are_not_pairs_but_distant_ones_are():
+    cfg = load_scan_config("demo")
+    model = CollisionModel(cfg.cell.robot, cfg.probe, cfg.table, cfg.workpiece.mesh)
+    names = {(model.bodies[i].name, model.bodies[j].name) for i, j, _ in model.pairs}
+    assert ("link 1", "link 2") not in names and ("link 2", "link 1") not in names
+    assert ("probe", "link 6") not in names
+    assert ("link 1", "link 4") in names and ("probe", "table") in names and ("link 3", "workpiece") in names
