@@ -167,7 +167,7 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
     print(f"  kept          {r['points_fused']} points fused from both cameras; dropped after detection: "
           f"{dropped or 'none'}")
     stages = ", ".join(f"{name} {ts[name]:.2f}" for name in ("plan", "scene", "render", "detect", "triangulate",
-                                                             "metrics", "write") if name in ts)
+                                                             "neighbours", "metrics", "write") if name in ts)
     print(f"  time          {wall:.1f} s: {stages}")
     print(f"  speed         {r['profiles_per_s']:.1f} profiles/s (render + detect + triangulate) on "
           f"{r.get('render_device') or 'CPU'}; "

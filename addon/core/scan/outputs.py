@@ -15,8 +15,9 @@ import numpy as np
 from ..config.scan import ScanConfig
 from ..files import write_bytes_atomic, write_png
 from ..geometry import metrics
-from ..geometry.cloud import save_ply
+from ..geometry.cloud import Cloud, save_ply
 from ..geometry.footprint import SurfaceCaster, measurable_points
+from ..geometry.surface_fit import across_line
 from ..kinematics.turntable import TABLE_RADIUS_MM, table_top_mesh
 from .plan import Plan
 from .preview import render_preview
@@ -43,6 +44,9 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     timing = dict(timing)
     t = time.perf_counter()
     poses = config.cell.probe2table(plan.q, plan.table_rad) if len(plan.q) else None
+    cloud, stats = across_the_lines(cloud, stats, poses, config)
+    timing["neighbours"] = time.perf_counter() - t
+    t = time.perf_counter()
     quality, on_part, error_um = measure_against_truth(cloud, config, poses)
     timing["metrics"] = time.perf_counter() - t
     n = int(len(stats["band_rows"]))
@@ -90,6 +94,29 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     if files:
         write_bytes_atomic(files["report"], report_json(report).encode())
     return ScanResult(cloud, report, files, error_um, on_part)
+
+
+def across_the_lines(cloud: Cloud, stats: dict, poses, config: ScanConfig) -> tuple[Cloud, dict]:
+    """The cloud judged by each point's neighbouring profiles (geometry.surface_fit): points on
+    surfaces steeper than the filter's limit across the line dropped ("steep_surface"), every
+    σ widened by the line's width on the curvature across it, and points whose σ then exceeds
+    the filter's limit dropped ("uncertain"). Off with the profile filter's incidence limit."""
+    f = config.profile_filter
+    if poses is None or not len(cloud) or f.max_incidence_deg >= 90:
+        return cloud, stats
+    z0, z1 = config.probe.z_range_mm
+    steep, across = across_line(cloud.points, cloud.frame, poses, config.probe.line_width_mm, 0.5 * (z0 + z1),
+                                f.max_incidence_deg)
+    sigma = np.hypot(cloud.quality.astype(np.float64), across)
+    uncertain = ~steep & (sigma > f.max_sigma_mm)
+    keep = ~(steep | uncertain)
+    out = Cloud(cloud.points[keep], cloud.frame[keep], cloud.camera[keep], sigma[keep])
+    stats = dict(stats)
+    points = dict(stats.get("points", {}))
+    points["steep_surface"] = points.get("steep_surface", 0) + int(steep.sum())
+    points["uncertain"] = points.get("uncertain", 0) + int(uncertain.sum())
+    stats["points"] = points
+    return out, stats
 
 
 def sensor_effects(sensor) -> list[str]:
