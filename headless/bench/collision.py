@@ -46,8 +46,6 @@ def _brute(model, q, table_rad) -> tuple[float, int]:
 
 
 def run(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from addon.core.config.scan import load_scan_config
     from addon.core.kinematics.path import solve_path
     from addon.core.safety import CollisionModel

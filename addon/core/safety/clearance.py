@@ -25,7 +25,7 @@ import trimesh
 
 from ..errors import InputError
 from ..kinematics.robot import Robot
-from ..kinematics.turntable import TABLE_RADIUS_MM, Turntable
+from ..kinematics.turntable import Turntable
 from ..optics.probe import Probe
 from .bodies import Body, _fcl, carrier_poses, environment_bodies, robot_bodies
 
@@ -284,26 +284,20 @@ class CollisionModel:
         out = PathClearance(self.min_clearance_mm, samples=len(qs))
         nearest: dict[int, Contact] = {}
         for i, j, limit in self.pairs:
-            a, b = self.bodies[i], self.bodies[j]
             bound = self._bound(i, j, centres, support, up)
             env = limit != CONTACT_MM
-            # Collisions: the samples whose bound says they might be too close, in path order.
+            # Collisions: the samples whose bound says they might be too close, in path order;
+            # the pair's first run of colliding samples ends at the first sample clear of it.
             run: list[Contact] = []
+            last = -2
             for s in np.flatnonzero(bound < limit):
-                out.bound_queries += 1
-                hull = self._hull_distance(i, j, carriers, s)
-                if hull >= limit:
-                    continue
-                out.exact_queries += 1
-                d, pa, pb = self._exact(i, j, carriers, s, hull <= 0)
-                if d < limit:
-                    c = self._contact(d, i, j, float(pos[s]), pa, pb, carriers, s)
-                    if run and s != last + 1:
+                d, pa, pb = self._below(i, j, carriers, s, limit, out)
+                if d >= limit or (run and s != last + 1):
+                    if run:
                         break  # the first run of this pair is over
-                    run.append(c)
-                    last = s
-                elif run:
-                    break
+                    continue
+                run.append(self._contact(d, i, j, float(pos[s]), pa, pb, carriers, s))
+                last = s
             if run:
                 out.collisions.append((run[0], run[-1]))
             if env:
@@ -352,9 +346,19 @@ class CollisionModel:
                                                            self.fcl.DistanceResult()))))
         return best
 
+    def _below(self, i: int, j: int, carriers, s: int, limit: float, out: PathClearance):
+        """(distance, nearest points) of bodies i and j at sample s where it may be below
+        ``limit``: the hull distance first, the exact one only where the hulls come nearer;
+        (inf, NaN, NaN) where the hulls show it is not below."""
+        out.bound_queries += 1
+        hull = self._hull_distance(i, j, carriers, s)
+        if hull >= limit:
+            return math.inf, np.full(3, np.nan), np.full(3, np.nan)
+        out.exact_queries += 1
+        return self._exact(i, j, carriers, s, hull <= 0)
+
     def _nearest(self, i, j, carriers, bound, pos, seg_of, nearest, out) -> None:
         """Branch and bound: the smallest exact distance of pair (i, j) in each path entry."""
-        a, b = self.bodies[i], self.bodies[j]
         waypoint = (pos >= 0) & (np.abs(pos - np.round(pos)) < 1e-9)
         for k in np.unique(seg_of[waypoint]):
             idx = np.flatnonzero((seg_of == k) & waypoint)
@@ -363,12 +367,7 @@ class CollisionModel:
             for s in idx[np.argsort(bound[idx], kind="stable")]:
                 if bound[s] >= best_d:
                     break  # every later sample's bound is larger still
-                out.bound_queries += 1
-                hull = self._hull_distance(i, j, carriers, s)
-                if hull >= best_d:
-                    continue
-                out.exact_queries += 1
-                d, pa, pb = self._exact(i, j, carriers, s, hull <= 0)
+                d, pa, pb = self._below(i, j, carriers, s, best_d, out)
                 if d < best_d:
                     best_d = d
                     best = self._contact(d, i, j, float(pos[s]), pa, pb, carriers, s)
