@@ -116,6 +116,11 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
         from addon.core.errors import InputError
 
         raise InputError(f"--max-rms-um must be a positive number of micrometres, got {args.max_rms_um}")
+    if args.shard_frames is not None and not 1 <= args.shard_frames <= len(config.waypoints):
+        from addon.core.errors import InputError
+
+        raise InputError(f"--shard-frames must be 1 to {len(config.waypoints)} (the path's frames), "
+                         f"got {args.shard_frames}")
     print(f"scan: {config.name} ({len(config.waypoints)} frames, {config.robot.name}, {config.probe.name}, "
           f"workpiece {config.workpiece.source})", flush=True)
     t = time.perf_counter()

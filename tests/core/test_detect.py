@@ -220,3 +220,11 @@ def test_sigma_grows_with_the_image_noise():
     assert np.nanmedian(noisy.sigma_px) > 3 * np.nanmedian(quiet.sigma_px)
     err = np.abs(noisy.row - centre)[noisy.valid]
     assert np.mean(err <= 2 * noisy.sigma_px[noisy.valid]) >= 0.9
+
+
+def test_a_row_offset_that_is_not_a_whole_number_is_refused():
+    img = line_image(H, smooth_line(), 1.0)
+    for bad in (float("nan"), 2.5, "3", True):
+        with pytest.raises(InputError, match="row_offset"):
+            detect_line(img, row_offset=bad)
+    assert np.nanmax(detect_line(img, row_offset=10.0).row) > 10

@@ -97,7 +97,9 @@ def test_value_errors_name_file_key_and_range(tmp_path, replace, fragments):
 
 
 def test_link_meshes_are_resolved_next_to_the_rig(tmp_path):
-    (tmp_path / "link1.stl").write_text("solid x\nendsolid x\n")
+    import trimesh
+
+    trimesh.creation.box([40.0, 40.0, 200.0]).export(tmp_path / "link1.stl")
     path = write_rig(tmp_path, "")
     text = path.read_text().replace("max_deg = 170.0", 'max_deg = 170.0\nmesh = "link1.stl"\n[link.mesh_offset]\nxyz_mm = [0, 0, 5]', 1)
     path.write_text(text)
@@ -135,3 +137,15 @@ def test_rigs_are_read_once_and_again_only_when_the_file_changes(tmp_path, monke
     path.write_text(path.read_text().replace('name = "', 'name = "Edited ', 1))
     os.utime(path, ns=(path.stat().st_atime_ns, path.stat().st_mtime_ns + 10**9))
     assert load_probe(path).name.startswith("Edited") and len(reads) == 2
+
+
+@pytest.mark.parametrize("content, fragment", [
+    (b"this is a text file, not a mesh\n", "link\\[1\\].mesh"),
+    (b"solid x\nendsolid x\n", "no triangles could be read"),
+])
+def test_a_link_mesh_that_is_not_a_mesh_is_refused_when_the_rig_loads(tmp_path, content, fragment):
+    (tmp_path / "link1.stl").write_bytes(content)
+    path = write_rig(tmp_path, "")
+    path.write_text(path.read_text().replace("max_deg = 170.0", 'max_deg = 170.0\nmesh = "link1.stl"', 1))
+    with pytest.raises(ConfigError, match=fragment):
+        load_robot(path)

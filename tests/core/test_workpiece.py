@@ -50,10 +50,14 @@ def test_step_block_mesh_is_a_closed_solid_and_distances_are_exact():
 
 
 @pytest.mark.parametrize("make,fragment", [
-    (lambda p: trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int)).export(p), "empty"),
-    (lambda p: trimesh.creation.box([1e4, 1e4, 1e4]).export(p), "larger than"),
-    (lambda p: trimesh.creation.box([1e-3, 1e-3, 1e-3]).export(p), "only"),
-    (lambda p: p.write_bytes(b"solid junk\nthis is not an stl\n"), "mesh"),
+    (lambda p: trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int)).export(p), "no triangles could be read"),
+    (lambda p: trimesh.creation.box([1e4, 1e4, 1e4]).export(p), "another unit"),
+    (lambda p: trimesh.creation.box([0.06, 0.04, 0.03]).export(p), r"0\.06 mm across .*scale key"),  # mm part in m
+    (lambda p: p.write_bytes(b"solid junk\nthis is not an stl\n"), "not a readable STL mesh"),
+    (lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(200)), "STL"),
+    (lambda p: p.write_text("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 10 0 0\nvertex 0 nan 0\n"
+                            "endloop\nendfacet\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 10 0 0\n"
+                            "vertex 0 10 0\nendloop\nendfacet\nendsolid t\n"), "NaN or infinite"),
 ])
 def test_bad_meshes_are_refused_with_the_reason(tmp_path, make, fragment):
     path = tmp_path / "bad.stl"

@@ -174,10 +174,20 @@ def test_bad_configs_give_one_line_and_no_files(tmp_path, edit, fragment):
 
 
 @pytest.mark.parametrize("option,fragment", [(("--frames", "9:x"), "--frames"), (("--resolution", "big"), "WxH"),
-                                              (("--samples", "0"), "--samples"), (("--frames", "500:600"), "no frames")])
+                                              (("--samples", "0"), "--samples"), (("--frames", "500:600"), "no frames"),
+                                              (("--frames", "0:4:0"), "step"),
+                                              (("--shard-frames", "0"), "--shard-frames must be 1 to")])
 def test_bad_options(tmp_path, option, fragment):
     res = cli("scan", "step_block", "--out", str(tmp_path / "o"), *option)
     assert res.returncode == 2 and fragment in res.stderr and "Traceback" not in res.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_config_that_is_not_utf8_is_one_line(tmp_path):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(b'name = "caf\xe9"\n')
+    res = cli("scan", str(path), "--out", str(tmp_path / "o"), "--quiet")
+    assert res.returncode == 2 and "not UTF-8 text" in res.stderr and "Traceback" not in res.stderr
 
 
 def test_band_renders_give_the_full_frames_cloud_bit_for_bit():

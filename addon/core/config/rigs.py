@@ -42,6 +42,21 @@ def _probe_cached(path: Path, mtime_ns: int) -> Probe:
     return _read_probe(path)
 
 
+def _check_link_mesh(t, mesh_path: Path) -> None:
+    """A link's mesh must be a readable triangle mesh with finite coordinates (checked when the
+    rig loads, not when the scene is built)."""
+    import trimesh
+
+    try:
+        mesh = trimesh.load(mesh_path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many kinds for unreadable files
+        raise t.error("mesh", f"{mesh_path} is not a readable mesh ({type(exc).__name__}: {exc})") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise t.error("mesh", f"no triangles could be read from {mesh_path} (STL, OBJ, PLY, glTF)")
+    if not np.isfinite(mesh.vertices).all():
+        raise t.error("mesh", f"{mesh_path} has NaN or infinite vertex coordinates")
+
+
 def _read_robot(path: Path) -> Robot:
     """Robot from ``rigs/robots/<name>.toml`` or a path to such a file.
 
@@ -76,6 +91,7 @@ def _read_robot(path: Path) -> Robot:
             mesh_path = (path.parent / t.string("mesh")).resolve()
             if not mesh_path.is_file():
                 raise t.error("mesh", f"no such file: {mesh_path}")
+            _check_link_mesh(t, mesh_path)
             mesh = str(mesh_path)
         meshes.append((mesh, t.pose("mesh_offset")))
         t.finish()

@@ -24,6 +24,10 @@ FORMATS = (".stl", ".obj", ".ply", ".glb", ".gltf")
 METRE_FORMATS = (".glb", ".gltf")
 MAX_EXTENT_MM = 5000.0   # a workpiece on a rotary table; larger is a unit mistake
 MIN_EXTENT_MM = 0.01
+# A mesh file's part: smaller than a millimetre or larger than a metre on a 300 mm table is a
+# file in another unit (metres, inches, micrometres) far more often than a real part.
+FILE_MIN_EXTENT_MM = 1.0
+FILE_MAX_EXTENT_MM = 1000.0
 MAX_FACES = 10_000_000
 
 BUILTINS = {
@@ -76,11 +80,11 @@ def check_mesh(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
         raise InputError(f"{what}: {len(mesh.faces)} faces is more than the {MAX_FACES} allowed; decimate it first")
     extent = float(np.max(mesh.extents))
     if extent > MAX_EXTENT_MM:
-        raise InputError(f"{what}: the mesh is {extent:g} mm across, larger than {MAX_EXTENT_MM:g} mm; "
-                         "is it in the wrong unit? (set the scale)")
+        raise InputError(f"{what}: the mesh is {extent:g} mm across, larger than {MAX_EXTENT_MM:g} mm: is it in "
+                         "another unit? Set the workpiece's scale key")
     if extent < MIN_EXTENT_MM:
-        raise InputError(f"{what}: the mesh is only {extent:g} mm across (at least {MIN_EXTENT_MM:g} mm); "
-                         "is it in the wrong unit? (set the scale)")
+        raise InputError(f"{what}: the mesh is only {extent:g} mm across (at least {MIN_EXTENT_MM:g} mm): is it in "
+                         "another unit? Set the workpiece's scale key")
     return mesh
 
 
@@ -92,11 +96,17 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None) -> W
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     try:
-        mesh = trimesh.load(path, force="mesh", process=True)
+        # Unprocessed first: processing drops the faces of NaN vertices without a word.
+        mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many kinds for broken files
         raise InputError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
-    if not isinstance(mesh, trimesh.Trimesh):
-        raise InputError(f"{path}: holds no triangle mesh")
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise InputError(f"{path}: no triangles could be read from it: not a readable {path.suffix[1:].upper()} "
+                         "mesh (or one with no faces)")
+    if not np.all(np.isfinite(mesh.vertices)):
+        bad = int(np.sum(~np.isfinite(mesh.vertices).all(axis=1)))
+        raise InputError(f"{path}: {bad} vertices have NaN or infinite coordinates; a workpiece needs finite ones")
+    mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
     if scale is None:
         scale = 1000.0 if path.suffix.lower() in METRE_FORMATS else 1.0
     if not np.isfinite(scale) or scale <= 0:
@@ -104,6 +114,11 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None) -> W
     if scale != 1.0:
         mesh.apply_scale(scale)
     check_mesh(mesh, str(path))
+    extent = float(np.max(mesh.extents))
+    if not FILE_MIN_EXTENT_MM <= extent <= FILE_MAX_EXTENT_MM:
+        raise InputError(f"{path}: the part is {extent:.4g} mm across (scale {scale:g}); parts on the table are "
+                         f"{FILE_MIN_EXTENT_MM:g} to {FILE_MAX_EXTENT_MM:g} mm: is the file in another unit? "
+                         "Set the workpiece's scale key (e.g. scale = 1000 for metres, 25.4 for inches)")
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)
     return Workpiece(path.stem, mesh, mesh, str(path), pose)

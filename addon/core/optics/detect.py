@@ -191,6 +191,9 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
     frame gives. The result's ``shape`` is still the image's."""
     if method not in METHODS:
         raise InputError(f"detection method {method!r} is not one of: {', '.join(METHODS)}")
+    if isinstance(row_offset, bool) or not isinstance(row_offset, (int, np.integer)):
+        if not (isinstance(row_offset, (float, np.floating)) and float(row_offset).is_integer()):
+            raise InputError(f"row_offset must be a whole number of rows, got {row_offset!r}")
     p = params or DetectParams()
     C, rgb, _ = _prepare(image)
     H, W = C.shape
