@@ -101,6 +101,11 @@ def _place(mesh, up: str = "z"):
     elif up == "x":
         mesh.apply_transform(rotation_matrix(np.pi / 2, [0, 1, 0]))
     mesh.apply_scale(PART_SIZE_MM / float(mesh.extents.max()))
+    return _on_table(mesh)
+
+
+def _on_table(mesh):
+    """``mesh`` moved to stand on z = 0, centred on the table's axis."""
     mesh.apply_translation([-mesh.bounds[:, 0].mean(), -mesh.bounds[:, 1].mean(), -mesh.bounds[0, 2]])
     return mesh
 
@@ -122,9 +127,7 @@ def cad_parts() -> dict:
     import trimesh
     from trimesh.creation import box, cylinder
 
-    def on_table(mesh):
-        mesh.apply_translation([-mesh.bounds[:, 0].mean(), -mesh.bounds[:, 1].mean(), -mesh.bounds[0, 2]])
-        return mesh
+    on_table = _on_table
 
     def at(mesh, xyz):
         mesh.apply_translation(xyz)

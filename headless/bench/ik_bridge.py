@@ -25,6 +25,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from dataclasses import replace
+
     from addon.core.config.rigs import load_robot
     from addon.core.kinematics.ik_remote import Controller, ControllerIK
     from headless.ik_server import IKServer
@@ -32,8 +34,6 @@ def run(args: argparse.Namespace) -> int:
     robot = load_robot(args.robot)
     server = IKServer(robot, "127.0.0.1", 0).start()
     remote = ControllerIK(Controller("127.0.0.1", server.port, 5.0))
-    from dataclasses import replace
-
     bridged = replace(robot, ik_via=remote)
     rng = np.random.default_rng(0)
     q_true = robot.random_q(args.targets, rng)

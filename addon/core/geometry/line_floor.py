@@ -48,7 +48,7 @@ def _exact_hits(mesh, origins, dirs, tri) -> np.ndarray:
         return np.einsum("ij,ij->i", n, v0 - origins) / np.einsum("ij,ij->i", n, dirs)
 
 
-def _first_hits(caster: SurfaceCaster, origins, dirs):
+def _first_hits_exact(caster: SurfaceCaster, origins, dirs):
     """(t (m,) mm along each ray, NaN where it hits nothing; face index (m,), −1 where none)."""
     t = np.full(len(origins), np.nan)
     face = np.full(len(origins), -1)
@@ -124,7 +124,7 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
     d_local /= np.linalg.norm(d_local, axis=2, keepdims=True)
     dirs = np.einsum("nij,nkj->nki", R, d_local).reshape(-1, 3)
     origins = np.repeat(t, samples, axis=0)
-    hit_t, face = _first_hits(surfaces, origins, dirs)
+    hit_t, face = _first_hits_exact(surfaces, origins, dirs)
     hits = origins + hit_t[:, None] * dirs
     normals = surfaces.mesh.face_normals[np.maximum(face, 0)]
     hit_local = np.einsum("nji,nkj->nki", R, hits.reshape(n, samples, 3) - t[:, None, :]).reshape(-1, 3)
@@ -146,7 +146,7 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
             facing = np.einsum("ij,ij->i", normals, to_cam_u)
         ok = np.isfinite(hit_t) & (face >= 0) & (facing > 0) & (lit > 0)
         # Hidden from the camera: something on the way from the hit to the camera.
-        look_t, _ = _first_hits(surfaces, centre[frame_of][ok], -to_cam_u[ok])
+        look_t, _ = _first_hits_exact(surfaces, centre[frame_of][ok], -to_cam_u[ok])
         visible = np.zeros(len(hits), bool)
         visible[np.flatnonzero(ok)] = ~(look_t < dist[ok] - OCCLUSION_EPS_MM)
         w = np.where(visible, np.tile(gauss, n) * np.where(ok, lit, 0.0), 0.0).reshape(n, samples)

@@ -322,12 +322,16 @@ def _second_peak(S, r, peak, width, p: DetectParams) -> np.ndarray:
     return (second >= p.second_peak_ratio * peak) & (second >= p.min_peak)
 
 
+def _log_samples(C, r, cols) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Logarithms of each column's samples at rows r − 1, r, r + 1 (r inside the image)."""
+    tiny = 1e-12
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return tuple(np.log(np.maximum(C[r + k, cols].astype(np.float64), tiny)) for k in (-1, 0, 1))
+
+
 def _log_parabola(C, r, cols) -> np.ndarray:
     """Sub-pixel offset of a Gaussian through the peak sample and its neighbours."""
-    tiny = 1e-12
-    lm = np.log(np.maximum(C[r - 1, cols].astype(np.float64), tiny))
-    l0 = np.log(np.maximum(C[r, cols].astype(np.float64), tiny))
-    lp = np.log(np.maximum(C[r + 1, cols].astype(np.float64), tiny))
+    lm, l0, lp = _log_samples(C, r, cols)
     den = lm - 2.0 * l0 + lp
     with np.errstate(divide="ignore", invalid="ignore"):
         d = 0.5 * (lm - lp) / den
@@ -356,13 +360,9 @@ THRESHOLD_SIGMA_PX = 0.5 / np.sqrt(3.0)  # the mean of two ends each uniform ove
 def _profile_sigma(S: np.ndarray, r: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """σ₃ (W,) px: the width of a Gaussian through the peak sample and its two neighbours
     (NaN where the three do not make a peak)."""
-    H = S.shape[0]
-    rr = np.clip(r, 1, H - 2)
-    tiny = 1e-12
+    lm, l0, lp = _log_samples(S, np.clip(r, 1, S.shape[0] - 2), cols)
+    den = (lm - l0) + (lp - l0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        l0 = np.log(np.maximum(S[rr, cols].astype(np.float64), tiny))
-        den = (np.log(np.maximum(S[rr - 1, cols].astype(np.float64), tiny)) - l0
-               + np.log(np.maximum(S[rr + 1, cols].astype(np.float64), tiny)) - l0)
         return np.where(den < 0, np.sqrt(-1.0 / den), np.nan)
 
 

@@ -96,11 +96,14 @@ class Body:
             self.support, self.support_r = np.vstack(pts), np.concatenate(rs)
 
 
+UNIT_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+
+
 def _support(s: Shape) -> tuple[np.ndarray, np.ndarray]:
     """Points (k, 3) in the body's frame and margins (k,) whose balls hold the shape: a box's
     corners, a cylinder's two end centres with its radius, a mesh's bounding-box corners."""
     name = type(s.geometry).__name__
-    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+    corners = UNIT_CORNERS
     if name == "Box":
         local, r = corners * (np.asarray(s.geometry.side, dtype=np.float64) / 2), np.zeros(8)
     elif name == "Cylinder":

@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..kinematics.robot import Robot
 from ..kinematics.turntable import Turntable
 from ..optics.probe import Probe
-from .bodies import Body, _fcl, carrier_poses, environment_bodies, robot_bodies
+from .bodies import UNIT_CORNERS, Body, _fcl, carrier_poses, environment_bodies, robot_bodies
 
 STEP_MM = 1.0             # no point moves farther than this between two checked samples
 DEFAULT_CLEARANCE_MM = 2.0
@@ -143,7 +143,7 @@ def _hull_points(body: Body) -> np.ndarray:
         name = type(g).__name__
         if name == "Box":
             e = np.asarray(g.side, dtype=np.float64) / 2
-            local = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * e
+            local = UNIT_CORNERS * e
         elif name == "Cylinder":
             n = 24
             r = g.radius / math.cos(math.pi / n)
@@ -151,7 +151,7 @@ def _hull_points(body: Body) -> np.ndarray:
             ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
             local = np.vstack([np.column_stack([ring, np.full(n, -g.lz / 2)]),
                                np.column_stack([ring, np.full(n, g.lz / 2)])])
-        else:  # a mesh: its hull's corners (trimesh keeps the hull with the mesh)
+        else:  # a mesh: points enclosing it (bodies._enclosing_points)
             local = s.hull_vertices
         pts.append(local @ s.local[:3, :3].T + s.local[:3, 3])
     return np.vstack(pts)
