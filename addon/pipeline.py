@@ -32,6 +32,9 @@ __all__ = ["Plan", "ScanResult", "ScanRun", "assemble", "build_scan_cell", "cell
 
 Progress = Callable[[str, int, int], None]
 
+CHUNK_SECONDS = 1.0  # a render call lasts about this long at most (see ScanRun._chunk_size)
+PIXELS_PER_SECOND = 4e5  # Cycles at one sample on two CPU cores, before the first call has been timed
+
 
 def run_scan(config: ScanConfig, out_dir: str | Path | None, scene=None, progress: Progress | None = None,
              write_outputs: bool = True) -> ScanResult:
@@ -122,9 +125,9 @@ class ScanRun:
         if self.done >= self.n:
             return True
         config, probe, plan, sc = self.config, self.config.probe, self.plan, self.sc
-        chunk = config.leave_out.chunk_frames
         done = self.done
-        size = 1 if done == 0 and not np.isfinite(plan.predicted_rows[self.first]).all() else min(chunk, self.n - done)
+        size = 1 if done == 0 and not np.isfinite(plan.predicted_rows[self.first]).all() else \
+            min(self._chunk_size(), self.n - done)
         first = self.frames.start + done
         rows = self.band.rows(done, size) if config.leave_out.render_band else None
         hide = config.leave_out.hide_robot
@@ -176,6 +179,20 @@ class ScanRun:
         self.done += size
         self.progress("scan", self.done, self.n)
         return self.done >= self.n
+
+    def _chunk_size(self) -> int:
+        """Frames in the next render call: the config's chunk, fewer where that would take
+        longer than CHUNK_SECONDS (judged from the frames rendered so far, or before the
+        first call from the pixels it would render), so that a stop (Ctrl-C, the panel's Esc)
+        takes effect within about that time."""
+        chunk = self.config.leave_out.chunk_frames
+        if self.done:
+            per_frame = self.t_render / self.done
+        else:
+            rows = self.band.rows(0, chunk) if self.config.leave_out.render_band else None
+            height = self.config.probe.rows_px if rows is None else rows[1] - rows[0]
+            per_frame = self.config.probe.cols_px * height * len(self.plan.cameras) / PIXELS_PER_SECOND
+        return max(1, min(chunk, int(CHUNK_SECONDS / max(per_frame, 1e-9))))
 
     def _sense(self, pair, rows, index: int):
         """What the real sensor makes of each camera's rendered light (unchanged for the ideal sensor)."""

@@ -37,8 +37,15 @@ from addon.core.errors import ScannerError
 EXIT_USER_ERROR = 2
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with its errors on one line (what was wrong and where the help is), exit 2."""
+
+    def error(self, message: str):
+        self.exit(EXIT_USER_ERROR, f"error: {message} (see: {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m headless", description=__doc__.split("\n\n")[0])
+    parser = OneLineParser(prog="python -m headless", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     from headless import scan
@@ -103,13 +110,29 @@ def _run_kinematics(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run a command in its own temporary folder with Ctrl-C taken as a request to stop
+    (headless.lifecycle); a user's error or a file that cannot be written is one line."""
+    from headless.lifecycle import Interrupted, PrivateTemp, StopRequests
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    temp = PrivateTemp()
+    args.stops = StopRequests(temp).install()
     try:
         return args.run(args)
     except ScannerError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except Interrupted as exc:
+        print(exc.describe(), file=sys.stderr)
+        return exc.exit_code
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        print("interrupted (Ctrl-C)", file=sys.stderr)
         return 130
+    except OSError as exc:  # a disk full, a folder that vanished, a permission taken away mid-run
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"error: {where}{exc.strerror or exc} (nothing was written)", file=sys.stderr)
+        return EXIT_USER_ERROR
+    finally:
+        temp.close()  # a second Ctrl-C meanwhile still ends the process cleanly (exit 130)
+        args.stops.restore()

@@ -75,7 +75,11 @@ def cluster_client(workers: int, scheduler: str | None):
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
-        client = Client(scheduler, timeout="30s")
+        try:
+            client = Client(scheduler, timeout="30s")
+        except Exception as exc:  # whatever answers there is not a Dask scheduler (or stopped answering)
+            raise ScannerError(f"--scheduler {scheduler}: no Dask scheduler answered there "
+                               f"({type(exc).__name__}: {str(exc)[:120]})") from None
         try:
             yield client
         finally:

@@ -1,7 +1,14 @@
 """``python -m headless scan CONFIG`` and ``python -m headless demo``: run a scan, print a summary.
 
-Exit codes: 0 done; 2 the config or an option is wrong (one line on stderr, no
-files written); 3 the scan ran but its RMS error exceeds ``--max-rms-um``.
+Exit codes: 0 done; 2 the config or an option is wrong, or a file cannot be written
+(one line on stderr, no files written); 3 the scan ran but its RMS error exceeds
+``--max-rms-um``; 130 stopped by Ctrl-C (143: SIGTERM), nothing written.
+
+Before the first render: the config, the options, the output folder, the render's
+size against memory and time, the temporary folder's room and the scheduler's
+address are checked (headless.preflight); the output folder is claimed for the
+run (a second scan into it is refused while this one runs); the three output files
+appear together at the end or not at all.
 """
 
 from __future__ import annotations
@@ -33,6 +40,9 @@ def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
                         help="compute only shard K in this process (a farm manager's task; needs --shard-frames)")
     parser.add_argument("--merge", action="store_true",
                         help="compute nothing: merge the shards in --out when all are there (needs --shard-frames)")
+    parser.add_argument("--force", action="store_true",
+                        help="render even when the frame looks too big for this machine's memory or the scan "
+                             "longer than 8 hours")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(run=run_demo if demo else run_scan_command)
 
@@ -121,32 +131,72 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
 
         raise InputError(f"--shard-frames must be 1 to {len(config.waypoints)} (the path's frames), "
                          f"got {args.shard_frames}")
-    print(f"scan: {config.name} ({len(config.waypoints)} frames, {config.robot.name}, {config.probe.name}, "
-          f"workpiece {config.workpiece.source})", flush=True)
-    t = time.perf_counter()
     if (args.shard is not None or args.merge) and args.shard_frames is None:
         from addon.core.errors import InputError
 
         raise InputError("--shard and --merge need --shard-frames (the same for every task of the job)")
-    if args.shard is not None:
-        from headless.farm import run_one_shard
+    from addon.core.files import OutputLock
+    from addon.core.scan.outputs import OUTPUT_FILES
+    from headless import preflight
 
-        info = run_one_shard(config, out, args.shard_frames, args.shard)
-        print(f"  {info['describe']} of {info['of']}: {info['points']} points in {info['seconds']:.1f} s -> "
-              f"{info['path']}")
-        return 0
-    if args.workers is not None or args.scheduler is not None or args.shard_frames is not None or args.merge:
+    farm = (args.workers is not None or args.scheduler is not None or args.shard_frames is not None
+            or args.merge)
+    preflight.check_scan(config, out, names=OUTPUT_FILES.values(), farm=farm, scheduler=args.scheduler,
+                         force=args.force)
+    print(f"scan: {config.name} ({len(config.waypoints)} frames, {config.robot.name}, {config.probe.name}, "
+          f"workpiece {config.workpiece.source})", flush=True)
+    stops = getattr(args, "stops", None)
+    if args.shard is not None:  # one task of a farm job: many write into the same --out at once
+        return _run_shard(args, config, out)
+    lock = OutputLock(out).acquire()
+    if stops is not None:
+        stops.cleanups.append(lock.release)
+    try:
+        return _scan_and_summarise(args, config, out, farm, stops)
+    except KeyboardInterrupt as exc:
+        from headless.lifecycle import Interrupted
+
+        exc = exc if isinstance(exc, Interrupted) else Interrupted(2)
+        kept = (f"; the finished shards stay in {Path(out) / 'shards'} for the next run"
+                if farm and exc.unit == "shards" and exc.done else "")
+        print(f"{exc.describe()}: nothing written to {out}{kept}", file=sys.stderr, flush=True)
+        return exc.exit_code
+    finally:
+        lock.release()
+
+
+def _run_shard(args: argparse.Namespace, config, out: str) -> int:
+    from headless.farm import run_one_shard
+
+    info = run_one_shard(config, out, args.shard_frames, args.shard)
+    print(f"  {info['describe']} of {info['of']}: {info['points']} points in {info['seconds']:.1f} s -> "
+          f"{info['path']}")
+    return 0
+
+
+def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, stops) -> int:
+    t = time.perf_counter()
+    bar = ProgressBar(args.quiet)
+
+    def progress(stage: str, done: int, total: int) -> None:
+        bar(stage, done, total)
+        if stops is not None:
+            stops.progress(stage, done, total)
+
+    if farm:
         from headless.farm import run_farm
 
         result = run_farm(config, out, workers=args.workers if args.workers is not None else 2,
                           scheduler=args.scheduler, shard_frames=args.shard_frames,
                           log=(lambda m: None) if args.quiet else (lambda m: print(m, flush=True)),
-                          progress=ProgressBar(args.quiet), merge_only=args.merge)
+                          progress=progress, merge_only=args.merge)
     else:
         from addon import Scanner
 
         scanner = Scanner(config=config)
-        scanner.run(progress=ProgressBar(args.quiet))
+        scanner.run(progress=progress)
+        if stops is not None:
+            stops.check()  # a stop asked for during the last frames: still nothing written
         result = scanner.result(out)
     wall = time.perf_counter() - t
     r = result.report

@@ -1,10 +1,22 @@
-"""Writing output files so that a failed run never leaves a half-written one."""
+"""Writing output files so that a failed run never leaves a half-written one.
+
+One file is written atomically (a temporary file beside it, renamed into place); a set
+of files (a scan's cloud, report and preview) is written into a staging folder inside
+the output folder and moved in together, so that either all appear or none. Before a
+scan starts, its output folder is checked (``check_output_folder``) and claimed
+(``OutputLock``): a second scan into a folder that a running scan owns is refused.
+"""
 
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from pathlib import Path
+
+from .errors import InputError
+
+LOCK_NAME = ".scanner.lock"
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
@@ -17,9 +29,7 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+            _write_synced(fh, data)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual mode
         os.replace(tmp, path)
     except BaseException:
@@ -28,16 +38,137 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
     return path
 
 
-def write_png(path: str | Path, bgr) -> Path:
-    """Encode a BGR uint8 picture as PNG and write it atomically."""
+def write_set(folder: str | Path, contents: dict[str, bytes]) -> dict[str, Path]:
+    """Write files {name: bytes} into ``folder`` so that all of them appear or none: each is
+    written into a staging folder inside ``folder`` first, then all are renamed into place."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=folder))
+    moved: list[Path] = []
+    try:
+        for name, data in contents.items():
+            with open(staging / name, "wb") as fh:
+                _write_synced(fh, data)
+            os.chmod(staging / name, 0o666 & ~_umask())
+        for name in contents:
+            os.replace(staging / name, folder / name)
+            moved.append(folder / name)
+    except BaseException:
+        for path in moved:  # a rename failed after others worked: take the new ones out again
+            path.unlink(missing_ok=True)
+        raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return {name: folder / name for name in contents}
+
+
+def _write_synced(fh, data: bytes) -> None:
+    fh.write(data)
+    fh.flush()
+    os.fsync(fh.fileno())
+
+
+def png_bytes(bgr) -> bytes:
+    """A BGR uint8 picture encoded as PNG."""
     import cv2
 
     from .errors import ScannerError
 
     ok, png = cv2.imencode(".png", bgr)
     if not ok:
-        raise ScannerError(f"could not encode the picture for {path}")
-    return write_bytes_atomic(path, png.tobytes())
+        raise ScannerError(f"could not encode a {getattr(bgr, 'shape', '?')} picture as PNG")
+    return png.tobytes()
+
+
+def write_png(path: str | Path, bgr) -> Path:
+    """Encode a BGR uint8 picture as PNG and write it atomically."""
+    return write_bytes_atomic(path, png_bytes(bgr))
+
+
+def check_output_folder(folder: str | Path, names=(), what: str = "output folder") -> Path:
+    """Refuse, in one line, an output folder a scan could not write into: a file where the
+    folder should be or above it, a place that is not writable, or a sub-folder where one of
+    the files ``names`` goes. Nothing is created."""
+    p = Path(folder)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{what} {p} is a file; give a folder (it is made when missing)")
+    existing = p
+    while not existing.exists() and existing.parent != existing:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InputError(f"{what} {p}: {existing} is a file, so no folder can be made below it")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        where = "" if existing == p else f" (its nearest existing parent {existing} is not writable)"
+        raise InputError(f"{what} {p} cannot be written{where}; choose a folder you can write to")
+    for name in names:
+        target = p / name
+        if target.exists() and not target.is_file():
+            raise InputError(f"{what} {p}: {target} is a folder where the scan writes its {name}; "
+                             f"move it away or choose another folder")
+    return p
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (True where the platform cannot tell)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True  # another user's process, or a platform without that query
+    return True
+
+
+class OutputLock:
+    """A running scan's claim on its output folder (a ``.scanner.lock`` file with its process
+    id). ``acquire()`` refuses when a live process holds it (a lock left by a dead one is
+    taken over); ``release()`` removes the lock, and the folder too when this scan made it
+    and left it empty (an interrupted or failed scan leaves nothing behind)."""
+
+    def __init__(self, folder: str | Path):
+        self.folder = Path(folder)
+        self.path = self.folder / LOCK_NAME
+        self.made_folder = False
+        self.held = False
+
+    def acquire(self) -> "OutputLock":
+        self.made_folder = not self.folder.exists()
+        self.folder.mkdir(parents=True, exist_ok=True)
+        for _ in range(3):
+            try:
+                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                try:
+                    owner = int(self.path.read_text().strip() or "0")
+                except (OSError, ValueError):
+                    owner = 0
+                if owner and owner != os.getpid() and pid_alive(owner):
+                    self.release()
+                    raise InputError(f"output folder {self.folder}: a running scan (process {owner}) is writing "
+                                     f"there; wait for it to end or choose another folder") from None
+                self.path.unlink(missing_ok=True)  # left by a process that no longer exists
+                continue
+            with os.fdopen(fd, "w") as fh:
+                fh.write(f"{os.getpid()}\n")
+            self.held = True
+            return self
+        raise InputError(f"output folder {self.folder}: could not claim it ({self.path} keeps coming back)")
+
+    def release(self) -> None:
+        if self.held:
+            self.path.unlink(missing_ok=True)
+            self.held = False
+        if self.made_folder:
+            try:
+                self.folder.rmdir()  # only when empty
+            except OSError:
+                pass
+
+    def __enter__(self) -> "OutputLock":
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
 
 
 def _umask() -> int:

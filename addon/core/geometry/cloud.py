@@ -81,13 +81,18 @@ class CloudAccumulator:
         return Cloud.concatenate(self._parts)
 
 
-def save_ply(cloud: Cloud, path: str | Path) -> Path:
-    """Write a binary PLY with frame, camera and quality per point (atomically)."""
+def ply_bytes(cloud: Cloud) -> bytes:
+    """The cloud as a binary PLY with frame, camera and quality per point."""
     mesh = trimesh.Trimesh(vertices=cloud.points, faces=np.zeros((0, 3), dtype=np.int64), process=False)
     mesh.vertex_attributes["frame"] = cloud.frame
     mesh.vertex_attributes["camera"] = cloud.camera
     mesh.vertex_attributes["quality"] = cloud.quality
-    return write_bytes_atomic(path, mesh.export(file_type="ply", encoding="binary"))
+    return mesh.export(file_type="ply", encoding="binary")
+
+
+def save_ply(cloud: Cloud, path: str | Path) -> Path:
+    """Write the cloud as a binary PLY (see ply_bytes), atomically."""
+    return write_bytes_atomic(path, ply_bytes(cloud))
 
 
 def load_ply(path: str | Path) -> Cloud:

@@ -143,7 +143,10 @@ def _enclosing_points(vertices: np.ndarray) -> np.ndarray:
     face and corner diagonals (a few per cent larger than a round part, and fast for GJK)."""
     from scipy.spatial import ConvexHull, HalfspaceIntersection
 
-    corners = vertices[ConvexHull(vertices, qhull_options="QJ").vertices]  # QJ: a flat plate has a hull too
+    unique = np.unique(vertices, axis=0)
+    if len(unique) < 5:  # fewer points than qhull needs: they are their own hull
+        return unique
+    corners = unique[ConvexHull(unique, qhull_options="QJ").vertices]  # QJ: a flat plate has a hull too
     if len(corners) <= HULL_POINTS_MAX:
         return corners
     dirs = np.array([d for d in np.ndindex(3, 3, 3) if d != (1, 1, 1)], dtype=np.float64) - 1.0

@@ -13,9 +13,9 @@ import cv2
 import numpy as np
 
 from ..config.scan import ScanConfig
-from ..files import write_bytes_atomic, write_png
+from ..files import png_bytes, write_set
 from ..geometry import metrics
-from ..geometry.cloud import Cloud, save_ply
+from ..geometry.cloud import Cloud, ply_bytes
 from ..geometry.footprint import SurfaceCaster, measurable_points
 from ..geometry.surface_fit import across_line
 from ..kinematics.turntable import TABLE_RADIUS_MM, table_top_mesh
@@ -87,12 +87,9 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     }
     files = {}
     if out_dir is not None:
-        t = time.perf_counter()
-        files = write_outputs(Path(out_dir), cloud, report, config, on_part, error_um)
-        report["time_s"]["write"] = round(time.perf_counter() - t, 4)
-    report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
-    if files:
-        write_bytes_atomic(files["report"], report_json(report).encode())
+        files = write_outputs(Path(out_dir), cloud, report, config, on_part, error_um, t_start)
+    else:
+        report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
     return ScanResult(cloud, report, files, error_um, on_part)
 
 
@@ -164,12 +161,20 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
              "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3)
 
 
-def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, err) -> dict:
+OUTPUT_FILES = {"cloud": "cloud.ply", "report": "report.json", "preview": "preview.png"}
+
+
+def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, err, t_start: float) -> dict:
+    """cloud.ply, report.json and preview.png into ``out``, all together or none (files.write_set);
+    the report's time_s gains the time taken to make them ("write") and the total."""
+    t = time.perf_counter()
     e = report["error_um"]
     title = (f"{config.name}: {len(cloud)} points, RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
              f"coverage {report['coverage'] * 100:.0f} %")
     picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title)
-    files = {"cloud": out / "cloud.ply", "report": out / "report.json", "preview": out / "preview.png"}
-    save_ply(cloud, files["cloud"])
-    write_png(files["preview"], picture)
-    return files
+    contents = {"cloud.ply": ply_bytes(cloud), "preview.png": png_bytes(picture)}
+    report["time_s"]["write"] = round(time.perf_counter() - t, 4)
+    report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
+    contents["report.json"] = report_json(report).encode()
+    written = write_set(out, contents)
+    return {key: written[name] for key, name in OUTPUT_FILES.items()}

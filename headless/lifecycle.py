@@ -1,0 +1,152 @@
+"""A command's process from start to end: its own temporary folder, Ctrl-C, and nothing left behind.
+
+Temporary folder: every command gets ``<temp>/scanner-run-<pid>-<random>`` and points
+TMPDIR (and TEMP, TMP, Python's tempfile) at it before Blender is loaded, so that
+Blender's session folder (``blender_*``), the render's image files and a local Dask
+cluster's scratch space all land inside it. It is removed when the command ends,
+however it ends; a folder whose process no longer exists (killed with SIGKILL, a
+power cut) is removed by the next command that starts.
+
+Signals: Blender's Python render engines (Cycles and Eevee run Python callbacks
+during a render) catch every exception raised inside them, KeyboardInterrupt
+included, so Python's own Ctrl-C handling cannot stop a render: the interrupt is
+printed and swallowed and the scan runs on. ``StopRequests`` takes SIGINT and
+SIGTERM instead: the first one asks the scan to stop, which it does when the
+frames being rendered are done (render calls are sized to last about a second,
+see ``addon.pipeline``); the second stops at once. Either way the command exits
+128 + the signal's number (130 for Ctrl-C) and writes nothing into ``--out``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import sys
+import tempfile
+from pathlib import Path
+
+from addon.core.files import pid_alive
+
+RUN_PREFIX = "scanner-run-"
+_ENV = ("TMPDIR", "TEMP", "TMP")
+
+
+def stale_run_folders(base: Path) -> list[Path]:
+    """Folders of earlier commands in ``base`` whose process no longer exists."""
+    out = []
+    for folder in base.glob(RUN_PREFIX + "*"):
+        pid = folder.name[len(RUN_PREFIX):].split("-", 1)[0]
+        if folder.is_dir() and pid.isdigit() and int(pid) != os.getpid() and not pid_alive(int(pid)):
+            out.append(folder)
+    return out
+
+
+class PrivateTemp:
+    """This command's temporary folder (see the module's docstring); ``close()`` removes it."""
+
+    def __init__(self, base: str | Path | None = None):
+        base = Path(base or tempfile.gettempdir())
+        for folder in stale_run_folders(base):
+            shutil.rmtree(folder, ignore_errors=True)
+        self.path = Path(tempfile.mkdtemp(prefix=f"{RUN_PREFIX}{os.getpid()}-", dir=base))
+        self._saved = ({k: os.environ.get(k) for k in _ENV}, tempfile.tempdir)
+        for k in _ENV:
+            os.environ[k] = str(self.path)
+        tempfile.tempdir = str(self.path)
+
+    def close(self) -> None:
+        env, tempdir = self._saved
+        for k, v in env.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+        tempfile.tempdir = tempdir
+        shutil.rmtree(self.path, ignore_errors=True)
+
+
+SIGNAL_NAMES = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}
+
+
+class Interrupted(KeyboardInterrupt):
+    """The user (or a job manager) stopped the command: ``signum``, and how far it had got."""
+
+    def __init__(self, signum: int, done: int = 0, total: int = 0, unit: str = "frames"):
+        super().__init__(SIGNAL_NAMES.get(signum, f"signal {signum}"))
+        self.signum, self.done, self.total, self.unit = signum, done, total, unit
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + int(self.signum)
+
+    def describe(self) -> str:
+        what = SIGNAL_NAMES.get(self.signum, f"signal {self.signum}")
+        if self.total:
+            return f"interrupted ({what}) after {self.done} of {self.total} {self.unit}"
+        return f"interrupted ({what}) before the first frame"
+
+
+class StopRequests:
+    """SIGINT and SIGTERM as requests to stop (see the module's docstring).
+
+    ``progress(stage, done, total)`` is the scan's progress callback: it records how far the
+    scan has got and raises Interrupted when a stop was asked for. In a process that has not
+    loaded Blender (a farm's coordinator, which waits on its workers; the kinematics
+    commands) nothing swallows exceptions, so the first signal raises Interrupted at once."""
+
+    def __init__(self, temp: PrivateTemp | None = None, stream=None):
+        self.temp = temp
+        self.stream = stream or sys.stderr
+        self.cleanups: list = []  # what a stop "at once" must still undo (an output folder's lock)
+        self.signum: int | None = None
+        self.done, self.total, self.unit = 0, 0, "frames"
+        self._old: dict = {}
+
+    def install(self) -> "StopRequests":
+        for s in SIGNAL_NAMES:
+            try:
+                self._old[s] = signal.signal(s, self._on_signal)
+            except ValueError:  # not the main thread: leave the signals alone
+                pass
+        return self
+
+    def restore(self) -> None:
+        for s, old in self._old.items():
+            signal.signal(s, old)
+        self._old.clear()
+
+    def __enter__(self) -> "StopRequests":
+        return self.install()
+
+    def __exit__(self, *exc) -> None:
+        self.restore()
+
+    def _on_signal(self, signum, frame) -> None:
+        if self.signum is not None:  # the second one: stop now
+            print(f"\n{self.interrupted().describe()}: stopped at once, nothing written", file=self.stream,
+                  flush=True)
+            for undo in reversed(self.cleanups):
+                try:
+                    undo()
+                except Exception:
+                    pass
+            if self.temp is not None:
+                self.temp.close()
+            os._exit(128 + int(signum))
+        self.signum = signum
+        if "bpy" not in sys.modules:
+            raise self.interrupted()
+        print(f"\nstopping when the frames being rendered are done ({SIGNAL_NAMES.get(signum)} again to stop "
+              f"at once)", file=self.stream, flush=True)
+
+    def interrupted(self) -> Interrupted:
+        return Interrupted(self.signum or signal.SIGINT, self.done, self.total, self.unit)
+
+    def check(self) -> None:
+        if self.signum is not None:
+            raise self.interrupted()
+
+    def progress(self, stage: str, done: int, total: int) -> None:
+        self.done, self.total, self.unit = done, total, "shards" if stage == "shards" else "frames"
+        self.check()

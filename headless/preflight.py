@@ -1,0 +1,163 @@
+"""What a scan command checks before its first render, so that a run that cannot finish is
+refused in one line instead of failing after an hour (or taking the machine down).
+
+- the output folder: creatable, writable, not a file, no folder where an output file goes
+  (addon.core.files.check_output_folder);
+- the render's size: memory for one frame's images against the memory this machine has
+  free, and a time estimate against a limit (both refused unless ``--force``);
+- the temporary folder: room for one render call's image files, and the process's
+  file-size limit (a render that hits either crashes inside Blender);
+- a Dask scheduler's address: something answers there within a few seconds.
+
+The estimates are upper bounds from the full sensor (the band of rows a scan renders is
+usually far smaller): they exist to catch a wrong order of magnitude, not to plan a farm.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from addon.core.errors import InputError
+from addon.core.files import check_output_folder
+
+# Memory per sensor pixel of one frame, both views: Blender's render result (RGBA float per
+# view), Cycles' film buffers, the EXR written and the image read back.
+MEMORY_BYTES_PER_PIXEL = 100
+EXR_BYTES_PER_PIXEL = 12  # RGB float32, uncompressed, per view
+PIXELS_PER_SECOND = 4e5  # Cycles at one sample, two CPU cores (bench scan: the demo at 160x160)
+MAX_HOURS = 8.0  # a longer estimate is refused unless --force
+SCHEDULER_TIMEOUT_S = 5.0
+
+
+@dataclass(frozen=True)
+class RenderBudget:
+    width: int
+    height: int
+    frames: int
+    cameras: int
+    samples: int
+    chunk_frames: int
+
+    @property
+    def memory_bytes(self) -> int:
+        return self.width * self.height * MEMORY_BYTES_PER_PIXEL
+
+    @property
+    def exr_bytes(self) -> int:
+        """One camera's image file of one frame."""
+        return self.width * self.height * EXR_BYTES_PER_PIXEL + 65536
+
+    @property
+    def seconds(self) -> float:
+        return self.frames * self.cameras * self.width * self.height * max(self.samples, 1) / PIXELS_PER_SECOND
+
+
+def render_budget(config) -> RenderBudget:
+    probe, r = config.probe, config.render
+    w, h = r.resolution or (probe.cols_px, probe.rows_px)
+    return RenderBudget(int(w), int(h), len(config.waypoints), 2, int(r.samples), config.leave_out.chunk_frames)
+
+
+def available_memory() -> int | None:
+    """Bytes of memory this machine can give a process now (None where that cannot be told)."""
+    try:
+        import psutil
+
+        return int(psutil.virtual_memory().available)
+    except ImportError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _size(n: float) -> str:
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n >= scale:
+            return f"{n / scale:.1f} {unit}"
+    return f"{n / 1e3:.0f} kB"
+
+
+def _duration(seconds: float) -> str:
+    if seconds >= 86400:
+        return f"{seconds / 86400:.0f} days"
+    if seconds >= 3600:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 60:.0f} min"
+
+
+def check_render_size(budget: RenderBudget, force: bool = False, memory: int | None = None) -> None:
+    """Refuse a render whose frame needs more memory than is free, or whose time estimate
+    exceeds MAX_HOURS, unless ``force``."""
+    size = f"{budget.width}x{budget.height}"
+    memory = available_memory() if memory is None else memory
+    if not force and memory is not None and budget.memory_bytes > memory:
+        raise InputError(f"a {size} frame needs about {_size(budget.memory_bytes)} of memory to render and this "
+                         f"machine has {_size(memory)} free; use a smaller --resolution (or --force)")
+    if not force and budget.seconds > MAX_HOURS * 3600:
+        raise InputError(f"{budget.frames} frames at {size}, {budget.samples} sample(s), would take up to "
+                         f"{_duration(budget.seconds)} on this CPU (more than {MAX_HOURS:g} h); use fewer frames "
+                         f"or pixels, or --force to run it anyway")
+
+
+def check_temp_room(budget: RenderBudget, folder: str | Path | None = None) -> None:
+    """Refuse when the temporary folder cannot hold one render call's image files, or one
+    image file is larger than the process may write (ulimit -f): Blender crashes on both."""
+    folder = Path(folder or tempfile.gettempdir())
+    need = budget.exr_bytes * budget.cameras * budget.chunk_frames
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError as exc:
+        raise InputError(f"temporary folder {folder}: {exc.strerror or exc}") from None
+    if free < need:
+        raise InputError(f"temporary folder {folder} has {_size(free)} free and one render call writes up to "
+                         f"{_size(need)} of images; free some space or point TMPDIR elsewhere")
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+    except (ImportError, OSError, ValueError):
+        return
+    if soft != resource.RLIM_INFINITY and soft < budget.exr_bytes:
+        raise InputError(f"this process may write files of at most {_size(soft)} (ulimit -f) and one "
+                         f"{budget.width}x{budget.height} image file takes {_size(budget.exr_bytes)}; raise the limit "
+                         f"or use a smaller --resolution")
+
+
+def check_scheduler_answers(address: str, timeout_s: float = SCHEDULER_TIMEOUT_S) -> None:
+    """Refuse a Dask scheduler address where nothing answers within ``timeout_s``."""
+    from headless.farm import check_scheduler
+
+    host, _, port = check_scheduler(address).split("://", 1)[1].rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise InputError(f"--scheduler {address!r}: expected an address like tcp://HOST:PORT")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            pass
+    except socket.timeout:
+        raise InputError(f"--scheduler {address}: nothing answered within {timeout_s:g} s; is the scheduler "
+                         f"running and reachable?") from None
+    except OSError as exc:
+        raise InputError(f"--scheduler {address}: cannot connect ({exc.strerror or exc}); start a scheduler "
+                         f"there (dask scheduler) or use --workers N for a local cluster") from None
+
+
+def check_scan(config, out: str | Path, *, names=(), farm: bool = False, scheduler: str | None = None,
+               force: bool = False) -> None:
+    """Every check above for a scan of ``config`` into ``out``."""
+    check_output_folder(out, names, "--out")
+    if farm:
+        shards = Path(out) / "shards"
+        if shards.exists() and not shards.is_dir():
+            raise InputError(f"--out {out}: {shards} is a file where the farm keeps its shard files; move it away")
+    budget = render_budget(config)
+    check_render_size(budget, force)
+    check_temp_room(budget)
+    if scheduler is not None:
+        check_scheduler_answers(scheduler)

@@ -1,0 +1,64 @@
+"""Output files: a set appears together or not at all, output folders are checked and claimed."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from addon.core.errors import InputError
+from addon.core.files import OutputLock, check_output_folder, write_set
+from addon.core.scan.report import report_json
+
+
+def test_write_set_puts_every_file_in_place(tmp_path):
+    files = write_set(tmp_path / "out", {"a.bin": b"1", "b.txt": b"two"})
+    assert files["b.txt"].read_bytes() == b"two" and files["a.bin"].read_bytes() == b"1"
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a.bin", "b.txt"]  # no staging left
+
+
+def test_write_set_leaves_nothing_when_one_file_cannot_be_placed(tmp_path):
+    out = tmp_path / "out"
+    (out / "b.txt").mkdir(parents=True)  # a folder where the second file goes: its rename fails
+    with pytest.raises(OSError):
+        write_set(out, {"a.bin": b"1", "b.txt": b"two"})
+    assert sorted(p.name for p in out.iterdir()) == ["b.txt"]  # a.bin taken out again, no staging
+
+
+def test_output_folder_checks_name_the_problem(tmp_path):
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(InputError, match="is a file"):
+        check_output_folder(tmp_path / "file")
+    with pytest.raises(InputError, match="no folder can be made below it"):
+        check_output_folder(tmp_path / "file" / "out")
+    (tmp_path / "out" / "cloud.ply").mkdir(parents=True)
+    with pytest.raises(InputError, match="cloud.ply"):
+        check_output_folder(tmp_path / "out", ["cloud.ply"])
+    assert check_output_folder(tmp_path / "new" / "deeper") == tmp_path / "new" / "deeper"
+    assert not (tmp_path / "new").exists()  # checking creates nothing
+
+
+def test_lock_refuses_a_live_owner_and_takes_over_a_dead_ones(tmp_path):
+    out = tmp_path / "out"
+    with OutputLock(out):
+        assert (out / ".scanner.lock").read_text().strip() == str(os.getpid())
+    assert not out.exists()  # made by the lock, left empty: removed with it
+    out.mkdir()
+    (out / ".scanner.lock").write_text(f"{os.getppid()}\n")  # a live process
+    with pytest.raises(InputError, match="running scan"):
+        OutputLock(out).acquire()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (out / ".scanner.lock").write_text(f"{dead.pid}\n")
+    lock = OutputLock(out).acquire()
+    assert (out / ".scanner.lock").read_text().strip() == str(os.getpid())
+    lock.release()
+    assert out.is_dir() and not (out / ".scanner.lock").exists()  # the folder was there before: kept
+
+
+def test_report_json_is_strict():
+    text = report_json({"rms_um": float("nan"), "max": float("inf"), "list": [1.0, np.float64("nan")]})
+    data = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+    assert data == {"rms_um": None, "max": None, "list": [1.0, None]}

@@ -1,0 +1,533 @@
+"""The catalogue of bad inputs and faults: every case gives one clear line, the right exit
+code and nothing in ``--out`` (issue: reliability).
+
+Most cases call the command line in this process (``headless.cli.main``): they are all
+refused before the first render, so they take milliseconds. Signals, file-size limits and
+stale temporary folders need a process of their own. A case is (name, how to make the
+command line, exit code, words the one line must hold).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from headless.cli import main
+
+REPO = Path(__file__).resolve().parents[2]
+DEMO = (REPO / "rigs" / "scenes" / "demo.toml").read_text()
+PROBE = (REPO / "rigs" / "probes" / "default.toml").read_text()
+ROBOT = (REPO / "rigs" / "robots" / "ur5.toml").read_text()
+
+
+# -- making bad files ---------------------------------------------------------------------
+def scene(tmp: Path, text: str, name: str = "scene.toml") -> str:
+    path = tmp / name
+    path.write_text(text)
+    return str(path)
+
+
+def demo_with(old: str, new: str):
+    """The demo config with one piece of text replaced (the piece must be there)."""
+    def make(tmp: Path):
+        assert old in DEMO, old
+        return ["scan", scene(tmp, DEMO.replace(old, new, 1))]
+    return make
+
+
+def demo_plus(extra: str):
+    return lambda tmp: ["scan", scene(tmp, DEMO + "\n" + extra + "\n")]
+
+
+def probe_with(old: str, new: str):
+    def make(tmp: Path):
+        assert old in PROBE, old
+        (tmp / "probe.toml").write_text(PROBE.replace(old, new, 1))
+        return ["scan", scene(tmp, DEMO.replace('rig = "default"', f'rig = "{tmp / "probe.toml"}"'))]
+    return make
+
+
+def robot_with(old: str, new: str, count: int = 1):
+    def make(tmp: Path):
+        assert old in ROBOT, old
+        (tmp / "robot.toml").write_text(ROBOT.replace(old, new, count))
+        return ["scan", scene(tmp, DEMO.replace('rig = "adept_viper_s650"', f'rig = "{tmp / "robot.toml"}"'))]
+    return make
+
+
+def cube_mm(size: float = 40.0):
+    import trimesh
+
+    m = trimesh.creation.box((size, size, size))
+    m.apply_translation((0, 0, size / 2))
+    return m
+
+
+def part_file(write):
+    """A scan of the demo with its workpiece read from a file that ``write(tmp)`` makes."""
+    def make(tmp: Path):
+        path = write(tmp)
+        text = DEMO.replace('shape = "sphere"\nradius_mm = 30.0', f'file = "{path}"')
+        return ["scan", scene(tmp, text)]
+    return make
+
+
+def ascii_stl_with_nan(tmp):
+    text = cube_mm().export(file_type="stl_ascii")
+    lines = text.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.strip().startswith("vertex"))
+    lines[i] = "      vertex nan 0 0"
+    (tmp / "nan.stl").write_text("\n".join(lines))
+    return tmp / "nan.stl"
+
+
+def binary_stl_with_nan(tmp):
+    data = bytearray(cube_mm().export(file_type="stl"))
+    for t in range(0, 12, 7):  # every 7th triangle gets a NaN vertex coordinate
+        struct.pack_into("<f", data, 84 + 50 * t + 12, float("nan"))
+    (tmp / "nan_bin.stl").write_bytes(bytes(data))
+    return tmp / "nan_bin.stl"
+
+
+def binary_stl_with_inf(tmp):
+    data = bytearray(cube_mm().export(file_type="stl"))
+    struct.pack_into("<f", data, 84 + 12, float("inf"))
+    (tmp / "inf.stl").write_bytes(bytes(data))
+    return tmp / "inf.stl"
+
+
+def obj_with_nan(tmp):
+    text = cube_mm().export(file_type="obj").replace("v ", "v nan ", 1)
+    (tmp / "nan.obj").write_text(text)
+    return tmp / "nan.obj"
+
+
+def ply_with_nan(tmp):
+    m = cube_mm()
+    m.vertices[3] = [np.nan, 0, 0]
+    (tmp / "nan.ply").write_bytes(m.export(file_type="ply"))
+    return tmp / "nan.ply"
+
+
+def glb_with_nan(tmp):
+    m = cube_mm()
+    m.vertices[2] = [0, np.inf, 0]
+    (tmp / "inf.glb").write_bytes(m.export(file_type="glb"))
+    return tmp / "inf.glb"
+
+
+def truncated_stl(tmp):
+    data = cube_mm().export(file_type="stl")
+    (tmp / "cut.stl").write_bytes(data[: len(data) // 2 + 7])
+    return tmp / "cut.stl"
+
+
+def png_named_stl(tmp):
+    import cv2
+
+    ok, png = cv2.imencode(".png", np.zeros((8, 8, 3), np.uint8))
+    (tmp / "picture.stl").write_bytes(png.tobytes())
+    return tmp / "picture.stl"
+
+
+def empty_stl(tmp):
+    (tmp / "empty.stl").write_bytes(b"")
+    return tmp / "empty.stl"
+
+
+def text_named_obj(tmp):
+    (tmp / "notes.obj").write_text("this is not a mesh\njust words\n")
+    return tmp / "notes.obj"
+
+
+def part_in_metres(tmp):
+    (tmp / "metres.stl").write_bytes(cube_mm(0.04).export(file_type="stl"))
+    return tmp / "metres.stl"
+
+
+def part_in_micrometres(tmp):
+    (tmp / "microns.stl").write_bytes(cube_mm(40000.0).export(file_type="stl"))
+    return tmp / "microns.stl"
+
+
+def folder_as_mesh(tmp):
+    (tmp / "folder.stl").mkdir()
+    return tmp / "folder.stl"
+
+
+def unknown_mesh_type(tmp):
+    (tmp / "part.xyz123").write_text("1 2 3\n")
+    return tmp / "part.xyz123"
+
+
+def sparse_huge_stl(tmp):
+    path = tmp / "huge.stl"
+    with open(path, "wb") as fh:
+        fh.write(b"\0" * 80 + struct.pack("<I", 40_000_000))
+        fh.truncate(2 * 1024 ** 3)  # 2 GB, sparse: mostly zero triangles
+    return path
+
+
+def rig_mesh_is_text(tmp):
+    (tmp / "link.txt").write_text("not a mesh")
+    return robot_with("[[link]]  # J1\n", f'[[link]]  # J1\nmesh = "{tmp / "link.txt"}"\n')(tmp)
+
+
+# -- options, output folders ----------------------------------------------------------------
+def demo(*options):
+    return lambda tmp: ["demo", *options]
+
+
+def out_is_file(tmp):
+    (tmp / "out").write_text("a file")
+    return ["demo", "--out", str(tmp / "out")]
+
+
+def out_below_file(tmp):
+    (tmp / "blocker").write_text("a file")
+    return ["demo", "--out", str(tmp / "blocker" / "out")]
+
+
+def out_holds_folder(name):
+    def make(tmp):
+        (tmp / "out" / name).mkdir(parents=True)
+        return ["demo", "--out", str(tmp / "out")]
+    return make
+
+
+def out_locked_by_live_process(tmp):
+    (tmp / "out").mkdir()
+    (tmp / "out" / ".scanner.lock").write_text(f"{os.getppid()}\n")
+    return ["demo", "--out", str(tmp / "out")]
+
+
+def out_shards_is_file(tmp):
+    (tmp / "out").mkdir()
+    (tmp / "out" / "shards").write_text("not a folder")
+    return ["demo", "--workers", "2", "--out", str(tmp / "out")]
+
+
+def demo_many_frames(tmp):
+    return ["scan", scene(tmp, DEMO.replace("frames = 120", "frames = 100000"))]
+
+
+CASES = [
+    # config files: syntax, types, ranges, keys
+    ("config: not TOML", lambda t: ["scan", scene(t, "name = 'x'\n[robot\n")], 2, "toml"),
+    ("config: empty file", lambda t: ["scan", scene(t, "")], 2, "robot"),
+    ("config: binary junk", lambda t: ["scan", scene(t, "\x00\x01\x02 = \x03")], 2, "scene.toml"),
+    ("config: not UTF-8", lambda t: (t.joinpath("latin.toml").write_bytes(DEMO.encode() + b"\n# caf\xe9\n"),
+                                     ["scan", str(t / "latin.toml")])[1], 2, "UTF-8"),
+    ("config: missing file", lambda t: ["scan", str(t / "nothing.toml")], 2, "nothing"),
+    ("config: unknown bundled name", lambda t: ["scan", "no_such_scene"], 2, "demo"),
+    ("config: folder", lambda t: ["scan", str(t)], 2, str("")),
+    ("config: unknown top key", demo_plus("colour = 'red'"), 2, "colour"),
+    ("config: unknown robot key", demo_with("[robot]\n", "[robot]\nspeed = 3\n"), 2, "speed"),
+    ("config: unknown robot rig", demo_with('rig = "adept_viper_s650"', 'rig = "abb_irb_9999"'), 2, "abb_irb_9999"),
+    ("config: start_deg too short", demo_with("start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]",
+                                              "start_deg = [0.0, 40.0]"), 2, "start_deg"),
+    ("config: start_deg NaN", demo_with("start_deg = [0.0, 40.0,", "start_deg = [nan, 40.0,"), 2, "start_deg"),
+    ("config: start_deg inf", demo_with("start_deg = [0.0, 40.0,", "start_deg = [inf, 40.0,"), 2, "start_deg"),
+    ("config: start_deg a string", demo_with("start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]",
+                                             'start_deg = "up"'), 2, "start_deg"),
+    ("config: unknown probe rig", demo_with('rig = "default"', 'rig = "laser9000"'), 2, "laser9000"),
+    ("config: table a_mm a string", demo_with("a_mm = -500.0", 'a_mm = "far"'), 2, "a_mm"),
+    ("config: table d_mm NaN", demo_with("d_mm = -200.0", "d_mm = nan"), 2, "d_mm"),
+    ("config: no workpiece", demo_with('[workpiece]\nshape = "sphere"\nradius_mm = 30.0', ""), 2, "workpiece"),
+    ("config: unknown shape", demo_with('shape = "sphere"', 'shape = "torus"'), 2, "torus"),
+    ("config: shape and file", demo_with('shape = "sphere"', 'shape = "sphere"\nfile = "x.stl"'), 2, "shape"),
+    ("config: radius negative", demo_with("radius_mm = 30.0", "radius_mm = -30.0"), 2, "radius_mm"),
+    ("config: radius zero", demo_with("radius_mm = 30.0", "radius_mm = 0.0"), 2, "radius_mm"),
+    ("config: radius NaN", demo_with("radius_mm = 30.0", "radius_mm = nan"), 2, "radius_mm"),
+    ("config: radius huge", demo_with("radius_mm = 30.0", "radius_mm = 1e300"), 2, "radius_mm"),
+    ("config: no path", demo_with("[[path]]\nkind = \"turntable\"", "[[nopath]]\nkind = \"turntable\""), 2, "path"),
+    ("config: unknown path kind", demo_with('kind = "turntable"', 'kind = "spiral"'), 2, "spiral"),
+    ("config: frames zero", demo_with("frames = 120", "frames = 0"), 2, "frames"),
+    ("config: frames negative", demo_with("frames = 120", "frames = -5"), 2, "frames"),
+    ("config: frames fractional", demo_with("frames = 120", "frames = 12.5"), 2, "frames"),
+    ("config: frames a bool", demo_with("frames = 120", "frames = true"), 2, "frames"),
+    ("config: probe_mm NaN", demo_with("probe_mm = [12.0, 0.0, 210.0]", "probe_mm = [nan, 0.0, 210.0]"), 2,
+     "probe_mm"),
+    ("config: probe_mm two numbers", demo_with("probe_mm = [12.0, 0.0, 210.0]", "probe_mm = [12.0, 0.0]"), 2,
+     "probe_mm"),
+    ("config: turn_deg inf", demo_with("turn_deg = 360.0", "turn_deg = inf"), 2, "turn_deg"),
+    ("config: sweep from = to", demo_with("to_mm = [40.0, 0.0, 210.0]", "to_mm = [-40.0, 0.0, 210.0]"), 2, ""),
+    ("config: sweep beam zero", demo_with("table_deg = 0.0", "table_deg = 0.0\nbeam = [0.0, 0.0, 0.0]"), 2,
+     "beam"),
+    ("config: unreachable path", demo_with("to_mm = [40.0, 0.0, 210.0]", "to_mm = [4000.0, 0.0, 210.0]"), 2, ""),
+    ("config: probe inside the part", demo_with("probe_mm = [12.0, 0.0, 210.0]", "probe_mm = [0.0, 0.0, 20.0]"),
+     2, ""),
+    ("config: unknown engine", demo_with('engine = "cycles"', 'engine = "povray"'), 2, "povray"),
+    ("config: samples zero", demo_with("samples = 1", "samples = 0"), 2, "samples"),
+    ("config: samples NaN", demo_with("samples = 1", "samples = nan"), 2, "samples"),
+    ("config: filter width negative", demo_with("filter_width_px = 0.01", "filter_width_px = -1.0"), 2,
+     "filter_width_px"),
+    ("config: unknown laser", demo_with('laser = "gobo"', 'laser = "torch"'), 2, "torch"),
+    ("config: unknown detect method", demo_with('method = "gauss"', 'method = "magic"'), 2, "magic"),
+    ("config: unknown triangulate method", demo_with('method = "exact"', 'method = "guess"'), 2, "guess"),
+    ("config: fuse a number", demo_with("fuse = true", "fuse = 3"), 2, "fuse"),
+    ("config: max_sigma negative", demo_plus("") if False else
+     demo_with("fuse = true", "fuse = true\nmax_sigma_mm = -1.0"), 2, "max_sigma_mm"),
+    ("config: sensor noise negative", demo_plus("[sensor]\nnoise = -0.5"), 2, "noise"),
+    ("config: unknown sensor key", demo_plus("[sensor]\nblur = 2"), 2, "blur"),
+    ("config: safety clearance negative", demo_plus("[safety]\nmin_clearance_mm = -2.0"), 2,
+     "min_clearance_mm"),
+    ("config: fixture without file", demo_plus("[[fixture]]\nname = 'clamp'"), 2, "file"),
+    ("config: fixture colliding", lambda t: (t.joinpath("block.stl").write_bytes(cube_mm(400.0).export(
+        file_type="stl")), ["scan", scene(t, DEMO + f'\n[[fixture]]\nname = "wall"\nfile = "{t / "block.stl"}"\n')])[1],
+     2, ""),
+    ("config: controller IK without host", demo_with('rig = "adept_viper_s650"',
+                                                   'rig = "adept_viper_s650"\nik = "controller"'), 2, "controller"),
+    # probe rigs
+    ("probe: range inverted", probe_with("range_mm = [70.0, 250.0]", "range_mm = [250.0, 70.0]"), 2, "range_mm"),
+    ("probe: range NaN", probe_with("range_mm = [70.0, 250.0]", "range_mm = [nan, 250.0]"), 2, "range_mm"),
+    ("probe: baseline zero", probe_with("a_mm = 60.0", "a_mm = 0.0"), 2, "a_mm"),
+    ("probe: rows zero", probe_with("rows_px = 160", "rows_px = 0"), 2, "rows_px"),
+    ("probe: cols fractional", probe_with("cols_px = 160", "cols_px = 160.5"), 2, "cols_px"),
+    ("probe: line width negative", probe_with("line_width_mm = 1.2", "line_width_mm = -1.2"), 2,
+     "line_width_mm"),
+    ("probe: fan zero", probe_with("fan_deg = 60.0", "fan_deg = 0.0"), 2, "fan_deg"),
+    ("probe: fan 200 degrees", probe_with("fan_deg = 60.0", "fan_deg = 200.0"), 2, "fan_deg"),
+    ("probe: wavelength NaN", probe_with("wavelength_nm = 650.0", "wavelength_nm = nan"), 2, "wavelength_nm"),
+    ("probe: mount rotation short", probe_with("yzz_deg = [0.0, 0.0, 0.0]", "yzz_deg = [0.0]"), 2, "yzz_deg"),
+    ("probe: unknown key", probe_with("[laser]\n", "[laser]\npower_w = 5\n"), 2, "power_w"),
+    ("probe: no camera table", probe_with("[camera]\n", "[kamera]\n"), 2, "camera"),
+    # robot rigs
+    ("robot: five links", robot_with("[[link]]  # J1\n", "[[notalink]]  # J1\n"), 2, "link"),
+    ("robot: a_mm NaN", robot_with("a_mm = -425.0", "a_mm = nan"), 2, "a_mm"),
+    ("robot: limits inverted", robot_with("min_deg = -360.0\nmax_deg = 360.0", "min_deg = 360.0\nmax_deg = -360.0"),
+     2, "min_deg"),
+    ("robot: alpha a string", robot_with("alpha_deg = 90.0", 'alpha_deg = "right"'), 2, "alpha_deg"),
+    ("robot: unknown link key", robot_with("[[link]]  # J1\n", "[[link]]  # J1\nmass_kg = 3\n"), 2, "mass_kg"),
+    ("robot: link mesh is a text file", rig_mesh_is_text, 2, "link.txt"),
+    ("robot: link mesh missing", robot_with("[[link]]  # J1\n", '[[link]]  # J1\nmesh = "no/such.stl"\n'), 2,
+     "such.stl"),
+    # meshes
+    ("mesh: ASCII STL with nan", part_file(ascii_stl_with_nan), 2, "nan.stl"),
+    ("mesh: binary STL with NaN", part_file(binary_stl_with_nan), 2, "nan_bin.stl"),
+    ("mesh: binary STL with inf", part_file(binary_stl_with_inf), 2, "inf.stl"),
+    ("mesh: OBJ with nan", part_file(obj_with_nan), 2, "nan.obj"),
+    ("mesh: PLY with NaN", part_file(ply_with_nan), 2, "nan.ply"),
+    ("mesh: glTF with inf", part_file(glb_with_nan), 2, "inf.glb"),
+    ("mesh: truncated STL", part_file(truncated_stl), 2, "cut.stl"),
+    ("mesh: PNG named .stl", part_file(png_named_stl), 2, "not a readable"),
+    ("mesh: empty file", part_file(empty_stl), 2, "empty.stl"),
+    ("mesh: text named .obj", part_file(text_named_obj), 2, "notes.obj"),
+    ("mesh: 2 GB sparse STL", part_file(sparse_huge_stl), 2, "huge.stl"),
+    ("mesh: saved in metres", part_file(part_in_metres), 2, "scale"),
+    ("mesh: saved in micrometres", part_file(part_in_micrometres), 2, "scale"),
+    ("mesh: a folder", part_file(folder_as_mesh), 2, "folder.stl"),
+    ("mesh: unknown file type", part_file(unknown_mesh_type), 2, "part.xyz123"),
+    ("mesh: missing", part_file(lambda t: t / "gone.stl"), 2, "gone.stl"),
+    ("mesh: scale negative", lambda t: ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0',
+                                        f'file = "{binary_stl_with_inf(t)}"\nscale = -1.0'))], 2, "scale"),
+    # options
+    ("option: --frames step zero", demo("--frames", "0:4:0"), 2, "--frames"),
+    ("option: --frames words", demo("--frames", "a:b"), 2, "--frames"),
+    ("option: --frames empty slice", demo("--frames", "5:2"), 2, "--frames"),
+    ("option: --frames beyond the path", demo("--frames", "1000:2000"), 2, "--frames"),
+    ("option: --frames a fraction", demo("--frames", "1.5"), 2, "--frames"),
+    ("option: --resolution words", demo("--resolution", "big"), 2, "--resolution"),
+    ("option: --resolution 1x1", demo("--resolution", "1x1"), 2, "--resolution"),
+    ("option: --resolution negative", demo("--resolution", "-160x160"), 2, "--resolution"),
+    ("option: --resolution 100000x100000", demo("--resolution", "100000x100000"), 2, "memory"),
+    ("option: --resolution 30000x30000", demo("--resolution", "30000x30000"), 2, "memory"),
+    ("option: --resolution for 12 hours", demo("--resolution", "8000x6000"), 2, "--force"),
+    ("option: 100000 frames at 1280x1024", lambda t: demo_many_frames(t) + ["--resolution", "1280x1024"], 2,
+     "--force"),
+    ("option: --samples zero", demo("--samples", "0"), 2, "samples"),
+    ("option: --samples negative", demo("--samples", "-4"), 2, "samples"),
+    ("option: --samples words", demo("--samples", "many"), 2, "--samples"),
+    ("option: --max-rms-um negative", demo("--max-rms-um", "-1"), 2, "--max-rms-um"),
+    ("option: --max-rms-um NaN", demo("--max-rms-um", "nan"), 2, "--max-rms-um"),
+    ("option: --engine unknown", demo("--engine", "povray"), 2, "--engine"),
+    ("option: --detect unknown", demo("--detect", "magic"), 2, "--detect"),
+    ("option: --device unknown", demo("--device", "TPU"), 2, "--device"),
+    ("option: unknown option", demo("--colour", "red"), 2, "--colour"),
+    ("option: --shard-frames zero", demo("--shard-frames", "0"), 2, "--shard-frames"),
+    ("option: --shard-frames beyond the path", demo("--shard-frames", "100000"), 2, "--shard-frames"),
+    ("option: --shard without --shard-frames", demo("--shard", "0"), 2, "--shard-frames"),
+    ("option: --shard out of range", demo("--shard", "99", "--shard-frames", "60"), 2, "--shard"),
+    ("option: --shard negative", demo("--shard", "-1", "--shard-frames", "60"), 2, "--shard"),
+    ("option: --merge with no shards", lambda t: ["demo", "--merge", "--shard-frames", "60", "--out",
+                                                  str(t / "out")], 2, "not ready"),
+    ("option: --workers zero", demo("--workers", "0"), 2, "--workers"),
+    ("option: --scheduler not an address", demo("--scheduler", "localhost"), 2, "--scheduler"),
+    ("option: --scheduler no port", demo("--scheduler", "tcp://127.0.0.1"), 2, "--scheduler"),
+    ("option: --scheduler nothing listening", demo("--scheduler", "tcp://127.0.0.1:9"), 2, "--scheduler"),
+    ("option: no command", lambda t: [], 2, "COMMAND"),
+    ("option: unknown command", lambda t: ["scna"], 2, "scna"),
+    ("option: scan without config", lambda t: ["scan"], 2, "config"),
+    ("option: unknown bench", lambda t: ["bench", "everything"], 2, "everything"),
+    ("option: bench kinematics robot unknown", lambda t: ["bench", "kinematics", "--robots", "abb_irb120",
+                                                          "--n", "10"], 2, "abb_irb120"),
+    # output folders
+    ("out: an existing file", out_is_file, 2, "is a file"),
+    ("out: below a file", out_below_file, 2, "is a file"),
+    ("out: cloud.ply is a folder", out_holds_folder("cloud.ply"), 2, "cloud.ply"),
+    ("out: report.json is a folder", out_holds_folder("report.json"), 2, "report.json"),
+    ("out: preview.png is a folder", out_holds_folder("preview.png"), 2, "preview.png"),
+    ("out: a running scan owns it", out_locked_by_live_process, 2, "running scan"),
+    ("out: farm's shards is a file", out_shards_is_file, 2, "shards"),
+    ("out: farm into an existing file", lambda t: out_is_file(t) + ["--workers", "2"], 2, "is a file"),
+]
+
+
+def _listing(folder: Path) -> list[str]:
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*")) if folder.exists() else []
+
+
+@pytest.mark.parametrize("name,make,code,words", CASES, ids=[c[0] for c in CASES])
+def test_bad_input_gives_one_line_and_leaves_nothing(name, make, code, words, tmp_path, capsys):
+    work = tmp_path / "work"
+    work.mkdir()
+    argv = make(work)
+    out = work / "out"
+    if "--out" not in argv and argv and argv[0] in ("demo", "scan"):
+        argv = argv + ["--out", str(out)]
+    before = _listing(out)
+    try:
+        rc = main(argv)
+    except SystemExit as exc:  # argparse
+        rc = exc.code
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == code, (rc, err[-3000:])
+    assert len(lines) == 1 and lines[0].startswith("error: "), err[-3000:]
+    assert words.lower() in lines[0].lower(), lines[0]
+    assert "Traceback" not in err
+    assert _listing(out) == before, "the output folder changed"
+
+
+def test_the_catalogue_is_large():
+    assert len(CASES) + len(PROCESS_CASES) >= 100
+
+
+# -- cases that need a process of their own -------------------------------------------------
+def _start(args, tmp, **kw):
+    env = dict(os.environ, TMPDIR=str(tmp / "tmp"), PYTHONUNBUFFERED="1")
+    (tmp / "tmp").mkdir(exist_ok=True)
+    return subprocess.Popen([sys.executable, "-m", "headless", *args], cwd=REPO, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def _wait_for(proc, text: str, timeout: float = 120.0, stream: str = "stderr") -> str:
+    """Read the child's stderr (its progress) until a line holds ``text``; returns what was read."""
+    seen = []
+    t = time.monotonic()
+    while time.monotonic() - t < timeout:
+        line = getattr(proc, stream).readline()
+        if not line:
+            break
+        seen.append(line)
+        if text in line:
+            return "".join(seen)
+    raise AssertionError(f"never printed {text!r}: {''.join(seen)[-2000:]}")
+
+
+def _stop(tmp, signals, after: str = "frames/s"):
+    out = tmp / "out"
+    proc = _start(["demo", "--out", str(out)], tmp)
+    _wait_for(proc, after)
+    t = time.monotonic()
+    for s in signals:
+        proc.send_signal(s)
+        time.sleep(0.05)
+    stdout, stderr = proc.communicate(timeout=60)
+    return proc.returncode, stderr, time.monotonic() - t, out
+
+
+def _temp_left(tmp) -> list[str]:
+    return sorted(p.name for p in (tmp / "tmp").iterdir())
+
+
+def case_ctrl_c_once(tmp):
+    rc, err, took, out = _stop(tmp, [signal.SIGINT])
+    assert rc == 130, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("interrupted (Ctrl-C) after ") and "nothing written" in last, err
+    done, total = (int(v) for v in last.split("after ")[1].split(" frames")[0].split(" of "))
+    assert 0 < done < total == 180
+    assert took < 5.0, took  # the frames being rendered, then the stop
+    assert not out.exists() and _temp_left(tmp) == []
+    assert "Traceback" not in err
+
+
+def case_ctrl_c_twice(tmp):
+    rc, err, took, out = _stop(tmp, [signal.SIGINT, signal.SIGINT])
+    assert rc == 130 and "stopped at once" in err, err
+    assert not out.exists() and _temp_left(tmp) == []
+    assert "Traceback" not in err
+
+
+def case_sigterm(tmp):
+    rc, err, took, out = _stop(tmp, [signal.SIGTERM])
+    assert rc == 143 and "interrupted (SIGTERM)" in err, err
+    assert not out.exists() and _temp_left(tmp) == []
+
+
+def case_ctrl_c_farm(tmp):
+    out = tmp / "out"
+    proc = _start(["demo", "--workers", "1", "--shard-frames", "30", "--out", str(out)], tmp)
+    _wait_for(proc, "done:", stream="stdout")
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=90)
+    assert proc.returncode == 130, stderr[-3000:]
+    last = stderr.strip().splitlines()[-1]
+    assert last.startswith("interrupted (Ctrl-C) after ") and "shards" in last, stderr[-3000:]
+    assert not any((out / n).exists() for n in ("cloud.ply", "report.json", "preview.png"))
+    assert all(p.name.startswith("shard_") and p.suffix == ".npz" for p in (out / "shards").iterdir())
+    assert "Traceback" not in stderr
+    time.sleep(1.0)  # the workers' own cleanup
+    assert _temp_left(tmp) == []
+
+
+def case_file_size_limit(tmp):
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1_000_000, 1_000_000))
+
+    proc = _start(["demo", "--resolution", "1000x1000", "--out", str(tmp / "out")], tmp, preexec_fn=limit)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 2, stderr[-3000:]
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and "ulimit" in lines[0]
+    assert not (tmp / "out").exists() and _temp_left(tmp) == []
+
+
+def case_stale_temp_folders_are_removed(tmp):
+    (tmp / "tmp").mkdir()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = tmp / "tmp" / f"scanner-run-{dead.pid}-abc"
+    (stale / "blender_x").mkdir(parents=True)
+    alive = tmp / "tmp" / f"scanner-run-{os.getpid()}-abc"
+    alive.mkdir()
+    proc = _start(["kinematics"], tmp)
+    proc.communicate(timeout=120)
+    assert proc.returncode == 0
+    assert not stale.exists() and alive.exists()  # a live process's folder is left alone
+
+
+def case_broken_pipe_free_exit_on_bad_config(tmp):
+    proc = _start(["scan", str(tmp / "none.toml")], tmp)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 2 and len(stderr.strip().splitlines()) == 1 and _temp_left(tmp) == []
+
+
+PROCESS_CASES = [case_ctrl_c_once, case_ctrl_c_twice, case_sigterm, case_ctrl_c_farm, case_file_size_limit,
+                 case_stale_temp_folders_are_removed, case_broken_pipe_free_exit_on_bad_config]
+
+
+@pytest.mark.parametrize("case", PROCESS_CASES, ids=[c.__name__[5:] for c in PROCESS_CASES])
+def test_process_case(case, tmp_path):
+    case(tmp_path)
