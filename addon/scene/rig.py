@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 import trimesh
 
-from ..core.kinematics.link_shapes import link_cylinders
+from ..core.kinematics.link_shapes import link_cylinders, link_mesh
 from ..core.kinematics.robot import N_JOINTS, Robot
 from ..core.kinematics.transforms import rigid_inverse, rot_x
 from ..core.geometry.workpiece import check_mesh
@@ -153,10 +153,10 @@ def _add_link_geometry(collection, obj, robot: Robot, frames0: np.ndarray) -> No
     joints = diffuse("Robot joints", (0.2, 0.2, 0.22))
     for k in range(N_JOINTS):
         bone = bone_name(k + 1)
-        if robot.link_meshes and robot.link_meshes[k][0]:
-            path, offset = robot.link_meshes[k]
-            mesh = check_mesh(trimesh.load(path, force="mesh"), path)
-            mesh.apply_transform(frames0[k + 1] @ offset)
+        mesh = link_mesh(robot, k)
+        if mesh is not None:
+            mesh = check_mesh(mesh, f"link {k + 1} of {robot.name}")
+            mesh.apply_transform(frames0[k + 1])
             part = mesh_object(f"Link{k + 1}", mesh, collection, paint)
             parent_to_bone(part, obj, bone, np.eye(4))
             continue

@@ -15,19 +15,23 @@ import time
 
 import numpy as np
 
-from addon.core.kinematics.ik import default_pos_tol, default_seed
-from addon.core.kinematics.ik_analytic import spherical_wrist_arm
+from addon.core.config.toml import RIGS_DIR
+from addon.core.kinematics.ik import closed_form_arm, default_pos_tol, default_seed
+from addon.core.kinematics.ik_parallel import ParallelAxesArm
 from addon.core.kinematics.robot import Robot
 from addon.core.config.rigs import load_robot
 from addon.core.kinematics.transforms import rot_x, rot_z, trans
 from headless.bench.timing import fmt_time, median_seconds, median_single_call, per_call_seconds
 
-DEFAULT_ROBOTS = ["adept_viper_s650", "puma560", "ur5"]
+# The three bundled DH tables, and the UR5 again from its URDF file (the same arm through
+# the URDF loader: its DH form, base and tool, and the UR closed form).
+DEFAULT_ROBOTS = ["adept_viper_s650", "puma560", "ur5", str(RIGS_DIR / "robots" / "urdf" / "ur5.urdf")]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robots", nargs="+", default=DEFAULT_ROBOTS, metavar="ROBOT",
-                        help="bundled robot names or rig file paths (default: the three bundled robots)")
+                        help="bundled robot names, rig file paths or URDF files (default: the three bundled robots "
+                             "and the UR5's URDF)")
     parser.add_argument("--n", type=int, default=10_000, help="random reachable targets per robot (default 10000)")
     parser.add_argument("--near", type=int, default=1_000, help="near-singular targets per robot (default 1000)")
     parser.add_argument("--unreachable", type=int, default=1_000, help="unreachable targets per robot (default 1000)")
@@ -73,15 +77,18 @@ def near_singular_q(robot: Robot, n: int, rng: np.random.Generator) -> np.ndarra
 
 def unreachable_targets(robot: Robot, n: int, rng: np.random.Generator) -> np.ndarray:
     """Beyond the total reach (margins 1e-6..0.5 of it), plus, for spherical wrists,
-    1 µm..10 mm beyond the stretched elbow where geometry shows no shoulder branch reaches."""
+    1 µm..10 mm beyond the stretched elbow where geometry shows no shoulder branch reaches,
+    and for UR-type arms, the wrist nearer the base axis than the shoulder offset allows."""
     Ts = robot.fk(robot.random_q(n, rng))
     dirs = rng.normal(size=(n, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     radius = robot.reach_bound_mm * (1 + 10 ** rng.uniform(-6, np.log10(0.5), n))
     Ts[:, :3, 3] = robot.shoulder_world + dirs * radius[:, None]
-    arm, _ = spherical_wrist_arm(robot)
+    arm, _ = closed_form_arm(robot)
     if arm is None or not robot._base_is_identity or not robot._tool_is_identity:
         return Ts
+    if isinstance(arm, ParallelAxesArm):
+        return np.concatenate([Ts[: n // 2], wrist_inside_offset_cylinder(robot, n - n // 2, rng)])
     boundary = []
     straight = elbow_straight_q3(robot, np.zeros(6))
     for q in robot.random_q(4 * n, rng):
@@ -95,6 +102,21 @@ def unreachable_targets(robot: Robot, n: int, rng: np.random.Generator) -> np.nd
         if len(boundary) == n - n // 2:
             break
     return np.concatenate([Ts[: n // 2], np.array(boundary).reshape(-1, 4, 4)])
+
+
+def wrist_inside_offset_cylinder(robot: Robot, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Tool poses (n, 4, 4) that no UR-type arm (three parallel axes, base and tool at identity)
+    reaches, by geometry: every joint vector puts the wrist point o5 = p − d6·z6 at
+    o5·z1 = d2 + d3 + d4 =: D along the horizontal axis z1, so o5 lies at least |D| from the
+    base axis; these poses put it at 0.01–0.99 |D|, at heights within the arm's reach."""
+    D = abs(robot.d_mm[1] + robot.d_mm[2] + robot.d_mm[3])
+    Ts = robot.fk(robot.random_q(n, rng))
+    angle = rng.uniform(0, 2 * np.pi, n)
+    radius = D * rng.uniform(0.01, 0.99, n)
+    height = robot.d_mm[0] + rng.uniform(-0.5, 0.5, n) * robot.reach_bound_mm
+    o5 = np.column_stack([radius * np.cos(angle), radius * np.sin(angle), height])
+    Ts[:, :3, 3] = o5 + robot.d_mm[5] * Ts[:, :3, 2]
+    return Ts
 
 
 def _wrist_beyond_both_shoulders(robot: Robot, T: np.ndarray) -> bool:
@@ -141,7 +163,7 @@ def bench_robot(robot: Robot, args, rng: np.random.Generator) -> list[dict]:
     batch_fk = median_seconds(lambda: robot.fk(q_fk), 5)
     near = robot.fk(near_singular_q(robot, args.near, rng))
     unreach = unreachable_targets(robot, args.unreachable, rng)
-    arm, _ = spherical_wrist_arm(robot)
+    arm, _ = closed_form_arm(robot)
     methods = (["analytic"] if arm is not None else []) + ["numeric"]
     for method in methods:
         t = time.perf_counter()

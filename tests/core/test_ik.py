@@ -325,7 +325,92 @@ def test_bad_ik_inputs(kwargs, fragment):
         load_robot("puma560").ik(**kwargs)
 
 
-def test_analytic_refused_for_arm_without_spherical_wrist():
-    with pytest.raises(InputError, match="closed form.*α3"):
-        load_robot("ur5").ik(np.eye(4), method="analytic")
-    assert load_robot("ur5").ik(load_robot("ur5").fk(np.full(6, 0.3))).method == "numeric"
+def test_analytic_refused_for_arm_without_a_closed_form():
+    ur5 = load_robot("ur5")
+    odd = replace(ur5, name="odd", alpha_rad=ur5.alpha_rad + np.radians([0, 0, 0, 0, 0, 30]))
+    with pytest.raises(InputError, match="closed form.*α3.*α6 must be 0.*UR-type"):
+        odd.ik(np.eye(4), method="analytic")
+    assert odd.ik(odd.fk(np.full(6, 0.3))).method == "numeric"
+
+
+# -- the UR-type closed form (three parallel axes, offset wrist) ---------------------------
+
+def test_ur_closed_form_round_trip_ten_thousand():
+    robot = load_robot("ur5")
+    rng = np.random.default_rng(21)
+    qs = robot.random_q(10000, rng)
+    batch = robot.ik_batch(robot.fk(qs))
+    assert batch.method == "analytic" and batch.success.all()
+    assert batch.pos_err_mm.max() < 1e-9 and batch.rot_err_rad.max() < 1e-12
+    assert robot.within_limits(batch.q).all()
+
+
+def test_ur_all_eight_solutions_and_the_seed_picks_each():
+    robot = load_robot("ur5")  # every joint ±360°: all eight fit
+    q_true = np.radians([10, -90, 60, -60, 45, 10])
+    T = robot.fk(q_true)
+    sols = robot.ik_all(T)
+    assert sols.shape == (8, 6)
+    for q in sols:
+        np.testing.assert_allclose(robot.fk(q), T, atol=1e-9)
+    wrapped = np.round(np.mod(sols + np.pi, 2 * np.pi) - np.pi, 6)
+    assert len({tuple(w) for w in wrapped}) == 8
+    d = np.abs(np.mod(sols - q_true + np.pi, 2 * np.pi) - np.pi).max(axis=1)
+    assert d.min() < 1e-9
+    for q in sols:
+        np.testing.assert_allclose(robot.ik(T, q0=q + 0.01).q, q, atol=1e-9)
+
+
+def test_ur_closed_form_finds_what_a_numeric_search_finds():
+    """Where fewer than eight solutions exist (one shoulder side cannot reach), the numeric
+    solver from 60 random seeds finds no configuration the closed form missed."""
+    robot = load_robot("ur5")
+    T = robot.fk(np.radians([30, -60, 70, -100, 50, 20]))
+    closed = robot.ik_all(T)
+    assert 1 <= len(closed) < 8
+
+    def same(a, b):
+        return np.abs(np.mod(a - b + np.pi, 2 * np.pi) - np.pi).max() < 1e-4
+
+    for q0 in robot.random_q(60, np.random.default_rng(24)):
+        res = robot.ik(T, q0=q0, method="numeric")
+        if res.success:
+            assert any(same(res.q, c) for c in closed), res.q
+
+
+@pytest.mark.parametrize("q5", [0.0, 1e-12, 1e-7, np.pi])
+def test_ur_wrist_singularity(q5):
+    robot = load_robot("ur5")
+    q = np.radians([10, -80, 60, -40, 0, 30])
+    q[4] = q5
+    T = robot.fk(q)
+    res = robot.ik(T, q0=q + 0.02)
+    assert res.method == "analytic"
+    assert_reaches(robot, res, T, tol_scale=10)
+
+
+def test_ur_shoulder_offset_cylinder_is_unreachable():
+    """o5 = p − d6·z6 satisfies o5·z1 = d2 + d3 + d4 with z1 horizontal, whatever the joints:
+    poses whose o5 lies nearer the base axis than that are out of reach, by geometry."""
+    robot = load_robot("ur5")
+    rng = np.random.default_rng(22)
+    D = abs(robot.d_mm[1] + robot.d_mm[2] + robot.d_mm[3])
+    Ts = robot.fk(robot.random_q(200, rng))
+    angle = rng.uniform(0, 2 * np.pi, 200)
+    o5 = np.column_stack([D * rng.uniform(0, 0.99, 200) * np.cos(angle),
+                          D * rng.uniform(0, 0.99, 200) * np.sin(angle), rng.uniform(-500, 700, 200)])
+    Ts[:, :3, 3] = o5 + robot.d_mm[5] * Ts[:, :3, 2]
+    batch = robot.ik_batch(Ts)
+    assert batch.method == "analytic" and not batch.success.any()
+    assert np.isfinite(batch.q).all()
+    assert not robot.ik_batch(Ts[:10], method="numeric").success.any()
+
+
+def test_ur_closed_form_respects_narrow_limits():
+    robot = load_robot("ur5")
+    narrow = replace(robot, q_min_rad=np.radians([-90, -180, -150, -180, -170, -180]),
+                     q_max_rad=np.radians([90, 0, 150, 0, 170, 180]))
+    rng = np.random.default_rng(23)
+    qs = narrow.random_q(500, rng)
+    batch = narrow.ik_batch(narrow.fk(qs))
+    assert batch.success.all() and narrow.within_limits(batch.q).all()

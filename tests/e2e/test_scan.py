@@ -63,6 +63,22 @@ def test_sphere_error_within_the_derived_bound(sphere_scan):
     assert res.report["points_on_part"] > 2000 and res.report["coverage"] > 0.1  # 30 profiles, 1 mm tolerance
 
 
+def test_a_urdf_robot_scans_the_same_sphere_as_well(sphere_scan):
+    """rigs/scenes/ur5_urdf.toml: the demo's path with the UR5 read from its URDF file (the
+    Blender rig drawn from the file's geometry); the same derived bound on the sphere."""
+    cfg = load_scan_config("ur5_urdf").with_overrides(frames=slice(None, None, 6))
+    assert cfg.robot.source.startswith("URDF ") and cfg.robot.link_meshes
+    res = run_scan(cfg, None, write_outputs=False)
+    sphere = cfg.workpiece.truth
+    P = res.cloud.points
+    s = sphere.signed_distance(P)
+    good = (np.abs(s) < 1.0) & (incidence_deg(P, sphere.pose[:3, 3]) < 45)
+    assert good.sum() > 1000
+    assert np.sqrt(np.mean(s[good] ** 2)) * 1e3 <= SPHERE_BOUND_UM
+    # The probe follows the same path in the table frame whichever robot carries it.
+    assert abs(res.report["points_on_part"] - sphere_scan[1].report["points_on_part"]) < 0.05 * res.report["points_on_part"]
+
+
 def test_report_has_the_figures(sphere_scan):
     _, res = sphere_scan
     r = res.report

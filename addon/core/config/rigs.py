@@ -20,10 +20,28 @@ from ..optics.probe import MAX_PIXELS, Probe, angles_from_range
 from .toml import load_toml, resolve_rig
 
 
-def load_robot(name_or_path: str | Path) -> Robot:
-    """Robot from ``rigs/robots/<name>.toml`` or a path to such a file (cached while the file is unchanged)."""
+def load_robot(name_or_path: str | Path, *, base_link: str | None = None, tool_link: str | None = None,
+               package_dirs=()) -> Robot:
+    """Robot from ``rigs/robots/<name>.toml``, a path to such a file, or a URDF file (``.urdf``:
+    the chain from ``base_link`` to ``tool_link``, meshes found through ``package_dirs``; see
+    addon.core.kinematics.urdf). Cached while the file is unchanged."""
+    if str(name_or_path).lower().endswith(".urdf"):
+        path = Path(name_or_path).expanduser()
+        if not path.is_file():
+            raise ConfigError(f"{path}: no such file")
+        return _urdf_cached(path.resolve(), path.stat().st_mtime_ns, base_link, tool_link,
+                            tuple(str(Path(d).expanduser()) for d in package_dirs))
+    if base_link or tool_link or package_dirs:
+        raise ConfigError(f"{name_or_path}: base_link, tool_link and package_dirs apply to URDF robots only")
     path = resolve_rig("robots", name_or_path)
     return _robot_cached(path, path.stat().st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=16)
+def _urdf_cached(path: Path, mtime_ns: int, base_link, tool_link, package_dirs) -> Robot:
+    from ..kinematics.urdf import load_urdf_robot
+
+    return load_urdf_robot(path, base_link, tool_link, package_dirs)
 
 
 def load_probe(name_or_path: str | Path) -> Probe:

@@ -3,7 +3,8 @@
 Sections (units in the key names; every key is checked, unknown keys are errors)::
 
     name = "..."                      description = "..."
-    [robot]      rig (name or path), start_deg = [6 joint angles] (IK seed, optional),
+    [robot]      rig (name or path of a DH table) or urdf (a .urdf file; + base_link, tool_link,
+                 package_dirs: folders for package:// meshes), start_deg = [6 joint angles] (IK seed),
                  ik = "local" | "controller", [robot.controller] host, port, timeout_s (IK from
                  the robot controller over TCP/IP: addon.core.kinematics.ik_remote)
     [probe]      rig (name or path), [probe.mount] xyz_mm, yzz_deg (optional T_L^6 override)
@@ -233,10 +234,21 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     description = top.string("description", default="")
 
     rt = top.table("robot")
+    if rt.has("rig") == rt.has("urdf"):
+        raise rt.error("rig", "give exactly one of rig (a bundled name or a .toml DH table) or urdf (a .urdf file)")
+    key = "rig" if rt.has("rig") else "urdf"
     try:
-        robot = load_robot(_rig_path(base, rt.string("rig")))
+        if key == "rig":
+            robot = load_robot(_rig_path(base, rt.string("rig")))
+        else:
+            f = Path(rt.string("urdf")).expanduser()
+            dirs = [Path(d).expanduser() for d in rt.strings("package_dirs", default=[])]
+            robot = load_robot(f if f.is_absolute() else base / f,
+                               base_link=rt.string("base_link", default="") or None,
+                               tool_link=rt.string("tool_link", default="") or None,
+                               package_dirs=[d if d.is_absolute() else base / d for d in dirs])
     except ConfigError as exc:
-        raise ConfigError(f"{path}: robot.rig: {exc}") from None
+        raise ConfigError(f"{path}: robot.{key}: {exc}") from None
     q_start = np.radians(rt.numbers("start_deg", 6, lo=-720, hi=720)) if rt.has("start_deg") else None
     if rt.string("ik", default="local", choices=["local", "controller"]) == "controller":
         ct = rt.table("controller", default={})

@@ -147,6 +147,13 @@ class Table:
                 raise self.error(key, f"'{value}' is not one of: {', '.join(choices)}")
         return value
 
+    def strings(self, key: str, default: Any = _MISSING) -> list[str]:
+        """A list of strings (may be empty)."""
+        value = self._get(key, default)
+        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+            raise self.error(key, f"{_describe(value)}: expected a list of strings")
+        return list(value)
+
     def boolean(self, key: str, default: Any = _MISSING) -> bool:
         value = self._get(key, default)
         if not isinstance(value, bool):

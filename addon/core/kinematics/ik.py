@@ -1,7 +1,8 @@
 """Inverse kinematics: one entry point, one result type, success only when verified.
 
 ``solve(robot, T_target, q0)`` uses the closed form for spherical-wrist arms
-(:mod:`addon.core.ik_analytic`) and damped least squares otherwise
+(:mod:`addon.core.kinematics.ik_analytic`) and for UR-type arms with three parallel
+axes (:mod:`addon.core.kinematics.ik_parallel`), and damped least squares otherwise
 (:mod:`addon.core.ik_numeric`). Whatever the method, a result claims success only
 after forward kinematics of the returned joint vector lands on the target within
 the tolerances *and* every joint is inside its limits. An unreachable target can
@@ -17,6 +18,7 @@ of one.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +26,7 @@ import numpy as np
 from ..errors import InputError, UnreachablePose
 from ..tolerances import TOL
 from .ik_analytic import branches, flange_targets, spherical_wrist_arm
+from .ik_parallel import ParallelAxesArm, parallel_axes_arm, parallel_branches
 from .ik_numeric import levenberg_marquardt, solve_numeric
 from .transforms import check_transform, rotation_angle
 
@@ -139,10 +142,24 @@ def pose_errors(robot, q: np.ndarray, T_targets: np.ndarray) -> tuple[np.ndarray
     return pos, rotation_angle(rel)
 
 
+@functools.lru_cache(maxsize=64)
+def closed_form_arm(robot):
+    """(the closed form's parameters, "") for an arm with one (a spherical wrist:
+    ik_analytic; three parallel middle axes and an offset wrist, UR-type: ik_parallel),
+    else (None, why not)."""
+    arm, spherical = spherical_wrist_arm(robot)
+    if arm is not None:
+        return arm, ""
+    arm, parallel = parallel_axes_arm(robot)
+    if arm is not None:
+        return arm, ""
+    return None, f"{spherical}; {parallel.split(': ', 1)[-1]} for the parallel-axes (UR-type) form"
+
+
 def _check_method(robot, method: str):
     if method not in METHODS:
         raise InputError(f"IK method {method!r} is not one of: {', '.join(METHODS)}")
-    arm, reason = spherical_wrist_arm(robot)
+    arm, reason = closed_form_arm(robot)
     if method == "analytic" and arm is None:
         raise InputError(reason + "; use method='numeric' or 'auto'")
     return arm if method in ("auto", "analytic") else None
@@ -176,7 +193,7 @@ def solve(robot, T_target, q0=None, *, method: str = "auto", pos_tol_mm: float |
 
     q0 : (6,) seed; among several solutions the one nearest q0 wins (default: q = 0
         clipped into the limits). Angles beyond ±2π are fine.
-    method : "auto" (closed form when the arm has a spherical wrist, else numeric),
+    method : "auto" (closed form when the arm has one, else numeric),
         "analytic" or "numeric".
     raise_on_failure : raise UnreachablePose (carrying the result) instead of
         returning success=False.
@@ -187,8 +204,8 @@ def solve(robot, T_target, q0=None, *, method: str = "auto", pos_tol_mm: float |
         raise InputError(f"IK target pose must have shape (4, 4), got {T.shape}; use ik_batch for many")
     if q0 is not None and np.shape(q0) != (6,):
         raise InputError(f"q0 must have shape (6,), got {np.shape(q0)}")
-    result = solve_batch(robot, T[None], None if q0 is None else np.asarray(q0)[None], method=method,
-                         pos_tol_mm=pos_tol_mm, rot_tol_rad=rot_tol_rad, seed=seed, max_starts=max_starts)[0]
+    result = _solve_checked(robot, T[None], None if q0 is None else np.asarray(q0)[None], method, pos_tol_mm,
+                            rot_tol_rad, seed, max_starts)[0]
     if raise_on_failure and not result.success:
         raise UnreachablePose(f"{robot.name}: {result.message}", result)
     return result
@@ -200,6 +217,11 @@ def solve_batch(robot, T_targets, q0=None, *, method: str = "auto", pos_tol_mm: 
     T = check_transform(T_targets, "IK target poses")
     if T.ndim != 3:
         raise InputError(f"IK target poses must have shape (n, 4, 4), got {T.shape}")
+    return _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_starts)
+
+
+def _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_starts) -> IKBatch:
+    """solve_batch for targets T (n, 4, 4) already checked to be rigid transforms."""
     n = T.shape[0]
     q0 = _check_seeds(robot, q0, n)
     pos_tol, rot_tol = _check_tols(robot, pos_tol_mm, rot_tol_rad)
@@ -222,9 +244,12 @@ def solve_batch(robot, T_targets, q0=None, *, method: str = "auto", pos_tol_mm: 
                        f"places the tool farther than {bound:.6g} mm")
     todo = np.nonzero(~far)[0]
 
+    pos = np.full(n, np.inf)
+    rot = np.full(n, np.inf)
+    checked = np.zeros(n, dtype=bool)  # pos and rot are already FK of the returned q
     if todo.size and arm is not None:
-        qa, ok, why, text = _solve_analytic(robot, arm, T[todo], q0[todo], pos_tol, rot_tol)
-        q[todo], success[todo] = qa, ok
+        qa, ok, why, text, pa, ra = _solve_analytic(robot, arm, T[todo], q0[todo], pos_tol, rot_tol)
+        q[todo], success[todo], pos[todo], rot[todo], checked[todo] = qa, ok, pa, ra, True
         for j, i in enumerate(todo):
             reasons[i], messages[i] = why[j], text[j]
         # Rounding at a singularity can leave every branch a hair outside tolerance:
@@ -235,7 +260,7 @@ def solve_batch(robot, T_targets, q0=None, *, method: str = "auto", pos_tol_mm: 
             iterations[polish] += its
             for j, i in enumerate(polish):
                 if conv[j]:
-                    q[i], success[i], reasons[i], messages[i] = qp[j], True, "ok", "ok"
+                    q[i], success[i], reasons[i], messages[i], checked[i] = qp[j], True, "ok", "ok", False
     elif todo.size:
         out = solve_numeric(robot, T[todo], q0[todo], pos_tol, rot_tol, np.random.default_rng(seed),
                             max_starts=max_starts)
@@ -248,8 +273,11 @@ def solve_batch(robot, T_targets, q0=None, *, method: str = "auto", pos_tol_mm: 
                                f"{out.rot_err_rad[j]:.3g} rad away; the pose is outside the workspace "
                                "or needs joints beyond their limits")
 
-    pos, rot = pose_errors(robot, q, T)
-    # Success is re-checked here, from FK of the returned q, for every method.
+    again = ~checked
+    if again.any():
+        pos[again], rot[again] = pose_errors(robot, q[again], T[again])
+    # Success is re-checked here, from FK of the returned q, for every method (the closed
+    # form's errors above are FK of the very joint vectors it returns).
     verified = success & (pos <= pos_tol) & (rot <= rot_tol) & robot.within_limits(q, LIMIT_TOL_RAD)
     for i in np.nonzero(success & ~verified)[0]:
         reasons[i], messages[i] = "numerical", f"solution failed verification ({pos[i]:.3g} mm, {rot[i]:.3g} rad)"
@@ -257,7 +285,8 @@ def solve_batch(robot, T_targets, q0=None, *, method: str = "auto", pos_tol_mm: 
 
 
 def _solve_analytic(robot, arm, T, q0, pos_tol, rot_tol):
-    """Closed form for T (m, 4, 4), seeds q0 (m, 6): (q, success, reasons, messages)."""
+    """Closed form for T (m, 4, 4), seeds q0 (m, 6): (q, success, reasons, messages, and the
+    position and rotation errors of q by FK)."""
     m = T.shape[0]
     q, inside, pos, rot, geom_ok = all_branches(robot, arm, T, q0)
     ok = inside & (pos <= pos_tol) & (rot <= rot_tol)
@@ -277,7 +306,8 @@ def _solve_analytic(robot, arm, T, q0, pos_tol, rot_tol):
             r, t = _analytic_failure(robot, q[i], geom_ok[i], pos[i], rot[i], pos_tol, rot_tol)
             reasons.append(r)
             messages.append(t)
-    return q[np.arange(m), pick], success, reasons, messages
+    rows = np.arange(m)
+    return q[rows, pick], success, reasons, messages, pos[rows, pick], rot[rows, pick]
 
 
 def all_branches(robot, arm, T: np.ndarray, q0: np.ndarray):
@@ -287,7 +317,7 @@ def all_branches(robot, arm, T: np.ndarray, q0: np.ndarray):
     geometry_ok (n, 8) (False where the link lengths could not reach and values were clamped).
     """
     F = flange_targets(robot, T)
-    br = branches(arm, F, q0 + robot.theta_offset_rad)
+    br = (parallel_branches if isinstance(arm, ParallelAxesArm) else branches)(arm, F, q0 + robot.theta_offset_rad)
     q_raw = br.theta - robot.theta_offset_rad
     q, inside = wrap_to_limits(robot, q_raw, q0[:, None, :])
     pos, rot = pose_errors(robot, q, T[:, None])

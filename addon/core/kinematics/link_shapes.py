@@ -64,3 +64,23 @@ def link_cylinders(robot: Robot) -> list[list[Cylinder]]:
         shapes.append(Cylinder(local(o_prev - half * z_prev), local(o_prev + half * z_prev), r_joint, "joint"))
         out.append(shapes)
     return out
+
+
+def link_mesh(robot: Robot, k: int, collision: bool = False):
+    """Link k + 1's mesh (k = 0..5) in its DH frame, from the rig's files or a URDF's geometry
+    (``collision``: the collision geometry where the rig has its own, else the visual one);
+    None where the rig has none (then the link is drawn and checked as cylinders)."""
+    import trimesh
+
+    entries = (robot.collision_meshes or robot.link_meshes) if collision else robot.link_meshes
+    if not entries:
+        return None
+    source, offset = entries[k]
+    if isinstance(source, trimesh.Trimesh):
+        mesh = source.copy()
+    elif source:
+        mesh = trimesh.load(source, force="mesh")
+    else:
+        return None
+    mesh.apply_transform(offset)
+    return mesh

@@ -29,8 +29,7 @@ import numpy as np
 
 from .cell import Cell
 from ..errors import InputError
-from .ik import ROT_TOL_RAD, all_branches, default_pos_tol, default_seed, wrap_to_limits
-from .ik_analytic import spherical_wrist_arm
+from .ik import ROT_TOL_RAD, all_branches, closed_form_arm, default_pos_tol, default_seed, wrap_to_limits
 from .transforms import make_pose
 
 DOWN = (0.0, 0.0, -1.0)
@@ -137,7 +136,7 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
     targets = cell.table.table2base(waypoints.table_rad) @ waypoints.probe2table
     n = len(waypoints)
     q_prev = default_seed(robot) if q_start is None else robot.check_q(q_start, "q_start")
-    arm, _ = spherical_wrist_arm(robot) if robot.ik_via is None else (None, None)  # a controller answers each
+    arm, _ = closed_form_arm(robot) if robot.ik_via is None else (None, None)  # a controller answers each
     q = np.zeros((n, 6))
     ok = np.zeros(n, dtype=bool)
     messages = [""] * n

@@ -51,8 +51,10 @@ class Robot:
     q_min_rad, q_max_rad : (6,) joint limits, applied to q (not to θ = q + offset)
     base : (4, 4) pose of DH frame 0 in the world (identity: world = robot base)
     tool : (4, 4) pose of the tool frame in the flange frame, the paper's T_L^6
-    link_meshes : per link, (mesh file or "", (4, 4) pose of the mesh in DH frame k)
-        for display only; empty tuple when the rig names no meshes
+    link_meshes : per link, (mesh file, a trimesh, or "" for none; (4, 4) transform of the
+        mesh into DH frame k) for display and, without collision_meshes, the collision
+        checks; empty tuple when the rig names no meshes (see link_shapes.link_mesh)
+    collision_meshes : the same for the collision checks alone (a URDF's collision geometry)
     ik_via : where IK comes from when not from this project's solver: a
         ``ik_remote.ControllerIK`` (the robot controller over TCP/IP); None: the local solver
     """
@@ -68,6 +70,7 @@ class Robot:
     tool: np.ndarray = field(default_factory=lambda: np.eye(4))
     source: str = ""
     link_meshes: tuple = ()
+    collision_meshes: tuple = ()
     ik_via: object = None
 
     def __post_init__(self) -> None:
@@ -93,6 +96,12 @@ class Robot:
         object.__setattr__(self, "_sa", _readonly(sa))
         object.__setattr__(self, "_base_is_identity", bool(np.array_equal(self.base, np.eye(4))))
         object.__setattr__(self, "_tool_is_identity", bool(np.array_equal(self.tool, np.eye(4))))
+        # Sizes every IK call reads, computed once (the robot is immutable).
+        shoulder = _readonly(self.base[:3, :3] @ np.array([0.0, 0.0, self.d_mm[0]]) + self.base[:3, 3])
+        reach = float(abs(self.a_mm[0]) + np.sum(np.abs(self.a_mm[1:]) + np.abs(self.d_mm[1:]))
+                      + np.linalg.norm(self.tool[:3, 3]))
+        object.__setattr__(self, "_sizes", (shoulder, reach,
+                                            max(reach, float(np.max(np.abs(np.r_[self.a_mm, self.d_mm]))), 1e-300)))
 
     # -- construction ---------------------------------------------------------
     def with_tool(self, tool2flange) -> "Robot":
@@ -117,7 +126,7 @@ class Robot:
     @property
     def shoulder_world(self) -> np.ndarray:
         """(3,) mm: point on the joint-1 axis at the height of link 1, in the world frame."""
-        return self.base[:3, :3] @ np.array([0.0, 0.0, self.d_mm[0]]) + self.base[:3, 3]
+        return self._sizes[0]
 
     @property
     def reach_bound_mm(self) -> float:
@@ -126,13 +135,12 @@ class Robot:
         Triangle inequality over the chain: |a1| + Σ_{i≥2} (|a_i| + |d_i|) + |tool offset|.
         A target farther than this is unreachable whatever the joint limits.
         """
-        return float(abs(self.a_mm[0]) + np.sum(np.abs(self.a_mm[1:]) + np.abs(self.d_mm[1:]))
-                     + np.linalg.norm(self.tool[:3, 3]))
+        return self._sizes[1]
 
     @property
     def length_scale_mm(self) -> float:
         """Characteristic length of the arm (mm): weights position against orientation."""
-        return max(self.reach_bound_mm, float(np.max(np.abs(np.r_[self.a_mm, self.d_mm]))), 1e-300)
+        return self._sizes[2]
 
     # -- joint vectors ----------------------------------------------------------
     def check_q(self, q, name: str = "q") -> np.ndarray:

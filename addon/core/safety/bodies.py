@@ -30,7 +30,7 @@ import numpy as np
 import trimesh
 
 from ..errors import ScannerError
-from ..kinematics.link_shapes import link_cylinders
+from ..kinematics.link_shapes import link_cylinders, link_mesh
 from ..kinematics.robot import N_JOINTS, Robot
 from ..kinematics.turntable import TABLE_RADIUS_MM, TABLE_THICKNESS_MM, Turntable
 from ..optics.probe import Probe
@@ -165,10 +165,8 @@ def robot_bodies(robot: Robot, probe: Probe) -> list[Body]:
     cylinders = link_cylinders(robot)
     for k in range(N_JOINTS):
         name = f"link {k + 1}"
-        if robot.link_meshes and robot.link_meshes[k][0]:
-            path, offset = robot.link_meshes[k]
-            mesh = trimesh.load(path, force="mesh")
-            mesh.apply_transform(offset)
+        mesh = link_mesh(robot, k, collision=True)
+        if mesh is not None:
             bodies.append(Body(name, f"link{k + 1}", [mesh_shape(fcl, mesh)], True))
             continue
         shapes = []

@@ -1,0 +1,368 @@
+"""URDF robots: the serial chain of a URDF file as a Robot, with its meshes.
+
+The file is read with yourdfpy. The chain runs from a base link (default: the root)
+to a tool link (default: the one leaf of the tree); its joints must be six revolute
+or continuous joints, with any number of fixed joints between them (prismatic,
+planar and floating joints are refused). Lengths in URDF are metres; here they
+become millimetres.
+
+Every serial chain of revolute joints has a standard Denavit–Hartenberg description
+plus a base and a tool transform, so a URDF robot *is* a DH Robot: batched FK, the
+closed forms where the geometry qualifies (a UR-type URDF gets the UR closed form),
+damped least squares otherwise, limits, collision checks and the Blender rig all work
+unchanged. The table is found from the joint axes at q = 0, as lines in space:
+
+- z_{i−1} is joint i's axis (its URDF direction, so that q turns the same way);
+- x_i runs along the common normal from axis i to axis i + 1, and frame i's origin
+  is where that normal meets axis i + 1; for parallel axes the normal through frame
+  i − 1's origin is taken, for intersecting ones x_i = z_{i−1} × z_i;
+- a_i, α_i, d_i and θ_i's offset are read off those frames; frame 0 lies on axis 1
+  with x_0 = x_1, frame 6 on axis 6 with x_6 = x_5, and the base and tool transforms
+  take up the rest.
+
+The conversion is checked against the URDF's own chain product at random joint
+vectors when the file loads (1e-6 mm; a failure is reported, never used).
+
+Meshes: every link's visuals (and, separately, its collision geometry) go to the DH
+link whose joint moves it (links fixed to the base are left out): mesh files (STL,
+OBJ, DAE, ...; ``package://`` resolved against ``package_dirs`` and the file's folder)
+with their scale, and boxes, cylinders and spheres.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError, InputError
+from .robot import N_JOINTS, Robot
+from .transforms import rigid_inverse
+
+M_TO_MM = 1000.0
+MOVING = ("revolute", "continuous")
+PARALLEL_TOL = 1e-9  # |u × v| below this: parallel axes
+MEET_TOL_MM = 1e-9   # common normal shorter than this: the axes meet
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    k = axis / np.linalg.norm(axis)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    T = np.eye(4)
+    T[:3, :3] = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+    return T
+
+
+def _in_mm(T: np.ndarray) -> np.ndarray:
+    T = np.array(T, dtype=np.float64)
+    T[:3, 3] *= M_TO_MM
+    return T
+
+
+def _origin(joint) -> np.ndarray:
+    return np.eye(4) if joint.origin is None else _in_mm(joint.origin)
+
+
+class UrdfChain:
+    """The joints from the base link to the tool link of a parsed URDF: ``joints`` (six
+    movable ones and the fixed ones between, in order), world poses at q = 0 (mm)."""
+
+    def __init__(self, urdf, path: Path, base_link: str | None, tool_link: str | None):
+        robot = urdf.robot
+        links = {link.name for link in robot.links}
+        parent_joint = {}
+        children: dict[str, list] = {}
+        for j in robot.joints:
+            for end in (j.parent, j.child):
+                if end not in links:
+                    raise ConfigError(f"{path}: joint {j.name!r} names link {end!r}, which the file does not define")
+            if j.child in parent_joint:
+                raise ConfigError(f"{path}: link {j.child!r} is the child of two joints; a robot is a tree")
+            parent_joint[j.child] = j
+            children.setdefault(j.parent, []).append(j)
+        roots = sorted(links - set(parent_joint))
+        if len(roots) != 1:
+            raise ConfigError(f"{path}: the links form {len(roots)} trees (roots {', '.join(roots) or 'none'}); "
+                              "a robot has one root")
+        base = base_link or roots[0]
+        if base not in links:
+            raise ConfigError(f"{path}: base_link {base!r} is not a link of this file "
+                              f"(links: {', '.join(sorted(links))})")
+        if tool_link is None:
+            leaves = sorted(name for name in _descendants(base, children) if name not in children)
+            if len(leaves) != 1:
+                raise ConfigError(f"{path}: the chain from {base!r} ends in {len(leaves)} links "
+                                  f"({', '.join(leaves)}); name the tool link (tool_link = ...)")
+            tool_link = leaves[0]
+        if tool_link not in links:
+            raise ConfigError(f"{path}: tool_link {tool_link!r} is not a link of this file "
+                              f"(links: {', '.join(sorted(links))})")
+        chain = []
+        link = tool_link
+        while link != base:
+            if link not in parent_joint:
+                raise ConfigError(f"{path}: link {tool_link!r} does not hang below {base!r}")
+            chain.append(parent_joint[link])
+            link = parent_joint[link].parent
+        chain.reverse()
+        for j in chain:
+            if j.type not in MOVING + ("fixed",):
+                raise ConfigError(f"{path}: joint {j.name!r} is {j.type}; the chain may hold revolute, continuous "
+                                  "and fixed joints only")
+            if j.mimic is not None:
+                raise ConfigError(f"{path}: joint {j.name!r} mimics another joint; that is not supported")
+        moving = [j for j in chain if j.type in MOVING]
+        if len(moving) != N_JOINTS:
+            raise ConfigError(f"{path}: the chain from {base!r} to {tool_link!r} has {len(moving)} moving joints "
+                              f"({', '.join(j.name for j in moving) or 'none'}); a robot here has exactly {N_JOINTS}")
+        self.path, self.base, self.tool_link = path, base, tool_link
+        self.joints, self.moving, self.children = chain, moving, children
+        # World poses at q = 0: each joint's frame (its axis lies there) and each link's.
+        self.link_pose = {base: np.eye(4)}
+        self.link_index = {base: 0}  # the DH link a URDF link moves with (0: the base)
+        self.axis_point, self.axis_dir = [], []
+        count = 0
+        for j in chain:
+            J = self.link_pose[j.parent] @ _origin(j)
+            if j.type in MOVING:
+                axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=np.float64)
+                if not np.isfinite(axis).all() or np.linalg.norm(axis) < 1e-12:
+                    raise ConfigError(f"{path}: joint {j.name!r} has no usable axis ({axis.tolist()})")
+                self.axis_point.append(J[:3, 3])
+                self.axis_dir.append(J[:3, :3] @ (axis / np.linalg.norm(axis)))
+                count += 1
+            self.link_pose[j.child] = J
+            self.link_index[j.child] = count
+        # Links hanging on chain links by fixed joints only move with them (a camera, a flange).
+        for name in list(self.link_pose):
+            self._attach_fixed(name)
+
+    def _attach_fixed(self, name: str) -> None:
+        for j in self.children.get(name, []):
+            if j.child not in self.link_pose and j.type == "fixed":
+                self.link_pose[j.child] = self.link_pose[name] @ _origin(j)
+                self.link_index[j.child] = self.link_index[name]
+                self._attach_fixed(j.child)
+
+    def limits(self) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = [], []
+        for j in self.moving:
+            if j.type == "continuous" or j.limit is None or j.limit.lower is None or j.limit.upper is None:
+                lo.append(-2 * np.pi)
+                hi.append(2 * np.pi)
+            else:
+                lo.append(float(j.limit.lower))
+                hi.append(float(j.limit.upper))
+        lo, hi = np.array(lo), np.array(hi)
+        bad = np.nonzero(~(np.isfinite(lo) & np.isfinite(hi)) | (lo >= hi))[0]
+        if bad.size:
+            j = self.moving[int(bad[0])]
+            raise ConfigError(f"{self.path}: joint {j.name!r} has limits [{lo[bad[0]]}, {hi[bad[0]]}]; "
+                              "lower must be below upper, both finite")
+        return lo, hi
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """The tool link's world pose (mm) at joint vector q (6,), by the URDF's own product."""
+        T = np.eye(4)
+        k = 0
+        for j in self.joints:
+            T = T @ _origin(j)
+            if j.type in MOVING:
+                axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=np.float64)
+                T = T @ _axis_angle(axis, q[k])
+                k += 1
+        return T
+
+
+def _descendants(link: str, children: dict) -> list[str]:
+    out = [link]
+    for j in children.get(link, []):
+        out.extend(_descendants(j.child, children))
+    return out
+
+
+def _frame(x: np.ndarray, z: np.ndarray, o: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, np.cross(z, x), z, o
+    return T
+
+
+def _perpendicular(z: np.ndarray) -> np.ndarray:
+    x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    return x / np.linalg.norm(x)
+
+
+def dh_from_axes(points, dirs, tool_pose: np.ndarray):
+    """Standard DH (a, d, α, θ offset; mm, rad), base and tool transforms for six joint axes
+    (lines through ``points`` along ``dirs``, world, q = 0) and the tool's pose at q = 0."""
+    z = [d / np.linalg.norm(d) for d in dirs]
+    p = [np.asarray(v, dtype=np.float64) for v in points]
+    n = len(z)
+    # Frame i (0-based) has z along joint i+1's axis; its origin o[i] and x axis x[i].
+    o: list = [None] * n
+    x: list = [None] * n
+    for i in range(n - 1):
+        u, v = z[i], z[i + 1]
+        c = np.cross(u, v)
+        if np.linalg.norm(c) > PARALLEL_TOL:
+            w = p[i] - p[i + 1]  # the common normal's feet on both axes
+            b, du, dv = u @ v, u @ w, v @ w
+            den = 1.0 - b * b
+            foot_u = p[i] + (b * dv - du) / den * u
+            foot_v = p[i + 1] + (dv - b * du) / den * v
+            gap = foot_v - foot_u
+            x_next = gap / np.linalg.norm(gap) if np.linalg.norm(gap) > MEET_TOL_MM else c / np.linalg.norm(c)
+        else:  # parallel: the normal through this frame's origin (collinear: none)
+            foot_u = p[i] if o[i] is None else o[i]
+            foot_v = p[i + 1] + ((foot_u - p[i + 1]) @ v) * v
+            gap = foot_v - foot_u
+            x_next = gap / np.linalg.norm(gap) if np.linalg.norm(gap) > MEET_TOL_MM else None
+        if o[i] is None:
+            o[i] = foot_u  # frame 0: on axis 1, at its common normal with axis 2
+        o[i + 1], x[i + 1] = foot_v, x_next
+    x[0] = x[1] if x[1] is not None else _perpendicular(z[0])
+    for i in range(1, n):  # collinear neighbours: carry the x axis over
+        if x[i] is None:
+            x[i] = x[i - 1] - (x[i - 1] @ z[i]) * z[i]
+            x[i] /= np.linalg.norm(x[i])
+    frames = [_frame(x[i], z[i], o[i]) for i in range(n)]
+    # Frame 6 on axis 6 at the tool's foot, x_6 = x_5.
+    o6 = o[n - 1] + ((tool_pose[:3, 3] - o[n - 1]) @ z[n - 1]) * z[n - 1]
+    frames.append(_frame(x[n - 1], z[n - 1], o6))
+    a, d, alpha, theta = (np.zeros(n) for _ in range(4))
+    for i in range(n):
+        F0, F1 = frames[i], frames[i + 1]
+        z0, x0, x1, z1 = F0[:3, 2], F0[:3, 0], F1[:3, 0], F1[:3, 2]
+        delta = F1[:3, 3] - F0[:3, 3]
+        d[i] = delta @ z0
+        a[i] = delta @ x1
+        alpha[i] = np.arctan2(np.cross(z0, z1) @ x1, z0 @ z1)
+        theta[i] = np.arctan2(np.cross(x0, x1) @ z0, x0 @ x1)
+    return a, d, alpha, theta, frames[0], rigid_inverse(frames[-1]) @ tool_pose
+
+
+def load_urdf_robot(path: str | Path, base_link: str | None = None, tool_link: str | None = None,
+                    package_dirs=()) -> Robot:
+    """A Robot from a URDF file (see the module's docstring). Problems are ConfigErrors that
+    name the file and what is wrong."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such file")
+    urdf = _parse(path, package_dirs)
+    chain = UrdfChain(urdf, path, base_link, tool_link)
+    tool_pose = chain.link_pose[chain.tool_link]
+    a, d, alpha, theta, base, tool = dh_from_axes(chain.axis_point, chain.axis_dir, tool_pose)
+    lo, hi = chain.limits()
+    try:
+        robot = Robot(name=f"{urdf.robot.name or path.stem} (URDF)", a_mm=a, d_mm=d, alpha_rad=alpha, theta_offset_rad=theta,
+                      q_min_rad=lo, q_max_rad=hi, base=base, tool=tool, source=f"URDF {path}")
+    except InputError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+    _check_conversion(robot, chain)
+    visual, collision = _meshes(urdf, chain, robot, package_dirs)
+    from dataclasses import replace
+
+    return replace(robot, link_meshes=visual, collision_meshes=collision)
+
+
+def _parse(path: Path, package_dirs):
+    try:
+        from yourdfpy import URDF
+    except ImportError:
+        raise ConfigError(f"{path}: reading URDF files needs the yourdfpy package, which the headless set-up "
+                          "installs and the Blender extension does not carry yet") from None
+    import xml.etree.ElementTree as ET
+
+    try:  # well-formed XML first: the URDF parser would quietly recover from a cut file
+        ET.parse(path)
+    except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: not a readable URDF file (XML: {exc})") from None
+    try:
+        return URDF.load(str(path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False,
+                         filename_handler=lambda name: name)
+    except Exception as exc:  # lxml and yourdfpy raise many kinds for a malformed file
+        raise ConfigError(f"{path}: not a readable URDF file ({type(exc).__name__}: {exc})") from None
+
+
+def _check_conversion(robot: Robot, chain: UrdfChain) -> None:
+    rng = np.random.default_rng(0)
+    for q in robot.random_q(8, rng):
+        err = np.abs(robot.fk(q) - chain.fk(q))
+        if err[:3, 3].max() > 1e-6 or err[:3, :3].max() > 1e-9:
+            raise ConfigError(f"{chain.path}: the chain's DH form does not reproduce it ({err[:3, 3].max():.3g} mm "
+                              "off); please report this file")
+
+
+def resolve_mesh_file(name: str, urdf_path: Path, package_dirs=()) -> Path:
+    """A URDF mesh reference as a file: ``package://pkg/rest`` under a folder of ``package_dirs``
+    (as ``<dir>/pkg/rest`` or ``<dir>/rest``), ``file://`` and relative paths against the URDF's
+    folder."""
+    if name.startswith("package://"):
+        rest = name[len("package://"):]
+        package, _, inner = rest.partition("/")
+        tried = []
+        for folder in [*map(Path, package_dirs), urdf_path.parent, urdf_path.parent.parent]:
+            for candidate in (folder / package / inner, folder / inner):
+                tried.append(str(candidate))
+                if candidate.is_file():
+                    return candidate
+        raise ConfigError(f"{urdf_path}: mesh {name} not found (looked in {', '.join(tried[:4])}"
+                          f"{', ...' if len(tried) > 4 else ''}); give the package's parent folder in package_dirs")
+    if name.startswith("file://"):
+        name = name[len("file://"):]
+    p = Path(name)
+    p = p if p.is_absolute() else urdf_path.parent / p
+    if not p.is_file():
+        raise ConfigError(f"{urdf_path}: mesh {name} not found ({p})")
+    return p
+
+
+def _geometry_mesh(geometry, urdf_path: Path, package_dirs):
+    """A URDF geometry as a trimesh in its own frame, metres (None: nothing drawable)."""
+    import trimesh
+
+    if geometry.mesh is not None:
+        file = resolve_mesh_file(geometry.mesh.filename, urdf_path, package_dirs)
+        try:
+            mesh = trimesh.load(file, force="mesh", process=False)
+        except Exception as exc:
+            raise ConfigError(f"{urdf_path}: mesh {file} is not readable ({type(exc).__name__}: {exc})") from None
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
+            raise ConfigError(f"{urdf_path}: mesh {file} holds no usable triangles (empty, or NaN coordinates)")
+        if geometry.mesh.scale is not None:
+            factors = np.broadcast_to(np.asarray(geometry.mesh.scale, dtype=np.float64).reshape(-1), 3)
+            mesh.apply_transform(np.diag(np.r_[factors, 1.0]))
+        return mesh
+    if geometry.box is not None:
+        return trimesh.creation.box(np.asarray(geometry.box.size, dtype=np.float64))
+    if geometry.cylinder is not None:
+        return trimesh.creation.cylinder(radius=geometry.cylinder.radius, height=geometry.cylinder.length, sections=32)
+    if geometry.sphere is not None:
+        return trimesh.creation.icosphere(subdivisions=2, radius=geometry.sphere.radius)
+    return None
+
+
+def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs) -> tuple[tuple, tuple]:
+    """Per DH link 1..6: (its visuals, its collision geometry) merged into one mesh each, in
+    the DH frame of that link, mm; ("", identity) where a link has none."""
+    import trimesh
+
+    frames0 = robot.link_frames(np.zeros(N_JOINTS))
+    scale = np.diag([M_TO_MM, M_TO_MM, M_TO_MM, 1.0])
+    out = []
+    for kind in ("visuals", "collisions"):
+        pieces: list[list] = [[] for _ in range(N_JOINTS)]
+        for link in urdf.robot.links:
+            k = chain.link_index.get(link.name, 0)
+            if k == 0:
+                continue
+            for item in getattr(link, kind):
+                mesh = _geometry_mesh(item.geometry, chain.path, package_dirs)
+                if mesh is None:
+                    continue
+                origin = np.eye(4) if item.origin is None else _in_mm(item.origin)
+                mesh.apply_transform(rigid_inverse(frames0[k]) @ chain.link_pose[link.name] @ origin @ scale)
+                pieces[k - 1].append(mesh)
+        out.append(tuple((trimesh.util.concatenate(p), np.eye(4)) if p else ("", np.eye(4)) for p in pieces)
+                   if any(pieces) else ())
+    return out[0], out[1]

@@ -1,0 +1,241 @@
+"""URDF robots: the chain's DH form reproduces the file, the UR5 URDF matches the DH rig,
+meshes land where the file puts them, and broken files give one clear error.
+
+Ground truth: each URDF's forward kinematics is recomputed here from the XML alone
+(ElementTree, xyz/rpy and axis-angle rotations written out), independently of the loader.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("yourdfpy", reason="installed by the README's set-up")
+
+from addon.core.config.rigs import load_robot  # noqa: E402
+from addon.core.errors import ConfigError  # noqa: E402
+from addon.core.kinematics.ik import closed_form_arm  # noqa: E402
+from addon.core.kinematics.ik_parallel import ParallelAxesArm  # noqa: E402
+from addon.core.kinematics.link_shapes import link_mesh  # noqa: E402
+from addon.core.kinematics.transforms import rot_z  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+UR5_URDF = REPO / "rigs" / "robots" / "urdf" / "ur5.urdf"
+
+
+# -- an independent URDF forward kinematics ------------------------------------------------
+def _rpy(r, p, y):
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+def _rodrigues(axis, angle):
+    k = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def xml_fk(path: Path, q, tool_link: str) -> np.ndarray:
+    """The tool link's pose (mm) from the XML: the product of joint origins and rotations."""
+    root = ET.parse(path).getroot()
+    joints = {j.find("child").get("link"): j for j in root.findall("joint")}
+    chain = []
+    link = tool_link
+    while link in joints:
+        chain.append(joints[link])
+        link = joints[link].find("parent").get("link")
+    T = np.eye(4)
+    k = 0
+    for j in reversed(chain):
+        o = j.find("origin")
+        xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
+        rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
+        M = np.eye(4)
+        M[:3, :3] = _rpy(*rpy)
+        M[:3, 3] = np.array(xyz) * 1000.0
+        T = T @ M
+        if j.get("type") in ("revolute", "continuous"):
+            a = j.find("axis")
+            R = np.eye(4)
+            R[:3, :3] = _rodrigues([float(v) for v in (a.get("xyz") if a is not None else "1 0 0").split()], q[k])
+            T = T @ R
+            k += 1
+    return T
+
+
+def write_chain(path: Path, origins, axes, types=None, extra: str = "", tool_origin="0 0 0.05") -> Path:
+    """A URDF of a serial chain: origins [(xyz, rpy) strings], axes [xyz strings]."""
+    types = types or ["revolute"] * len(origins)
+    links = "".join(f'<link name="l{i}"/>' for i in range(len(origins) + 2))
+    joints = "".join(
+        f'<joint name="j{i}" type="{t}"><parent link="l{i}"/><child link="l{i + 1}"/>'
+        f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="{ax}"/>'
+        f'<limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>'
+        for i, ((xyz, rpy), ax, t) in enumerate(zip(origins, axes, types)))
+    n = len(origins)
+    tool = (f'<joint name="tool" type="fixed"><parent link="l{n}"/><child link="l{n + 1}"/>'
+            f'<origin xyz="{tool_origin}" rpy="0.1 0.2 0.3"/></joint>')
+    path.write_text(f'<?xml version="1.0"?><robot name="chain">{links}{joints}{tool}{extra}</robot>')
+    return path
+
+
+def random_chain(rng, tmp: Path, name: str) -> Path:
+    origins, axes = [], []
+    for _ in range(6):
+        xyz = " ".join(f"{v:.4f}" for v in rng.uniform(-0.3, 0.3, 3))
+        rpy = " ".join(f"{v:.4f}" for v in rng.uniform(-np.pi, np.pi, 3))
+        ax = rng.normal(size=3)
+        origins.append((xyz, rpy))
+        axes.append(" ".join(f"{v:.4f}" for v in ax / np.linalg.norm(ax)))
+    return write_chain(tmp / name, origins, axes)
+
+
+# -- the bundled UR5 ----------------------------------------------------------------------
+def test_ur5_urdf_matches_the_dh_rig_to_a_nanometre():
+    urdf, dh = load_robot(UR5_URDF), load_robot("ur5")
+    q = dh.random_q(2000, np.random.default_rng(1))
+    Tu, Td = urdf.fk(q), dh.fk(q)
+    # The two descriptions differ by a half turn of the base about joint 1 and the tool frame.
+    B = rot_z(np.pi)
+    E = np.linalg.inv(B @ Td[0]) @ Tu[0]
+    assert np.abs(E[:3, 3]).max() < 1e-9  # the same flange point
+    assert np.abs(Tu[:, :3, 3] - (B @ Td @ E)[:, :3, 3]).max() < 1e-9
+    assert np.abs(Tu[:, :3, :3] - (B @ Td @ E)[:, :3, :3]).max() < 1e-12
+
+
+def test_ur5_urdf_matches_its_own_xml_and_gets_the_closed_form():
+    robot = load_robot(UR5_URDF)
+    rng = np.random.default_rng(2)
+    for q in robot.random_q(50, rng):
+        np.testing.assert_allclose(robot.fk(q), xml_fk(UR5_URDF, q, "ee_link"), atol=1e-9)
+    assert isinstance(closed_form_arm(robot)[0], ParallelAxesArm)
+    qs = robot.random_q(500, rng)
+    batch = robot.ik_batch(robot.fk(qs))
+    assert batch.method == "analytic" and batch.success.all()
+
+
+def test_ur5_urdf_links_carry_its_cylinders():
+    """Link 2 (the upper arm) is a 425 mm cylinder along the arm from the shoulder joint."""
+    robot = load_robot(UR5_URDF)
+    q = np.radians([20, -50, 40, -30, 60, 10])
+    upper = link_mesh(robot, 1)
+    frames = robot.link_frames(q)
+    world = upper.vertices @ frames[2][:3, :3].T + frames[2][:3, 3]
+    # Independently: the upper arm link's frame from the XML, its cylinder centred 212.5 mm up its z.
+    T = xml_fk(UR5_URDF, q, "upper_arm_link")
+    centre = T[:3, :3] @ [0, 0, 212.5] + T[:3, 3]
+    np.testing.assert_allclose(world.mean(axis=0), centre, atol=1e-6)
+    along = T[:3, 2]
+    extent = (world - centre) @ along
+    assert extent.max() == pytest.approx(212.5, abs=1e-6) and extent.min() == pytest.approx(-212.5, abs=1e-6)
+
+
+# -- any chain ----------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", range(6))
+def test_random_chains_keep_their_kinematics(seed, tmp_path):
+    rng = np.random.default_rng(100 + seed)
+    path = random_chain(rng, tmp_path, f"chain{seed}.urdf")
+    robot = load_robot(path)
+    for q in robot.random_q(30, rng):
+        np.testing.assert_allclose(robot.fk(q), xml_fk(path, q, "l7"), atol=1e-9)
+    q = robot.random_q(3, rng)
+    res = robot.ik_batch(robot.fk(q), q + 0.05)
+    assert res.success.all()
+
+
+def test_parallel_intersecting_and_collinear_axes(tmp_path):
+    """Axes 2-3 parallel, 4-5 meeting, 5-6 on one line: the DH form's special cases."""
+    origins = [("0 0 0.1", "0 0 0"), ("0 0.1 0", "1.5707963 0 0"), ("0.4 0 0", "0 0 0"),
+               ("0.3 0 0.05", "0 1.5707963 0"), ("0 0 0", "0 -1.5707963 0"), ("0 0 0.2", "0 0 0")]
+    axes = ["0 0 1", "0 0 1", "0 0 1", "0 0 -1", "0 0 1", "0 0 1"]
+    path = write_chain(tmp_path / "special.urdf", origins, axes)
+    robot = load_robot(path)
+    rng = np.random.default_rng(3)
+    for q in robot.random_q(30, rng):
+        np.testing.assert_allclose(robot.fk(q), xml_fk(path, q, "l7"), atol=1e-9)
+
+
+def test_mesh_file_through_package_path_and_scale(tmp_path):
+    import trimesh
+
+    pkg = tmp_path / "share" / "my_robot" / "meshes"
+    pkg.mkdir(parents=True)
+    box = trimesh.creation.box((40.0, 20.0, 10.0))  # millimetres in the file, scale 0.001
+    box.apply_translation((100.0, 0, 0))
+    (pkg / "link3.stl").write_bytes(box.export(file_type="stl"))
+    rng = np.random.default_rng(4)
+    origins = [(" ".join(f"{v:.3f}" for v in rng.uniform(-0.2, 0.2, 3)), "0.3 -0.2 0.1") for _ in range(6)]
+    axes = ["0 0 1", "0 1 0", "0 1 0", "1 0 0", "0 1 0", "1 0 0"]
+    path = write_chain(tmp_path / "robot.urdf", origins, axes)
+    text = path.read_text().replace(
+        '<link name="l3"/>',
+        '<link name="l3"><visual><origin xyz="0.01 0 0" rpy="0 0 0.5"/><geometry>'
+        '<mesh filename="package://my_robot/meshes/link3.stl" scale="0.001 0.001 0.001"/></geometry></visual></link>')
+    path.write_text(text)
+    with pytest.raises(ConfigError, match="package_dirs"):
+        load_robot(path)
+    robot = load_robot(path, package_dirs=[tmp_path / "share"])
+    q = robot.random_q(1, rng)[0]
+    mesh = link_mesh(robot, 2)  # l3 hangs on joint 3
+    frames = robot.link_frames(q)
+    world = mesh.vertices @ frames[3][:3, :3].T + frames[3][:3, 3]
+    T = xml_fk(path, q, "l3")
+    V = np.eye(4)
+    V[:3, :3] = _rpy(0, 0, 0.5)
+    V[:3, 3] = [10.0, 0, 0]
+    expected = (T @ V @ np.c_[box.vertices, np.ones(len(box.vertices))].T).T[:, :3]
+    corners = np.unique(np.round(world, 6), axis=0)
+    assert len(corners) == 8
+    np.testing.assert_allclose(np.unique(np.round(expected, 6), axis=0), corners, atol=1e-5)
+
+
+# -- broken files ---------------------------------------------------------------------------
+def _six(tmp_path, **kw):
+    origins = [("0 0 0.1", "0 0 0")] * 6
+    return write_chain(tmp_path / "r.urdf", origins, ["0 0 1", "0 1 0", "0 1 0", "1 0 0", "0 1 0", "1 0 0"], **kw)
+
+
+@pytest.mark.parametrize("case,words", [
+    ("prismatic", "prismatic"),
+    ("five", "5 moving joints"),
+    ("not xml", "not a readable URDF"),
+    ("two leaves", "tool_link"),
+    ("unknown tool", "not a link"),
+    ("missing mesh", "not found"),
+    ("limits inverted", "limits"),
+    ("no such file", "no such file"),
+])
+def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
+    kw = {}
+    if case == "prismatic":
+        path = _six(tmp_path, types=["revolute", "prismatic"] + ["revolute"] * 4)
+    elif case == "five":
+        path = write_chain(tmp_path / "r.urdf", [("0 0 0.1", "0 0 0")] * 5, ["0 0 1"] * 5)
+    elif case == "not xml":
+        path = tmp_path / "r.urdf"
+        path.write_text("<robot name='x'><link name='a'>")
+    elif case == "two leaves":
+        path = _six(tmp_path, extra='<link name="cam"/><joint name="c" type="fixed"><parent link="l2"/>'
+                                    '<child link="cam"/></joint>')
+    elif case == "unknown tool":
+        path = _six(tmp_path)
+        kw = {"tool_link": "gripper"}
+    elif case == "missing mesh":
+        path = _six(tmp_path)
+        path.write_text(path.read_text().replace(
+            '<link name="l2"/>', '<link name="l2"><visual><geometry><mesh filename="meshes/gone.stl"/></geometry>'
+                                 '</visual></link>'))
+    elif case == "limits inverted":
+        path = _six(tmp_path)
+        path.write_text(path.read_text().replace('lower="-3.1" upper="3.1"', 'lower="3.1" upper="-3.1"', 1))
+    else:
+        path = tmp_path / "none.urdf"
+    with pytest.raises(ConfigError, match=words) as info:
+        load_robot(path, **kw)
+    assert "\n" not in str(info.value)
