@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from addon.core.config.toml import RIGS_DIR
-from addon.core.kinematics.ik import closed_form_arm, default_pos_tol, default_seed
+from addon.core.kinematics.ik import closed_form_arm, default_pos_tol
 from addon.core.kinematics.ik_parallel import ParallelAxesArm
 from addon.core.kinematics.robot import Robot
 from addon.core.config.rigs import load_robot

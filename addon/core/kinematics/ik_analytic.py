@@ -151,7 +151,6 @@ def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> B
     xx, yy = x[:, :, None], y[:, :, None]
     th3 = arm.beta + delta
     th2 = np.arctan2(yy, xx) - np.arctan2(arm.L3 * np.sin(delta), arm.a2 + arm.L3 * np.cos(delta))
-    th1b = np.broadcast_to(th1[:, :, None], th2.shape)
 
     # -- wrist -----------------------------------------------------------------
     # M = R_3^0ᵀ R, needed in columns 0 and 2 only. With cos α = 0 the columns of
