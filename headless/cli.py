@@ -20,6 +20,7 @@ Commands:
   bench collision      collision checks along a 10 000-frame path: frames/s, pairs/s
   bench ik-bridge      IK from a controller over TCP/IP against the local solver: agreement, latency
   ik-server            serve this project's IK over TCP/IP with the controller protocol
+  robot-meshes         install the bundled robots' link meshes where a package ships them (optional)
   overview             a picture of the cell and the two probe camera images
   realism-figure       one probe frame seen by the ideal and by the realistic sensor
   build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
@@ -81,6 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
     from headless import ik_server
 
     ik_server.add_arguments(sub.add_parser("ik-server", help=_summary(ik_server.__doc__)))
+    from headless import robot_meshes
+
+    robot_meshes.add_arguments(sub.add_parser("robot-meshes", help=_summary(robot_meshes.__doc__)))
     realism_figure.add_arguments(sub.add_parser("realism-figure", help=_summary(realism_figure.__doc__)))
     build_extension.add_arguments(sub.add_parser("build-extension", help=_summary(build_extension.__doc__)))
     for name, module in (("kinematics", bench_kinematics), ("detect", bench_detect),

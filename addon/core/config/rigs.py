@@ -60,7 +60,7 @@ def _probe_cached(path: Path, mtime_ns: int) -> Probe:
     return _read_probe(path)
 
 
-def _check_link_mesh(t, mesh_path: Path) -> None:
+def _check_link_mesh(t, mesh_path: Path, key: str = "mesh") -> None:
     """A link's mesh must be a readable triangle mesh with finite coordinates (checked when the
     rig loads, not when the scene is built)."""
     import trimesh
@@ -68,11 +68,11 @@ def _check_link_mesh(t, mesh_path: Path) -> None:
     try:
         mesh = trimesh.load(mesh_path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many kinds for unreadable files
-        raise t.error("mesh", f"{mesh_path} is not a readable mesh ({type(exc).__name__}: {exc})") from None
+        raise t.error(key, f"{mesh_path} is not a readable mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise t.error("mesh", f"no triangles could be read from {mesh_path} (STL, OBJ, PLY, glTF)")
+        raise t.error(key, f"no triangles could be read from {mesh_path} (STL, OBJ, PLY, glTF)")
     if not np.isfinite(mesh.vertices).all():
-        raise t.error("mesh", f"{mesh_path} has NaN or infinite vertex coordinates")
+        raise t.error(key, f"{mesh_path} has NaN or infinite vertex coordinates")
 
 
 def _read_robot(path: Path) -> Robot:
@@ -80,8 +80,10 @@ def _read_robot(path: Path) -> Robot:
 
     The file has a ``name``, a ``source`` (where the numbers come from), exactly six
     ``[[link]]`` tables with ``a_mm``, ``d_mm``, ``alpha_deg``, ``theta_offset_deg``,
-    ``min_deg``, ``max_deg``, and optional ``[base]`` and ``[tool]`` poses
-    (``xyz_mm``, ``yzz_deg``). Raises ConfigError naming file, key and allowed range.
+    ``min_deg``, ``max_deg``, optional ``mesh`` (+ ``[link.mesh_offset]``), and optional
+    ``[base]`` and ``[tool]`` poses (``xyz_mm``, ``yzz_deg``); ``meshes_optional = true``
+    draws procedural links where the mesh files are not (all) there. Raises ConfigError
+    naming file, key and allowed range.
     """
     top = load_toml(path)
     name = top.string("name", default=path.stem)
@@ -90,6 +92,10 @@ def _read_robot(path: Path) -> Robot:
     if len(links) != N_JOINTS:
         raise ConfigError(f"{path}: found {len(links)} [[link]] tables; a robot needs exactly {N_JOINTS} "
                           "(one per joint, in order from the base)")
+    # meshes_optional: the link meshes are an extra (python -m headless robot-meshes) that may
+    # not be installed; then the links are drawn procedurally instead of refused.
+    optional = top.boolean("meshes_optional", default=False)
+    missing = False
     cols: dict[str, list[float]] = {k: [] for k in ("a", "d", "alpha", "offset", "lo", "hi")}
     meshes: list[tuple[str, np.ndarray]] = []
     for t in links:
@@ -107,15 +113,30 @@ def _read_robot(path: Path) -> Robot:
         mesh = ""
         if t.has("mesh"):
             mesh_path = (path.parent / t.string("mesh")).resolve()
-            if not mesh_path.is_file():
+            if mesh_path.is_file():
+                _check_link_mesh(t, mesh_path)
+                mesh = str(mesh_path)
+            elif not optional:
                 raise t.error("mesh", f"no such file: {mesh_path}")
-            _check_link_mesh(t, mesh_path)
-            mesh = str(mesh_path)
+            else:
+                missing = True
         meshes.append((mesh, t.pose("mesh_offset")))
         t.finish()
     base = top.pose("base")
     tool = top.pose("tool")
+    pedestal: tuple = ()
+    if top.has("base_mesh"):
+        base_path = (path.parent / top.string("base_mesh")).resolve()
+        if base_path.is_file():
+            _check_link_mesh(top, base_path, "base_mesh")
+            pedestal = (str(base_path), np.eye(4))
+        elif not optional:
+            raise top.error("base_mesh", f"no such file: {base_path}")
+        else:
+            missing = True
     top.finish()
+    if missing:
+        meshes, pedestal = [], ()  # an optional set not (wholly) installed: the procedural links
     try:
         return Robot(
             name=name,
@@ -129,6 +150,10 @@ def _read_robot(path: Path) -> Robot:
             tool=tool,
             source=source,
             link_meshes=tuple(meshes) if any(m for m, _ in meshes) else (),
+            # An optional extra is for the eye only: the collision checks keep the procedural
+            # links, so that no result depends on whether it was installed.
+            collision_meshes=tuple(("", np.eye(4)) for _ in meshes) if optional and meshes else (),
+            base_mesh=pedestal,
         )
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None

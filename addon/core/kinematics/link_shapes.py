@@ -70,12 +70,20 @@ def link_mesh(robot: Robot, k: int, collision: bool = False):
     """Link k + 1's mesh (k = 0..5) in its DH frame, from the rig's files or a URDF's geometry
     (``collision``: the collision geometry where the rig has its own, else the visual one);
     None where the rig has none (then the link is drawn and checked as cylinders)."""
-    import trimesh
-
     entries = (robot.collision_meshes or robot.link_meshes) if collision else robot.link_meshes
     if not entries:
         return None
-    source, offset = entries[k]
+    return _load(*entries[k])
+
+
+def base_mesh(robot: Robot):
+    """The robot's fixed base (a pedestal) in DH frame 0, for display; None where it has none."""
+    return _load(*robot.base_mesh) if robot.base_mesh else None
+
+
+def _load(source, offset):
+    import trimesh
+
     if isinstance(source, trimesh.Trimesh):
         mesh = source.copy()
     elif source:

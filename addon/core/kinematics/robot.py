@@ -55,6 +55,8 @@ class Robot:
         mesh into DH frame k) for display and, without collision_meshes, the collision
         checks; empty tuple when the rig names no meshes (see link_shapes.link_mesh)
     collision_meshes : the same for the collision checks alone (a URDF's collision geometry)
+    base_mesh : (mesh file or trimesh, (4, 4) transform into DH frame 0) of the base that does
+        not move (a pedestal), for display; () for none
     ik_via : where IK comes from when not from this project's solver: a
         ``ik_remote.ControllerIK`` (the robot controller over TCP/IP); None: the local solver
     """
@@ -71,6 +73,7 @@ class Robot:
     source: str = ""
     link_meshes: tuple = ()
     collision_meshes: tuple = ()
+    base_mesh: tuple = ()
     ik_via: object = None
 
     def __post_init__(self) -> None:
