@@ -86,15 +86,21 @@ def test_all_eight_closed_form_solutions():
     robot = unlimited(load_robot("adept_viper_s650"))
     q_true = np.radians([30, 10, -120, 20, 60, -10])
     T = robot.fk(q_true)
+    assert_eight_distinct_solutions(robot, T, q_true)
+
+
+def assert_eight_distinct_solutions(robot, T, q_true) -> np.ndarray:
+    """ik_all gives eight configurations, each reaching T, distinct (not the same angles
+    shifted by whole turns), q_true among them; returns them."""
     sols = robot.ik_all(T)
     assert sols.shape == (8, 6)
     for q in sols:
         np.testing.assert_allclose(robot.fk(q), T, atol=1e-9)
-    # Distinct configurations (not the same angles shifted by whole turns).
     wrapped = np.round(np.mod(sols + np.pi, 2 * np.pi) - np.pi, 6)
     assert len({tuple(w) for w in wrapped}) == 8
     d = np.abs(np.mod(sols - q_true + np.pi, 2 * np.pi) - np.pi).max(axis=1)
-    assert d.min() < 1e-9  # the configuration we started from is among them
+    assert d.min() < 1e-9
+    return sols
 
 
 def test_limits_cut_solutions_and_each_is_inside():
@@ -349,14 +355,7 @@ def test_ur_all_eight_solutions_and_the_seed_picks_each():
     robot = load_robot("ur5")  # every joint ±360°: all eight fit
     q_true = np.radians([10, -90, 60, -60, 45, 10])
     T = robot.fk(q_true)
-    sols = robot.ik_all(T)
-    assert sols.shape == (8, 6)
-    for q in sols:
-        np.testing.assert_allclose(robot.fk(q), T, atol=1e-9)
-    wrapped = np.round(np.mod(sols + np.pi, 2 * np.pi) - np.pi, 6)
-    assert len({tuple(w) for w in wrapped}) == 8
-    d = np.abs(np.mod(sols - q_true + np.pi, 2 * np.pi) - np.pi).max(axis=1)
-    assert d.min() < 1e-9
+    sols = assert_eight_distinct_solutions(robot, T, q_true)
     for q in sols:
         np.testing.assert_allclose(robot.ik(T, q0=q + 0.01).q, q, atol=1e-9)
 

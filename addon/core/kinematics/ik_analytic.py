@@ -118,6 +118,18 @@ def flange_targets(robot, T_world: np.ndarray) -> np.ndarray:
     return F
 
 
+def shoulder_angles(px, py, Ds, scale: float, seed1):
+    """The shoulder equation px sin θ1 − py cos θ1 = Ds of both closed forms (the wrist point's
+    offset from the plane of the arm, along the joint-2 axis): θ1 = φ + g or φ + π − g.
+    Returns (φ, g, solvable); on the joint-1 axis φ is the seed's θ1."""
+    r = np.hypot(px, py)
+    on_axis = r <= SINGULAR * scale
+    phi = np.where(on_axis, seed1, np.arctan2(py, px))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(on_axis, np.where(abs(Ds) <= SINGULAR * scale, 0.0, np.inf), Ds / r)
+    return phi, np.arcsin(np.clip(ratio, -1.0, 1.0)), np.abs(ratio) <= 1.0 + 1e-12
+
+
 def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> Branches:
     """Closed-form DH angles for flange poses F (n, 4, 4) in DH frame 0.
 
@@ -130,14 +142,7 @@ def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> B
     px, py, pz = w[:, 0], w[:, 1], w[:, 2]
 
     # -- θ1 (shoulder): w_x sin θ1 − w_y cos θ1 = D·sin α1 --------------------
-    r = np.hypot(px, py)
-    Ds = arm.shoulder_offset * arm.s1
-    on_axis = r <= SINGULAR * arm.scale
-    phi = np.where(on_axis, seed_theta[:, 0], np.arctan2(py, px))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(on_axis, np.where(abs(Ds) <= SINGULAR * arm.scale, 0.0, np.inf), Ds / r)
-    shoulder_ok = np.abs(ratio) <= 1.0 + 1e-12
-    g = np.arcsin(np.clip(ratio, -1.0, 1.0))
+    phi, g, shoulder_ok = shoulder_angles(px, py, arm.shoulder_offset * arm.s1, arm.scale, seed_theta[:, 0])
     th1 = np.stack([phi + g, phi + np.pi - g], axis=1)  # (n, 2)
 
     # -- θ2, θ3 (planar arm in frame 1) ----------------------------------------

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..tolerances import TOL
-from .ik_analytic import Branches
+from .ik_analytic import Branches, shoulder_angles
 
 SINGULAR = TOL.singular
 
@@ -107,14 +107,7 @@ def parallel_branches(arm: ParallelAxesArm, F: np.ndarray, seed_theta: np.ndarra
     o5 = F[:, :3, 3] - arm.d6 * R[:, :, 2]
 
     # -- θ1: o5x sin θ1 − o5y cos θ1 = sα1·D ----------------------------------------
-    r = np.hypot(o5[:, 0], o5[:, 1])
-    Ds = arm.offset * arm.s1
-    on_axis = r <= SINGULAR * arm.scale
-    phi = np.where(on_axis, seed_theta[:, 0], np.arctan2(o5[:, 1], o5[:, 0]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(on_axis, np.where(abs(Ds) <= SINGULAR * arm.scale, 0.0, np.inf), Ds / r)
-    shoulder_ok = np.abs(ratio) <= 1.0 + 1e-12
-    g = np.arcsin(np.clip(ratio, -1.0, 1.0))
+    phi, g, shoulder_ok = shoulder_angles(o5[:, 0], o5[:, 1], arm.offset * arm.s1, arm.scale, seed_theta[:, 0])
     th1 = phi[:, None] + np.where(_SHOULDER > 0, 0.0, np.pi) + _SHOULDER * g[:, None]  # (n, 8)
     c1, s1 = np.cos(th1), np.sin(th1)
     z1x, z1y = arm.s1 * s1, -arm.s1 * c1  # z1 = sα1 (sin θ1, −cos θ1, 0)
