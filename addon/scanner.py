@@ -233,8 +233,9 @@ class Scanner:
         """Collision checks on the motion from the current joints and table angle to these."""
         self._check_path(q[None, :], np.array([table_rad]), "move")
 
-    def _check_path(self, q: np.ndarray, table_rad: np.ndarray, what: str = "sweep") -> None:
-        """Collision checks on the motion from the current joints and table angle through q (n, 6)."""
+    def _check_path(self, q: np.ndarray, table_rad: np.ndarray, what: str = "sweep", record: bool = True):
+        """Collision checks on the motion from the current joints and table angle through q (n, 6);
+        the clearance found joins the report when ``record`` (it is returned either way)."""
         from .core.scan.plan import check_motion
 
         t = time.perf_counter()
@@ -244,8 +245,9 @@ class Scanner:
             raise CollisionError(f"{what} refused, nothing moved: {exc}") from None
         finally:
             self._timing["plan"] += time.perf_counter() - t
-        if found is not None:
+        if found is not None and record:
             self._clearances.append(found)
+        return found
 
     def clearance(self):
         """The collision check of the current pose (a PathClearance: ``nearest`` gives the
@@ -271,12 +273,34 @@ class Scanner:
         in the probe's range gives an empty profile without rendering."""
         return self._scan_frames(self._q[None, :], np.array([self._table_rad]))[0]
 
-    def sweep(self, from_mm, to_mm, frames: int, *, beam=(0.0, 0.0, -1.0), line=None) -> list[Profile]:
+    def sweep(self, from_mm, to_mm, frames: int, *, beam=(0.0, 0.0, -1.0), line=None,
+              table_deg: float | None = None) -> list[Profile]:
         """``frames`` profiles with the probe moving in a straight line from ``from_mm`` to
         ``to_mm`` (table frame), beam straight down unless given, the laser line across the
-        motion. Every pose is solved before anything moves or renders; the probe ends at the
-        last one."""
+        motion; with ``table_deg``, the table turned to that angle first (the turn is part of
+        the checked motion). Every pose is solved before anything moves or renders; the probe
+        ends at the last one."""
+        q, table_rad, found = self._plan_sweep(from_mm, to_mm, frames, beam, line, table_deg)
+        if found is not None:
+            self._clearances.append(found)
+        profiles = self._scan_frames(q, table_rad)
+        self._q = np.array(q[-1], dtype=np.float64)
+        self._table_rad = float(table_rad[-1])
+        return profiles
+
+    def plan_sweep(self, from_mm, to_mm, frames: int, *, beam=(0.0, 0.0, -1.0), line=None,
+                   table_deg: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The joints (frames, 6) and table angles (frames,) rad of that sweep, solved and
+        checked for collisions from where the robot and the table are now, without moving or
+        rendering anything (a planner's question: can the robot do this?). Raises
+        UnreachablePose or CollisionError as ``sweep`` would."""
+        return self._plan_sweep(from_mm, to_mm, frames, beam, line, table_deg)[:2]
+
+    def _plan_sweep(self, from_mm, to_mm, frames, beam, line, table_deg):
         check_whole(frames, "sweep frames", 1, MAX_FRAMES)
+        if table_deg is not None and not (isinstance(table_deg, (int, float, np.number)) and math.isfinite(table_deg)):
+            raise InputError(f"sweep table_deg must be a finite number of degrees, got {table_deg!r}")
+        table_rad = self._table_rad if table_deg is None else math.radians(float(table_deg))
         for name, value in (("from_mm", from_mm), ("to_mm", to_mm), ("beam", beam)):
             try:
                 v = np.asarray(value, dtype=np.float64)
@@ -284,7 +308,7 @@ class Scanner:
                 v = np.full(0, np.nan)
             if v.shape != (3,) or not np.isfinite(v).all():
                 raise InputError(f"sweep {name} must be three finite numbers [x, y, z] (mm), got {value!r}")
-        wp = sweep_waypoints(frames, from_mm, to_mm, beam, line, table_rad=self._table_rad)
+        wp = sweep_waypoints(frames, from_mm, to_mm, beam, line, table_rad=table_rad)
         from .core.kinematics.path import solve_path
 
         sol = solve_path(self.config.cell, wp, self._q)
@@ -294,10 +318,8 @@ class Scanner:
             bad = sol.unreachable
             raise UnreachablePose(f"{len(bad)} of {frames} poses of the sweep cannot be reached "
                                   f"(steps {frame_ranges(bad)}): {sol.messages[bad[0]]}")
-        self._check_path(sol.q, wp.table_rad)
-        profiles = self._scan_frames(sol.q, wp.table_rad)
-        self._q = np.array(sol.q[-1], dtype=np.float64)
-        return profiles
+        found = self._check_path(sol.q, wp.table_rad, record=False)
+        return np.asarray(sol.q, dtype=np.float64), np.asarray(wp.table_rad, dtype=np.float64), found
 
     def run(self, progress=None) -> ScanReport:
         """Scan the configured path ([[path]] entries) from its start joints; the probe ends at

@@ -89,8 +89,10 @@ class KnownSpace:
         first cell that is not free (inf: none before ``lengths``) and that cell's state."""
         n = len(origins)
         t0, t1 = self._clip(origins, dirs, lengths)
+        crosses = np.isfinite(t0) & np.isfinite(t1) & (t1 > t0)
+        t0, t1 = np.where(crosses, t0, 0.0), np.where(crosses, t1, 0.0)  # rays that miss: no samples
         step = STEP_SHARE * self.voxel
-        steps = np.where(t1 > t0, np.ceil((t1 - t0) / step).astype(np.int64) + 1, 0)
+        steps = np.where(crosses, np.ceil((t1 - t0) / step).astype(np.int64) + 1, 0)
         first = np.full(n, np.inf)
         what = np.full(n, FREE, dtype=np.uint8)
         if not steps.any():
@@ -128,8 +130,11 @@ class KnownSpace:
             inv = 1.0 / dirs
             a = (self.lo - origins) * inv
             b = (self.hi - origins) * inv
-        near = np.nanmax(np.where(np.isfinite(np.minimum(a, b)), np.minimum(a, b), -np.inf), axis=1)
-        far = np.nanmin(np.where(np.isfinite(np.maximum(a, b)), np.maximum(a, b), np.inf), axis=1)
+        with np.errstate(invalid="ignore"):
+            lo_t, hi_t = np.minimum(a, b), np.maximum(a, b)
+        # NaN (a ray in a face's plane, 0·inf) and ±inf (parallel) put no bound on that axis.
+        near = np.max(np.where(np.isfinite(lo_t), lo_t, -np.inf), axis=1)
+        far = np.min(np.where(np.isfinite(hi_t), hi_t, np.inf), axis=1)
         # A ray parallel to a pair of faces lies between them or misses the box.
         parallel = dirs == 0
         outside = parallel & ((origins < self.lo) | (origins > self.hi))

@@ -1,0 +1,139 @@
+"""Next-best-view planning on the known-space model: candidate sweeps around a part's bounding
+box, what each would newly see, and its cost in scan time. Never reads the part's mesh.
+
+A candidate is a table angle, a tilt of the beam from vertical (the probe on the robot's
+side of the table, looking towards the table's axis) and a straight sweep across that
+view, long enough to cross the box. Its **gain** is estimated by casting its laser fan
+(a subset of its frames and rays) through the model (geometry.known_space): a ray whose
+first cell that is not free is unknown, within the probe's range, would measure
+something new there; the gain is the number of distinct such cells. Its **cost** is the
+time it takes: its frames at the scanner's rate, the table's turn and the probe's travel
+to its start. The planner scans the candidate with the most gain per second among those
+the robot can reach without collision (checked by the caller, best first).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.known_space import UNKNOWN, KnownSpace
+from ..kinematics import path as scanpath
+from ..optics.probe import Probe
+
+FRAME_S = 0.05            # one profile (the scanner's rate, about 20 profiles/s on two cores)
+TABLE_DEG_PER_S = 45.0    # rotary table
+PROBE_MM_PER_S = 250.0    # probe travel between sweeps
+SPACING_MM = 1.5          # profile spacing along a sweep
+TILTS_DEG = (0.0, 30.0, 45.0)
+TABLE_STEPS = 8
+SAMPLE_FRAMES = 6         # frames of a candidate cast into the model
+SAMPLE_RAYS = 17          # rays of the fan per cast frame
+
+
+@dataclass(frozen=True)
+class Candidate:
+    table_deg: float
+    tilt_deg: float
+    from_mm: np.ndarray
+    to_mm: np.ndarray
+    beam: np.ndarray
+    frames: int
+    gain: int = 0
+    seconds: float = 0.0
+
+    @property
+    def key(self) -> tuple[float, float]:
+        return (round(self.table_deg, 6), round(self.tilt_deg, 6))
+
+    @property
+    def utility(self) -> float:
+        return self.gain / max(self.seconds, 1e-9)
+
+    def waypoints(self) -> scanpath.Waypoints:
+        return scanpath.sweep(self.frames, self.from_mm, self.to_mm, self.beam, table_rad=math.radians(self.table_deg))
+
+    def describe(self) -> str:
+        return (f"table {self.table_deg:.0f} deg, tilt {self.tilt_deg:.0f} deg, {self.frames} profiles, "
+                f"about {self.gain} new cells")
+
+
+def robot_side(cell, table_deg: float) -> np.ndarray:
+    """Horizontal unit vector (table frame, at that table angle) from the table's axis towards
+    the robot's base."""
+    base = cell.table.base2table(math.radians(table_deg))[:3, 3]
+    side = np.array([base[0], base[1], 0.0])
+    n = np.linalg.norm(side)
+    return side / n if n > 1e-9 else np.array([1.0, 0.0, 0.0])
+
+
+def candidates(cell, probe: Probe, lo, hi) -> list[Candidate]:
+    """Sweeps around the box [lo, hi] (table frame, mm): TABLE_STEPS table angles × TILTS_DEG,
+    the probe at mid-range from the box's centre (its top, looking straight down), each
+    sweep crossing the box with SPACING_MM between profiles."""
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    centre = 0.5 * (lo + hi)
+    half = 0.5 * float(np.linalg.norm((hi - lo)[:2])) + 5.0
+    standoff = 0.5 * sum(probe.z_range_mm)
+    out = []
+    up = np.array([0.0, 0.0, 1.0])
+    frames = max(2, int(math.ceil(2 * half / SPACING_MM)))
+    for k in range(TABLE_STEPS):
+        table_deg = 360.0 * k / TABLE_STEPS
+        s = robot_side(cell, table_deg)
+        beside = np.cross(up, s)
+        for tilt in TILTS_DEG:
+            t = math.radians(tilt)
+            # Straight down, sweeping across the robot's reach; tilted, from either side of the
+            # part as the robot sees it, sweeping towards the robot (the arm stays on its side).
+            for side, motion in ([(None, beside)] if tilt == 0.0 else [(beside, s), (-beside, s)]):
+                beam = -math.cos(t) * up - (0.0 if side is None else math.sin(t)) * (s if side is None else side)
+                aim = centre.copy()
+                aim[2] = hi[2] if tilt == 0.0 else lo[2] + (hi[2] - lo[2]) * (0.7 if tilt < 40 else 0.5)
+                middle = aim - standoff * beam
+                out.append(Candidate(table_deg, tilt if side is None or side @ beside > 0 else -tilt,
+                                     middle - half * motion, middle + half * motion, beam, frames))
+    return out
+
+
+def fan_rays(probe: Probe, poses: np.ndarray, rays: int = SAMPLE_RAYS) -> tuple[np.ndarray, np.ndarray]:
+    """(origins, directions) (n·rays, 3) of the laser fan of probe poses (n, 4, 4)."""
+    alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
+    local = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
+    dirs = np.einsum("nij,kj->nki", poses[:, :3, :3], local).reshape(-1, 3)
+    return np.repeat(poses[:, :3, 3], rays, axis=0), dirs
+
+
+def gain(space: KnownSpace, probe: Probe, poses: np.ndarray) -> int:
+    """Distinct unknown cells the laser fans of ``poses`` (table frame) first meet within the
+    probe's range: what those profiles would newly see."""
+    origins, dirs = fan_rays(probe, poses)
+    z0, z1 = probe.z_range_mm
+    dist, state = space.first_hits(origins, dirs, z1 / math.cos(probe.fan_rad / 2))
+    depth = dist * np.repeat(np.cos(np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, SAMPLE_RAYS))[None],
+                             len(poses), axis=0).ravel()
+    new = (state == UNKNOWN) & (depth >= z0) & (depth <= z1)
+    if not new.any():
+        return 0
+    cells, _ = space.cell_of(origins[new] + (dist[new] + 0.25 * space.voxel)[:, None] * dirs[new])
+    return int(len(np.unique(cells, axis=0)))
+
+
+def rank(space: KnownSpace, probe: Probe, cands: list[Candidate], table_deg_now: float,
+         probe_now: np.ndarray | None) -> list[Candidate]:
+    """The candidates with their gain and cost, best gain per second first (no gain: left out)."""
+    out = []
+    for c in cands:
+        wp = c.waypoints()
+        pick = np.linspace(0, c.frames - 1, min(SAMPLE_FRAMES, c.frames)).round().astype(int)
+        g = gain(space, probe, wp.probe2table[pick])
+        if g == 0:
+            continue
+        g = int(round(g * c.frames / len(pick)))  # the frames between the cast ones see as much again
+        turn = abs((c.table_deg - table_deg_now + 180.0) % 360.0 - 180.0)
+        travel = 0.0 if probe_now is None else float(np.linalg.norm(c.from_mm - probe_now))
+        seconds = c.frames * FRAME_S + turn / TABLE_DEG_PER_S + travel / PROBE_MM_PER_S
+        out.append(Candidate(c.table_deg, c.tilt_deg, c.from_mm, c.to_mm, c.beam, c.frames, g, seconds))
+    return sorted(out, key=lambda c: -c.utility)

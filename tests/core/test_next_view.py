@@ -1,0 +1,64 @@
+"""Next-best-view candidates and their gain, on the known-space model (no mesh, no Blender)."""
+
+import numpy as np
+import pytest
+
+from addon.core.config.scan import load_scan_config
+from addon.core.geometry.known_space import KnownSpace
+from addon.core.scan import next_view
+
+
+def setup():
+    cfg = load_scan_config("demo")
+    lo, hi = np.array([-36.0, -36.0, 0.0]), np.array([36.0, 36.0, 66.0])
+    return cfg, lo, hi, KnownSpace(lo - 6, hi + 6, 2.0)
+
+
+def test_candidates_look_at_the_box_from_the_robots_side_within_the_probes_range():
+    cfg, lo, hi, _ = setup()
+    cands = next_view.candidates(cfg.cell, cfg.probe, lo, hi)
+    assert len(cands) == next_view.TABLE_STEPS * (1 + 2 * (len(next_view.TILTS_DEG) - 1))
+    z0, z1 = cfg.probe.z_range_mm
+    centre = 0.5 * (lo + hi)
+    for c in cands:
+        mid = 0.5 * (c.from_mm + c.to_mm)
+        # The beam from the sweep's middle passes the box's axis at mid-range.
+        to_axis = centre[:2] - mid[:2]
+        along = c.beam @ (np.r_[to_axis, 0.0]) if abs(c.tilt_deg) > 0 else 0.0
+        assert along >= -1e-9
+        assert np.isclose(np.linalg.norm(c.beam), 1.0) and c.beam[2] < 0
+        wp = c.waypoints()
+        assert len(wp.probe2table) == c.frames
+        # The probe's whole path stays above the table and outside the box.
+        assert (wp.probe2table[:, 2, 3] > hi[2]).all() or abs(c.tilt_deg) > 0
+        depth_to_aim = np.linalg.norm(mid - (mid + 0.5 * (z0 + z1) * c.beam))
+        assert z0 < depth_to_aim < z1
+
+
+def test_gain_falls_where_the_model_already_knows_the_surface():
+    cfg, lo, hi, space = setup()
+    top = [c for c in next_view.candidates(cfg.cell, cfg.probe, lo, hi) if c.tilt_deg == 0 and c.table_deg == 0][0]
+    poses = top.waypoints().probe2table
+    before = next_view.gain(space, cfg.probe, poses)
+    assert before > 100
+    # Teach the model a flat top at z = 66 seen from those very poses: little stays unknown there.
+    g = np.arange(-48.0, 48.01, 1.0)  # the whole top of the model's box
+    x, y = np.meshgrid(g, g)
+    space.add_points(poses[len(poses) // 2, :3, 3], np.column_stack([x.ravel(), y.ravel(), np.full(x.size, 66.5)]))
+    after = next_view.gain(space, cfg.probe, poses)
+    assert after < 0.1 * before
+
+
+def test_ranking_prefers_gain_per_second_and_drops_empty_views():
+    cfg, lo, hi, space = setup()
+    cands = next_view.candidates(cfg.cell, cfg.probe, lo, hi)
+    ranked = next_view.rank(space, cfg.probe, cands, 0.0, None)
+    assert ranked and all(c.gain > 0 for c in ranked)
+    u = [c.utility for c in ranked]
+    assert u == sorted(u, reverse=True)
+    # Turning the table costs time: half a turn adds 180° at the table's speed.
+    c = ranked[0]
+    here = next_view.rank(space, cfg.probe, [c], c.table_deg, None)[0]
+    there = next_view.rank(space, cfg.probe, [c], c.table_deg + 180.0, None)[0]
+    assert there.gain == here.gain
+    assert there.seconds - here.seconds == pytest.approx(180.0 / next_view.TABLE_DEG_PER_S)
