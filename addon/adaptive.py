@@ -44,10 +44,12 @@ class AdaptiveStep:
         return dict(self.__dict__)
 
 
-def part_box(scanner, grow: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
-    """The bounding box a cell would be told: the config's workpiece box grown by ``grow`` of
-    its size on each side (used where the config gives no [adaptive] box)."""
-    lo, hi = (np.asarray(v, dtype=np.float64) for v in scanner.config.workpiece.mesh.bounds)
+def part_box(config, grow: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """The bounding box the planner is told: the config's [adaptive] box, else the workpiece's
+    box grown by ``grow`` of its size on each side (what a cell would roughly know)."""
+    if config.adaptive.box is not None:
+        return tuple(np.asarray(v, dtype=np.float64) for v in config.adaptive.box)
+    lo, hi = (np.asarray(v, dtype=np.float64) for v in config.workpiece.mesh.bounds)
     pad = grow * (hi - lo)
     lo, hi = lo - pad, hi + pad
     lo[2] = max(lo[2], 0.0)  # the table top

@@ -235,12 +235,12 @@ class Scanner:
 
     def _check_path(self, q: np.ndarray, table_rad: np.ndarray, what: str = "sweep", record: bool = True):
         """Collision checks on the motion from the current joints and table angle through q (n, 6);
-        the clearance found joins the report when ``record`` (it is returned either way)."""
+        the clearance found joins the report when ``record`` (else only collisions are looked for)."""
         from .core.scan.plan import check_motion
 
         t = time.perf_counter()
         try:
-            found = check_motion(self.config, q, table_rad, None, self._q, self._table_rad)
+            found = check_motion(self.config, q, table_rad, None, self._q, self._table_rad, nearest=record)
         except CollisionError as exc:
             raise CollisionError(f"{what} refused, nothing moved: {exc}") from None
         finally:
@@ -280,9 +280,7 @@ class Scanner:
         motion; with ``table_deg``, the table turned to that angle first (the turn is part of
         the checked motion). Every pose is solved before anything moves or renders; the probe
         ends at the last one."""
-        q, table_rad, found = self._plan_sweep(from_mm, to_mm, frames, beam, line, table_deg)
-        if found is not None:
-            self._clearances.append(found)
+        q, table_rad, _ = self._plan_sweep(from_mm, to_mm, frames, beam, line, table_deg, record=True)
         profiles = self._scan_frames(q, table_rad)
         self._q = np.array(q[-1], dtype=np.float64)
         self._table_rad = float(table_rad[-1])
@@ -296,7 +294,7 @@ class Scanner:
         UnreachablePose or CollisionError as ``sweep`` would."""
         return self._plan_sweep(from_mm, to_mm, frames, beam, line, table_deg)[:2]
 
-    def _plan_sweep(self, from_mm, to_mm, frames, beam, line, table_deg):
+    def _plan_sweep(self, from_mm, to_mm, frames, beam, line, table_deg, record: bool = False):
         check_whole(frames, "sweep frames", 1, MAX_FRAMES)
         if table_deg is not None and not (isinstance(table_deg, (int, float, np.number)) and math.isfinite(table_deg)):
             raise InputError(f"sweep table_deg must be a finite number of degrees, got {table_deg!r}")
@@ -318,7 +316,7 @@ class Scanner:
             bad = sol.unreachable
             raise UnreachablePose(f"{len(bad)} of {frames} poses of the sweep cannot be reached "
                                   f"(steps {frame_ranges(bad)}): {sol.messages[bad[0]]}")
-        found = self._check_path(sol.q, wp.table_rad, record=False)
+        found = self._check_path(sol.q, wp.table_rad, record=record)
         return np.asarray(sol.q, dtype=np.float64), np.asarray(wp.table_rad, dtype=np.float64), found
 
     def run(self, progress=None) -> ScanReport:
@@ -407,13 +405,14 @@ class Scanner:
         return out
 
     # -- results -------------------------------------------------------------------------
-    def result(self, out_dir: str | Path | None = None):
+    def result(self, out_dir: str | Path | None = None, extra: dict | None = None):
         """Everything measured so far, measured against the truth (a ScanResult: cloud, the
         report's dict, per-point error and part/table split, files), and with ``out_dir``
-        written there. Kept until the next measurement, so report() after save() is free."""
+        written there; ``extra`` joins the report (an adaptive scan's sweeps). Kept until the
+        next measurement, so report() after save() is free."""
         from .pipeline import Plan, assemble, merge_stats
 
-        if out_dir is None and self._cached is not None and self._cached[0] == self._frames:
+        if out_dir is None and extra is None and self._cached is not None and self._cached[0] == self._frames:
             return self._cached[1]
         q = np.concatenate([p[0] for p in self._poses]) if self._poses else np.zeros((0, 6))
         table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
@@ -422,7 +421,7 @@ class Scanner:
         plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings),
                     PathClearance.merge(self._clearances) if self._clearances else None)
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
-                          {"render_device": getattr(self._sc, "device_used", None)})
+                          {"render_device": getattr(self._sc, "device_used", None), **(extra or {})})
         self._cached = (self._frames, result)
         return result
 

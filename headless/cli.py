@@ -3,6 +3,7 @@
 Commands:
   demo                 the demo scan (rigs/scenes/demo.toml): the README's first command
   scan CONFIG          a scan described by a config file (rigs/scenes/*.toml)
+  adaptive CONFIG      scan the config's part adaptively from its bounding box (next-best-view planner)
   kinematics           tool poses of the bundled robots and IK solves
   bench kinematics     FK/IK speed, IK success and accuracy, false successes
   bench detect         laser-line detection accuracy and speed on synthetic images
@@ -56,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     scan.add_arguments(sub.add_parser("scan", help="run the scan a config file describes (bundled: "
                                       + ", ".join(available_rigs("scenes")) + ")"))
+    from headless import adaptive
+
+    adaptive.add_arguments(sub.add_parser("adaptive", help=_summary(adaptive.__doc__)))
     sub.add_parser("kinematics", help="tool poses of the bundled robots and one IK solve each").set_defaults(
         run=_run_kinematics)
 

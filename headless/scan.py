@@ -199,6 +199,16 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
             stops.check()  # a stop asked for during the last frames: still nothing written
         result = scanner.result(out)
     wall = time.perf_counter() - t
+    print_summary(result, wall)
+    e = result.report["error_um"]
+    if args.max_rms_um is not None and not e["rms_um"] <= args.max_rms_um:
+        print(f"error: RMS error {e['rms_um']:.1f} um exceeds --max-rms-um {args.max_rms_um:g}", file=sys.stderr)
+        return EXIT_QUALITY
+    return 0
+
+
+def print_summary(result, wall: float) -> None:
+    """The scan's summary on stdout: points, error, coverage, clearance, drops, time, speed, files."""
     r = result.report
     e = r["error_um"]
     print(f"\n  points        {r['points']} ({r['points_on_part']} on the part, {r['points_on_table']} on the table), "
@@ -237,7 +247,3 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
         print(f"  warning       {w}")
     for name, path in result.files.items():
         print(f"  {name:<13} {path}")
-    if args.max_rms_um is not None and not e["rms_um"] <= args.max_rms_um:
-        print(f"error: RMS error {e['rms_um']:.1f} um exceeds --max-rms-um {args.max_rms_um:g}", file=sys.stderr)
-        return EXIT_QUALITY
-    return 0

@@ -91,3 +91,4 @@ def test_bad_boxes_and_non_finite_points():
     space = KnownSpace([0, 0, 0], [10, 10, 10], 1.0)
     assert space.add_points([5, 5, 50], [[np.nan, 5, 5]]) == 0
     assert space.counts()["unknown"] == 1000
+

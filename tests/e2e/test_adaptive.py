@@ -1,26 +1,32 @@
-"""The reference adaptive planner on the demo sphere: it chooses sweeps from what its rays have
-taught it, given only a box around the part, and the cloud grows where the part is."""
+"""The reference adaptive planner on the demo sphere, through its command: it chooses sweeps from
+what its rays have taught it, given only a box around the part, and writes what a scan writes."""
+
+import json
 
 import numpy as np
 
-from addon import Scanner
-from addon.adaptive import adaptive_scan
+from addon.core.geometry.cloud import load_ply
+from addon.core.config.scan import load_scan_config
+from headless.cli import main
 
 
-def test_the_planner_covers_the_sphere_from_a_box_alone():
-    scanner = Scanner.from_config("demo")
-    lo, hi = np.array([-36.0, -36.0, 0.0]), np.array([36.0, 36.0, 66.0])  # what a cell would be told
-    seen = []
-    steps = adaptive_scan(scanner, lo, hi, max_profiles=225, log=seen.append)
-    assert 2 <= len(steps) <= 3 and sum(s.profiles for s in steps) <= 225
-    assert steps[0].new_cells > steps[-1].new_cells > 0  # each sweep teaches, the first most
-    assert len({(s.table_deg, s.tilt_deg) for s in steps}) == len(steps)  # never the same sweep twice
-    r = scanner.result().report
-    truth = scanner.config.workpiece.truth
-    result = scanner.result()
-    d = truth.distance(result.cloud.points[result.on_part])
-    assert np.sqrt(np.mean(d ** 2)) * 1e3 < 15.0
-    # Three tilted sweeps from three sides see more of the sphere than the demo's whole
-    # 180-frame path does (27 % of it).
-    assert r["coverage"] > 0.35 and r["coverage_measurable"] > 0.9
-    assert any("sweep 1:" in line for line in seen)
+def test_the_planner_covers_the_sphere_from_a_box_alone(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["adaptive", "demo", "--out", str(out), "--max-profiles", "225"]) == 0
+    log = capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "preview.png", "report.json"]
+    report = json.loads((out / "report.json").read_text())
+    sweeps = report["adaptive"]["sweeps"]
+    assert 2 <= len(sweeps) <= 3 and report["frames"] == sum(s["profiles"] for s in sweeps) <= 225
+    assert sweeps[0]["new_cells"] > sweeps[-1]["new_cells"] > 0  # each sweep teaches, the first most
+    assert len({(s["table_deg"], s["tilt_deg"]) for s in sweeps}) == len(sweeps)  # never the same twice
+    assert max(s["planning_s"] for s in sweeps) < 5.0
+    assert "sweep 1:" in log and "planner" in log
+    # Scored against the truth only now: the points lie on the sphere, and three tilted sweeps
+    # from three sides see more of it than the demo's whole 180-frame path does (27 %).
+    truth = load_scan_config("demo").workpiece.truth
+    cloud = load_ply(out / "cloud.ply")
+    d = truth.distance(cloud.points)
+    on = d < 0.5
+    assert on.sum() > 3000 and np.sqrt(np.mean(d[on] ** 2)) * 1e3 < 15.0
+    assert report["coverage"] > 0.35 and report["coverage_measurable"] > 0.9

@@ -284,6 +284,14 @@ CASES = [
     ("config: fixture colliding", lambda t: (t.joinpath("block.stl").write_bytes(cube_mm(400.0).export(
         file_type="stl")), ["scan", scene(t, DEMO + f'\n[[fixture]]\nname = "wall"\nfile = "{t / "block.stl"}"\n')])[1],
      2, ""),
+    ("config: adaptive box inverted", demo_plus("[adaptive]\nbox_min_mm = [0, 0, 0]\nbox_max_mm = [10, -10, 10]"), 2,
+     "box_max_mm"),
+    ("config: adaptive box and cylinder", demo_plus("[adaptive]\nbox_min_mm = [0, 0, 0]\nbox_max_mm = [10, 10, 10]\n"
+                                                  "radius_mm = 5.0\nheight_mm = 5.0"), 2, "radius_mm"),
+    ("config: adaptive radius negative", demo_plus("[adaptive]\nradius_mm = -5.0\nheight_mm = 5.0"), 2, "radius_mm"),
+    ("config: adaptive budget zero", demo_plus("[adaptive]\nmax_profiles = 0"), 2, "max_profiles"),
+    ("option: adaptive --max-profiles zero", lambda t: ["adaptive", "demo", "--max-profiles", "0", "--out",
+                                                        str(t / "out")], 2, "--max-profiles"),
     ("config: controller IK without host", demo_with('rig = "adept_viper_s650"',
                                                    'rig = "adept_viper_s650"\nik = "controller"'), 2, "controller"),
     # probe rigs

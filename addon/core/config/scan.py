@@ -31,6 +31,9 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
                  electrons_per_unit, read_noise_e, dark_offset_dn, prnu, sensor_width_mm,
                  pixel_pitch_um, f_number, focus_mm, wavelength_nm, frame_rate_hz, seed
                  (see addon.core.sensor)
+    [adaptive]   what the adaptive planner is told: box_min_mm, box_max_mm (the part's bounding box,
+                 table frame) or radius_mm, height_mm (a cylinder on the table's axis), max_profiles
+                 (600), min_gain (30 cells), voxel_mm (2); see addon.adaptive
     [safety]     check (true), min_clearance_mm (2): the least distance between the robot or the
                  probe and the table, the workpiece or a fixture (see addon.core.safety)
     [[fixture]]  name, file (+ scale), [fixture.pose] xyz_mm, yzz_deg, on = "table" (turns with
@@ -101,6 +104,20 @@ NARROW_RATIO = 0.8
 
 
 @dataclass(frozen=True)
+class AdaptiveSettings:
+    """[adaptive]: what the adaptive planner is told and may spend. ``box``: the part's
+    bounding volume (lo, hi) in the table frame, mm, from box_min_mm / box_max_mm or a
+    cylinder on the table's axis (radius_mm, height_mm); None: the workpiece's box grown by
+    10 % (a cell would be told roughly that much). max_profiles: the budget; min_gain: the
+    new cells a sweep must promise; voxel_mm: the model's cell size."""
+
+    box: tuple | None = None
+    max_profiles: int = 600
+    min_gain: int = 30
+    voxel_mm: float = 2.0
+
+
+@dataclass(frozen=True)
 class ScanConfig:
     name: str
     source: str
@@ -126,6 +143,7 @@ class ScanConfig:
     profile_filter: ProfileFilter = field(default_factory=lambda: DEFAULT_FILTER)
     safety: Safety = field(default_factory=Safety)
     fixtures: tuple = ()
+    adaptive: AdaptiveSettings = field(default_factory=AdaptiveSettings)
 
     @property
     def detect_params(self) -> DetectParams:
@@ -303,6 +321,7 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
                     st.number("min_clearance_mm", default=Safety().min_clearance_mm, lo=0.0, hi=1e4))
     st.finish()
     fixtures = _fixtures(top, base)
+    adaptive = _adaptive(top.table("adaptive", default={}))
     truth = top.table("truth", default={})
     cov = truth.number("coverage_tolerance_mm", default=1.0, lo=0.0, hi=1e3, lo_open=True)
     truth.finish()
@@ -312,8 +331,29 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
                           "use laser = \"slit\" with engine = \"eevee\"")
     cfg = ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
                      detect, tri_method, fuse, leave_out, cov, description, profile_filter=profile_filter,
-                     safety=safety, fixtures=fixtures)
+                     safety=safety, fixtures=fixtures, adaptive=adaptive)
     return cfg.with_realism(sensor, material, roughness)
+
+
+def _adaptive(t: Table) -> AdaptiveSettings:
+    box = None
+    if t.has("box_min_mm") or t.has("box_max_mm"):
+        lo, hi = t.numbers("box_min_mm", 3, lo=-1e4, hi=1e4), t.numbers("box_max_mm", 3, lo=-1e4, hi=1e4)
+        if not (hi > lo).all():
+            raise t.error("box_max_mm", f"{hi.tolist()} must exceed box_min_mm {lo.tolist()} in x, y and z")
+        box = (lo, hi)
+    if t.has("radius_mm") or t.has("height_mm"):
+        if box is not None:
+            raise t.error("radius_mm", "give a box (box_min_mm, box_max_mm) or a cylinder (radius_mm, height_mm), "
+                                       "not both")
+        r = t.number("radius_mm", lo=0.0, hi=1e4, lo_open=True)
+        h = t.number("height_mm", lo=0.0, hi=1e4, lo_open=True)
+        box = (np.array([-r, -r, 0.0]), np.array([r, r, h]))
+    out = AdaptiveSettings(box, t.integer("max_profiles", default=600, lo=1, hi=100_000),
+                           t.integer("min_gain", default=30, lo=1, hi=10**9),
+                           t.number("voxel_mm", default=2.0, lo=0.1, hi=100.0))
+    t.finish()
+    return out
 
 
 def _fixtures(top: Table, base: Path) -> tuple:

@@ -152,13 +152,17 @@ class KnownSpace:
 
     def frontier(self) -> np.ndarray:
         """Indices (m, 3) of unknown cells with a free cell among their six neighbours."""
-        free = self.state == FREE
-        near = np.zeros_like(free)
-        for axis in range(3):
-            for shift in (1, -1):
-                rolled = np.roll(free, shift, axis=axis)
-                edge = [slice(None)] * 3
-                edge[axis] = 0 if shift == 1 else -1
-                rolled[tuple(edge)] = False
-                near |= rolled
-        return np.argwhere(near & (self.state == UNKNOWN))
+        return np.argwhere(_beside(self.state == FREE) & (self.state == UNKNOWN))
+
+
+def _beside(mask: np.ndarray) -> np.ndarray:
+    """Cells with a ``mask`` cell among their six neighbours."""
+    near = np.zeros_like(mask)
+    for axis in range(3):
+        for shift in (1, -1):
+            rolled = np.roll(mask, shift, axis=axis)
+            edge = [slice(None)] * 3
+            edge[axis] = 0 if shift == 1 else -1
+            rolled[tuple(edge)] = False
+            near |= rolled
+    return near

@@ -278,8 +278,10 @@ class CollisionModel:
             out_p.append(offset + i - 1 + f)
         return np.vstack(out_q), np.concatenate(out_t), np.concatenate(out_p)
 
-    def check(self, q, table_rad, segment=None, q_start=None, table_start=None) -> PathClearance:
-        """Check the path (and the move onto it from ``q_start``); see :class:`PathClearance`."""
+    def check(self, q, table_rad, segment=None, q_start=None, table_start=None, nearest: bool = True
+              ) -> PathClearance:
+        """Check the path (and the move onto it from ``q_start``); see :class:`PathClearance`.
+        ``nearest``: also the smallest clearance per path entry (else only the collisions)."""
         qs, ts, pos = self.samples(q, table_rad, q_start, table_start)
         n_way = len(np.asarray(table_rad).reshape(-1))
         seg = np.zeros(n_way, int) if segment is None else np.asarray(segment, int).reshape(-1)
@@ -292,7 +294,7 @@ class CollisionModel:
             support[i] = np.einsum("nij,kj->nki", T[:, :3, :3], b.support) + T[:, None, :3, 3]
         up = carriers["table"][:, :3, 2]
         out = PathClearance(self.min_clearance_mm, samples=len(qs))
-        nearest: dict[int, Contact] = {}
+        closest: dict[int, Contact] = {}
         for i, j, limit in self.pairs:
             bound = self._bound(i, j, centres, support, up)
             env = limit != CONTACT_MM
@@ -310,9 +312,9 @@ class CollisionModel:
                 last = s
             if run:
                 out.collisions.append((run[0], run[-1]))
-            if env:
-                self._nearest(i, j, carriers, bound, pos, seg_of, nearest, out)
-        out.nearest = nearest
+            if env and nearest:
+                self._nearest(i, j, carriers, bound, pos, seg_of, closest, out)
+        out.nearest = closest
         return out
 
     def _bound(self, i, j, centres, support, up) -> np.ndarray:

@@ -88,14 +88,16 @@ def collision_model(config: ScanConfig) -> CollisionModel:
     return model
 
 
-def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, table_start=None
-                 ) -> PathClearance | None:
+def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, table_start=None,
+                 nearest: bool = True) -> PathClearance | None:
     """Collision checks along the motion through joints q (n, 6) and table angles (n,), from
     ``q_start`` where given; raises CollisionError naming the first frames and the two bodies.
-    None where the config turns the checks off."""
+    ``nearest``: also find the smallest clearance per path entry for the report (a planner
+    asking only whether a motion is allowed leaves it out). None where the config turns the
+    checks off."""
     if not config.safety.check:
         return None
-    result = collision_model(config).check(q, table_rad, segment, q_start, table_start)
+    result = collision_model(config).check(q, table_rad, segment, q_start, table_start, nearest=nearest)
     if not result.ok:
         raise CollisionError(result.message())
     return result

@@ -1,0 +1,90 @@
+"""``python -m headless adaptive CONFIG``: scan a part adaptively, with the reference next-best-view
+planner (addon.adaptive), from its bounding box alone.
+
+The config gives the cell (robot, probe, table), the part (rendered, and measured against
+afterwards, but never shown to the planner) and an optional ``[adaptive]`` table (the box
+the planner is told, the budget); its ``[[path]]`` entries are ignored. Writes what a scan
+writes (cloud.ply, report.json with ``frames`` = profiles taken and ``adaptive``: the sweeps
+chosen, preview.png). Exit codes as for ``scan``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
+    parser.add_argument("--out", help="output folder (default: out/<config name>-adaptive)")
+    parser.add_argument("--max-profiles", type=int, help="profile budget (default: the config's, else 600)")
+    parser.add_argument("--min-gain", type=int, help="new cells a sweep must promise (default 30)")
+    parser.add_argument("--force", action="store_true", help="as for scan: skip the memory and time limits")
+    parser.add_argument("--quiet", action="store_true", help="no progress and no log of the sweeps")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from addon import Scanner
+    from addon.adaptive import adaptive_scan, part_box
+    from addon.core.config.scan import load_scan_config
+    from addon.core.errors import InputError
+    from addon.core.files import OutputLock
+    from addon.core.scan.outputs import OUTPUT_FILES
+    from headless import preflight
+    from headless.scan import ProgressBar, print_summary
+
+    config = load_scan_config(args.config)
+    settings = config.adaptive
+    if args.max_profiles is not None:
+        if args.max_profiles < 1:
+            raise InputError(f"--max-profiles must be at least 1, got {args.max_profiles}")
+        settings = replace(settings, max_profiles=args.max_profiles)
+    if args.min_gain is not None:
+        if args.min_gain < 1:
+            raise InputError(f"--min-gain must be at least 1, got {args.min_gain}")
+        settings = replace(settings, min_gain=args.min_gain)
+    out = args.out or str(Path("out") / f"{Path(config.source).stem}-adaptive")
+    preflight.check_scan(config, out, names=OUTPUT_FILES.values(), force=args.force)
+    lo, hi = part_box(config)
+    print(f"adaptive: {config.name}: {config.robot.name}, {config.probe.name}; the planner is told the box "
+          f"{lo.round(1).tolist()} .. {hi.round(1).tolist()} mm, budget {settings.max_profiles} profiles", flush=True)
+    stops = getattr(args, "stops", None)
+    bar = ProgressBar(args.quiet)
+
+    def progress(stage, done, total):
+        bar(stage, done, total)
+        if stops is not None:
+            stops.progress(stage, done, total)
+
+    lock = OutputLock(out).acquire()
+    if stops is not None:
+        stops.cleanups.append(lock.release)
+    try:
+        t = time.perf_counter()
+        scanner = Scanner(config=config)
+        steps = adaptive_scan(scanner, lo, hi, max_profiles=settings.max_profiles, min_gain=settings.min_gain,
+                              voxel_mm=settings.voxel_mm, progress=progress,
+                              log=None if args.quiet else (lambda m: print(m, flush=True)))
+        if stops is not None:
+            stops.check()
+        result = scanner.result(out, extra={"adaptive": {
+            "box_mm": [lo.tolist(), hi.tolist()], "max_profiles": settings.max_profiles,
+            "sweeps": [s.as_dict() for s in steps]}})
+        print_summary(result, time.perf_counter() - t)
+        plan_s = [s.planning_s for s in steps]
+        if plan_s:
+            print(f"  planner       {len(steps)} sweeps, {sum(s.profiles for s in steps)} profiles; planning "
+                  f"{max(plan_s):.2f} s at most per decision (median {sorted(plan_s)[len(plan_s) // 2]:.2f} s)")
+        return 0
+    except KeyboardInterrupt as exc:
+        from headless.lifecycle import Interrupted
+
+        exc = exc if isinstance(exc, Interrupted) else Interrupted(2)
+        print(f"{exc.describe()}: nothing written to {out}", file=sys.stderr, flush=True)
+        return exc.exit_code
+    finally:
+        lock.release()
