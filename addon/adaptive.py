@@ -56,64 +56,92 @@ def part_box(config, grow: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+class NextBestView:
+    """The planner's state: the known-space model over the box, the candidate sweeps, and the
+    ones done or impossible. ``choose(scanner)`` picks the next sweep (None: nothing left worth
+    it); ``learn(profiles)`` adds what a sweep measured."""
+
+    def __init__(self, scanner, lo, hi, *, min_gain: int = 30, voxel_mm: float = VOXEL_MM):
+        lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+        if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()
+                                                        and (hi > lo).all()):
+            raise InputError(f"the part's bounding box needs lo < hi, three finite numbers each, got {lo!r}, {hi!r}")
+        self.probe = scanner.config.probe
+        self.lo, self.hi, self.min_gain = lo, hi, int(min_gain)
+        self.space = KnownSpace(lo - MARGIN_MM, hi + MARGIN_MM, voxel_mm)
+        self.pool = next_view.candidates(scanner.config.cell, self.probe, lo, hi)
+        self.impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
+        self.refused: list[str] = []  # why, for the last decision
+
+    def choose(self, scanner, budget: int | None = None):
+        """The best candidate the robot can do from where it is now (checked without moving),
+        trying at most TRIES, each promising at least ``min_gain`` cells and fitting ``budget``
+        profiles; None where there is none."""
+        probe_now = scanner.pose("table")[:3, 3]
+        live = [c for c in self.pool if c.key not in self.impossible]
+        ranked = [c for c in next_view.rank(self.space, self.probe, live, scanner.table_deg, probe_now)
+                  if c.gain >= self.min_gain and (budget is None or c.frames <= budget)]
+        self.refused = []
+        for c in ranked[:TRIES]:
+            if self.feasible(scanner, c):
+                return c
+        return None
+
+    def feasible(self, scanner, c) -> bool:
+        """Whether the robot can do candidate ``c`` from where it is now (nothing moves); an
+        impossible one is remembered."""
+        try:
+            scanner.plan_sweep(c.from_mm, c.to_mm, c.frames, beam=c.beam, table_deg=c.table_deg)
+        except (UnreachablePose, CollisionError) as exc:
+            self.impossible.add(c.key)
+            self.refused.append(f"{c.describe()}: {str(exc)[:160]}")
+            return False
+        return True
+
+    def scan(self, scanner, c) -> tuple[list, int]:
+        """Scan candidate ``c`` and learn from it: (its profiles, the cells it taught)."""
+        before = self.space.counts()["unknown"]
+        profiles = scanner.sweep(c.from_mm, c.to_mm, c.frames, beam=c.beam, table_deg=c.table_deg)
+        for p in profiles:
+            if len(p.points):
+                self.space.add_points(p.probe2table[:3, 3], p.points)
+        self.impossible.add(c.key)  # the same sweep again would see the same (the scan is deterministic)
+        return profiles, before - self.space.counts()["unknown"]
+
+
 def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 30,
                   voxel_mm: float = VOXEL_MM, progress=None, log=None) -> list[AdaptiveStep]:
     """Scan the part inside the box [lo, hi] (table frame, mm) adaptively with ``scanner``;
     returns the decisions. ``progress(stage, done, total)`` after each sweep (profiles)."""
-    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-    if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all() and (hi > lo).all()):
-        raise InputError(f"the part's bounding box needs lo < hi, three finite numbers each, got {lo!r}, {hi!r}")
-    if not (isinstance(max_profiles, int) and max_profiles > 0):
+    if isinstance(max_profiles, bool) or not isinstance(max_profiles, int) or max_profiles < 1:
         raise InputError(f"max_profiles must be a positive whole number, got {max_profiles!r}")
-    probe = scanner.config.probe
-    space = KnownSpace(lo - MARGIN_MM, hi + MARGIN_MM, voxel_mm)
-    pool = next_view.candidates(scanner.config.cell, probe, lo, hi)
+    planner = NextBestView(scanner, lo, hi, min_gain=min_gain, voxel_mm=voxel_mm)
     steps: list[AdaptiveStep] = []
     taken = 0
-    impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
     while taken < max_profiles:
         t = time.perf_counter()
-        probe_now = scanner.pose("table")[:3, 3]
-        live = [c for c in pool if c.key not in impossible]
-        ranked = [c for c in next_view.rank(space, probe, live, scanner.table_deg, probe_now) if c.gain >= min_gain]
-        chosen, refused = None, 0
-        for c in ranked[:TRIES]:
-            if taken + c.frames > max_profiles:
-                continue
-            try:
-                scanner.plan_sweep(c.from_mm, c.to_mm, c.frames, beam=c.beam, table_deg=c.table_deg)
-            except (UnreachablePose, CollisionError) as exc:
-                refused += 1
-                impossible.add(c.key)
-                if log:
-                    log(f"  refused {c.describe()}: {str(exc)[:160]}")
-                continue
-            chosen = c
-            break
+        chosen = planner.choose(scanner, max_profiles - taken)
         planning = time.perf_counter() - t
+        if log:
+            for why in planner.refused:
+                log(f"  refused {why}")
         if chosen is None:
             if log:
                 log(f"adaptive: stopping after {len(steps)} sweeps: no reachable sweep promises {min_gain} new "
-                    f"cells within the budget ({refused} refused)")
+                    f"cells within the budget")
             break
-        before = space.counts()["unknown"]
-        profiles = scanner.sweep(chosen.from_mm, chosen.to_mm, chosen.frames, beam=chosen.beam,
-                                 table_deg=chosen.table_deg)
-        for p in profiles:
-            if len(p.points):
-                space.add_points(p.probe2table[:3, 3], p.points)
-        impossible.add(chosen.key)  # the same sweep again would see the same (the scan is deterministic)
+        profiles, learnt = planner.scan(scanner, chosen)
         taken += len(profiles)
-        step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles),
-                            before - space.counts()["unknown"], chosen.gain, planning, refused)
+        step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
+                            chosen.gain, planning, len(planner.refused))
         steps.append(step)
         if log:
             log(f"adaptive: sweep {len(steps)}: {step.sweep}; learnt {step.new_cells} cells "
-                f"(planned in {planning:.2f} s, {refused} refused)")
+                f"(planned in {planning:.2f} s, {step.refused} refused)")
+        if progress:
+            progress("adaptive", taken, max_profiles)
         if len(steps) >= 2 and all(s.new_cells < min_gain for s in steps[-2:]):
             if log:
                 log(f"adaptive: stopping after {len(steps)} sweeps: the last two taught fewer than {min_gain} cells")
             break
-        if progress:
-            progress("adaptive", taken, max_profiles)
     return steps

@@ -4,6 +4,7 @@ Commands:
   demo                 the demo scan (rigs/scenes/demo.toml): the README's first command
   scan CONFIG          a scan described by a config file (rigs/scenes/*.toml)
   adaptive CONFIG      scan the config's part adaptively from its bounding box (next-best-view planner)
+  gym-baselines        the Gymnasium environment's two baselines (reference planner, random sweeps): coverage curves
   kinematics           tool poses of the bundled robots and IK solves
   bench kinematics     FK/IK speed, IK success and accuracy, false successes
   bench detect         laser-line detection accuracy and speed on synthetic images
@@ -60,6 +61,10 @@ def build_parser() -> argparse.ArgumentParser:
     from headless import adaptive
 
     adaptive.add_arguments(sub.add_parser("adaptive", help=_summary(adaptive.__doc__)))
+    from headless import scan_env
+
+    scan_env.add_arguments(sub.add_parser("gym-baselines", help="run the Gymnasium environment's two baselines "
+                                          "(reference planner, random sweeps) and print their coverage curves"))
     sub.add_parser("kinematics", help="tool poses of the bundled robots and one IK solve each").set_defaults(
         run=_run_kinematics)
 

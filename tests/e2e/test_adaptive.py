@@ -30,3 +30,37 @@ def test_the_planner_covers_the_sphere_from_a_box_alone(tmp_path, capsys):
     on = d < 0.5
     assert on.sum() > 3000 and np.sqrt(np.mean(d[on] ** 2)) * 1e3 < 15.0
     assert report["coverage"] > 0.35 and report["coverage_measurable"] > 0.9
+
+
+class _Blindfolded:
+    """A Scanner seen through a blindfold: its config hides the part (any read of the
+    workpiece fails); everything else is the Scanner's own (which renders the part, as a real
+    cell's physics would)."""
+
+    def __init__(self, scanner):
+        self._scanner = scanner
+
+    def __getattr__(self, name):
+        if name == "config":
+            return _ConfigWithoutPart(self._scanner.config)
+        return getattr(self._scanner, name)
+
+
+class _ConfigWithoutPart:
+    def __init__(self, config):
+        self._config = config
+
+    def __getattr__(self, name):
+        if name == "workpiece":
+            raise AssertionError("the planner read the part it must not know")
+        return getattr(self._config, name)
+
+
+def test_the_planner_works_without_reading_the_part():
+    from addon import Scanner
+    from addon.adaptive import adaptive_scan
+
+    scanner = Scanner.from_config("demo")
+    steps = adaptive_scan(_Blindfolded(scanner), [-36.0, -36.0, 0.0], [36.0, 36.0, 66.0], max_profiles=150)
+    assert len(steps) == 2 and all(s.new_cells > 0 for s in steps)
+    assert len(scanner.cloud) > 3000

@@ -1,0 +1,151 @@
+"""A Gymnasium environment for learning view planners: each step chooses the next sweep of a
+Scanner over a part that only its bounding box reveals.
+
+- **action** ``MultiDiscrete([table angles, views])``: a table angle (one of
+  ``next_view.TABLE_STEPS``) and a view at it (straight down, or tilted by one of the
+  tilts from either side): the same candidate sweeps the reference planner chooses among.
+- **observation** ``Dict(grid=Box(0, 2, (G, G, G), uint8), probe=Box((7,), float32))``: the
+  known-space model (0 unknown, 1 free, 2 surface) resampled to G³ cells over the part's box,
+  and the probe's position (mm, table frame), beam direction and the table angle / 360.
+- **reward**: the cells the sweep taught, in thousands, minus its time in seconds times
+  ``time_cost``; a sweep the robot cannot do (unreachable, colliding) scans nothing and
+  costs ``refusal_cost``.
+- the episode ends when the profile budget is spent (terminated) or after ``max_steps``
+  steps (truncated).
+
+Scans are deterministic, so equal seeds and actions give equal episodes. Each step renders a
+whole sweep (seconds on a CPU): this is a test bench, not a fast simulator of views.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from addon.adaptive import NextBestView, part_box
+from addon.core.geometry.known_space import SURFACE
+from addon.core.scan import next_view
+
+
+PROBE_REACH_MM = 5000.0  # bounds of the probe's position in the observation (table frame)
+
+
+class ScanPlanningEnv(gym.Env):
+    metadata = {"render_modes": []}
+
+    def __init__(self, config: str = "demo", *, max_profiles: int = 600, grid: int = 16, max_steps: int = 32,
+                 time_cost: float = 0.01, refusal_cost: float = 0.5):
+        from addon.core.config.scan import load_scan_config
+
+        self.config = load_scan_config(config) if isinstance(config, str) else config
+        self.max_profiles, self.grid, self.max_steps = int(max_profiles), int(grid), int(max_steps)
+        self.time_cost, self.refusal_cost = float(time_cost), float(refusal_cost)
+        self.views = 1 + 2 * (len(next_view.TILTS_DEG) - 1)
+        self.action_space = spaces.MultiDiscrete([next_view.TABLE_STEPS, self.views])
+        self.observation_space = spaces.Dict({
+            "grid": spaces.Box(0, 2, (self.grid,) * 3, dtype=np.uint8),
+            "probe": spaces.Box(np.array([-PROBE_REACH_MM] * 3 + [-1.0] * 3 + [0.0], dtype=np.float32),
+                                np.array([PROBE_REACH_MM] * 3 + [1.0] * 3 + [1.0], dtype=np.float32)),
+        })
+        self.scanner = None
+        self.planner = None
+
+    # -- the episode ------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        from addon import Scanner
+
+        self.scanner = Scanner(config=self.config)
+        lo, hi = part_box(self.config)
+        self.planner = NextBestView(self.scanner, lo, hi)
+        self.profiles, self.steps = 0, 0
+        return self._observation(), {"profiles": 0, "surface_cells": 0}
+
+    def step(self, action):
+        table_step, view = (int(a) for a in np.asarray(action).reshape(2))
+        c = self.planner.pool[table_step * self.views + view]
+        self.steps += 1
+        info = {"sweep": c.describe(), "refused": None}
+        if c.frames > self.max_profiles - self.profiles:
+            reward, learnt = -self.refusal_cost, 0
+            info["refused"] = "over the profile budget"
+        elif not self.planner.feasible(self.scanner, c):
+            reward, learnt = -self.refusal_cost, 0
+            info["refused"] = self.planner.refused[-1]
+        else:
+            start = self.scanner.pose("table")[:3, 3]
+            turn = abs((c.table_deg - self.scanner.table_deg + 180.0) % 360.0 - 180.0)
+            profiles, learnt = self.planner.scan(self.scanner, c)
+            self.profiles += len(profiles)
+            seconds = (len(profiles) * next_view.FRAME_S + turn / next_view.TABLE_DEG_PER_S
+                       + float(np.linalg.norm(c.from_mm - start)) / next_view.PROBE_MM_PER_S)
+            reward = learnt / 1000.0 - self.time_cost * seconds
+        info.update(profiles=self.profiles, learnt=learnt,
+                    surface_cells=int((self.planner.space.state == SURFACE).sum()))
+        terminated = self.profiles + min(c.frames for c in self.planner.pool) > self.max_profiles
+        truncated = self.steps >= self.max_steps
+        return self._observation(), float(reward), bool(terminated), bool(truncated), info
+
+    # -- what the agent sees ----------------------------------------------------------------
+    def _observation(self) -> dict:
+        state = self.planner.space.state
+        idx = [np.linspace(0, n - 1, self.grid).round().astype(int) for n in state.shape]
+        grid = state[np.ix_(*idx)].astype(np.uint8)
+        pose = self.scanner.pose("table")
+        probe = np.r_[np.clip(pose[:3, 3], -PROBE_REACH_MM, PROBE_REACH_MM), pose[:3, 2],
+                      self.scanner.table_deg % 360.0 / 360.0].astype(np.float32)
+        return {"grid": grid, "probe": probe}
+
+    def reference_action(self) -> np.ndarray | None:
+        """The reference planner's choice as an action (None: it would stop)."""
+        c = self.planner.choose(self.scanner, self.max_profiles - self.profiles)
+        if c is None:
+            return None
+        i = next(k for k, p in enumerate(self.planner.pool) if p.key == c.key)
+        return np.array([i // self.views, i % self.views])
+
+
+def coverage_curve(env: ScanPlanningEnv, policy, seed: int = 0) -> list[tuple[int, float]]:
+    """Run one episode with ``policy(env, rng) -> action or None``; returns (profiles, coverage
+    of the whole part against the truth) after each step (the truth used only to score)."""
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    curve = []
+    while True:
+        action = policy(env, rng)
+        if action is None:
+            break
+        _, _, terminated, truncated, info = env.step(action)
+        if info["refused"] is None:
+            curve.append((info["profiles"], env.scanner.result().report["coverage"]))
+        if terminated or truncated:
+            break
+    return curve
+
+
+def random_policy(env, rng):
+    """Any table angle and view, uniformly (seeded by ``rng``)."""
+    return np.array([rng.integers(n) for n in env.action_space.nvec])
+
+
+def reference_policy(env, rng):
+    return env.reference_action()
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--config", default="demo", help="scan config whose cell and part to use (default demo)")
+    parser.add_argument("--max-profiles", type=int, default=300, help="profile budget per episode (default 300)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.set_defaults(run=run)
+
+
+def run(args) -> int:
+    """Both baselines through the environment, their coverage curves printed side by side."""
+    env = ScanPlanningEnv(args.config, max_profiles=args.max_profiles)
+    print(f"ScanPlanningEnv on {env.config.name}: {args.max_profiles} profiles per episode, seed {args.seed}")
+    for name, policy in (("reference planner", reference_policy), ("random sweeps", random_policy)):
+        curve = coverage_curve(env, policy, seed=args.seed)
+        points = ", ".join(f"{p} profiles {c * 100:.1f} %" for p, c in curve) or "nothing scanned"
+        print(f"  {name:<18} {points}")
+    return 0
