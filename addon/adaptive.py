@@ -5,7 +5,7 @@ the part (never the part's mesh; a config's [[path]] entries are ignored). It th
 rank candidate sweeps by the new surface they would see per second of scanning, according
 to what every laser ray so far has taught (core.scan.next_view over
 core.geometry.known_space); ask the Scanner whether the robot can do the best one (solved
-and collision-checked without moving: ``Scanner.plan_sweep``), else the next; scan it; add
+and collision-checked without moving: ``Scanner.plan_path``), else the next; scan it; add
 its profiles to the model. It stops when no candidate promises ``min_gain`` new cells or
 the profile budget is spent. The ground truth is used only afterwards, to score.
 """
@@ -91,7 +91,7 @@ class NextBestView:
         """Whether the robot can do candidate ``c`` from where it is now (nothing moves); an
         impossible one is remembered."""
         try:
-            scanner.plan_sweep(c.from_mm, c.to_mm, c.frames, beam=c.beam, table_deg=c.table_deg)
+            scanner.plan_path(c.waypoints())
         except (UnreachablePose, CollisionError) as exc:
             self.impossible.add(c.key)
             self.refused.append(f"{c.describe()}: {str(exc)[:160]}")
@@ -101,7 +101,7 @@ class NextBestView:
     def scan(self, scanner, c) -> tuple[list, int]:
         """Scan candidate ``c`` and learn from it: (its profiles, the cells it taught)."""
         before = self.space.counts()["unknown"]
-        profiles = scanner.sweep(c.from_mm, c.to_mm, c.frames, beam=c.beam, table_deg=c.table_deg)
+        profiles = scanner.scan_path(c.waypoints())
         for p in profiles:
             if len(p.points):
                 self.space.add_points(p.probe2table[:3, 3], p.points)

@@ -307,6 +307,11 @@ class Scanner:
             if v.shape != (3,) or not np.isfinite(v).all():
                 raise InputError(f"sweep {name} must be three finite numbers [x, y, z] (mm), got {value!r}")
         wp = sweep_waypoints(frames, from_mm, to_mm, beam, line, table_rad=table_rad)
+        return self._plan_waypoints(wp, record, "sweep")
+
+    def _plan_waypoints(self, wp: Waypoints, record: bool = False, what: str = "path"):
+        """(joints, table angles, clearance) of waypoints: solved from the current joints and
+        collision-checked from where the robot and the table are now; nothing moves."""
         from .core.kinematics.path import solve_path
 
         sol = solve_path(self.config.cell, wp, self._q)
@@ -314,10 +319,25 @@ class Scanner:
             from .pipeline import frame_ranges
 
             bad = sol.unreachable
-            raise UnreachablePose(f"{len(bad)} of {frames} poses of the sweep cannot be reached "
+            raise UnreachablePose(f"{len(bad)} of {len(wp.table_rad)} poses of the {what} cannot be reached "
                                   f"(steps {frame_ranges(bad)}): {sol.messages[bad[0]]}")
-        found = self._check_path(sol.q, wp.table_rad, record=record)
+        found = self._check_path(sol.q, wp.table_rad, what, record=record)
         return np.asarray(sol.q, dtype=np.float64), np.asarray(wp.table_rad, dtype=np.float64), found
+
+    def plan_path(self, waypoints: Waypoints) -> tuple[np.ndarray, np.ndarray]:
+        """``plan_sweep`` for any waypoints (core.kinematics.path: a turntable pass, a sweep,
+        several concatenated): (joints, table angles rad), nothing moved."""
+        return self._plan_waypoints(waypoints)[:2]
+
+    def scan_path(self, waypoints: Waypoints) -> list[Profile]:
+        """A profile at each of ``waypoints`` (probe poses in the table frame and table angles,
+        e.g. ``core.kinematics.path.turntable``: the probe still while the table turns), solved
+        and checked before anything moves; the robot and the table end at the last one."""
+        q, table_rad, _ = self._plan_waypoints(waypoints, record=True)
+        profiles = self._scan_frames(q, table_rad)
+        self._q = np.array(q[-1], dtype=np.float64)
+        self._table_rad = float(table_rad[-1])
+        return profiles
 
     def run(self, progress=None) -> ScanReport:
         """Scan the configured path ([[path]] entries) from its start joints; the probe ends at

@@ -1,9 +1,10 @@
 """A Gymnasium environment for learning view planners: each step chooses the next sweep of a
 Scanner over a part that only its bounding box reveals.
 
-- **action** ``MultiDiscrete([table angles, views])``: a table angle (one of
-  ``next_view.TABLE_STEPS``) and a view at it (straight down, or tilted by one of the
-  tilts from either side): the same candidate sweeps the reference planner chooses among.
+- **action** ``MultiDiscrete([table angles, views, 2])``: a table angle (one of
+  ``next_view.TABLE_STEPS``), a view (straight down, or tilted by one of the tilts from
+  either side) and the kind (0 a sweep at that angle, 1 a full table turn from that view):
+  the candidates the reference planner chooses among.
 - **observation** ``Dict(grid=Box(0, 2, (G, G, G), uint8), probe=Box((7,), float32))``: the
   known-space model (0 unknown, 1 free, 2 surface) resampled to G³ cells over the part's box,
   and the probe's position (mm, table frame), beam direction and the table angle / 360.
@@ -41,8 +42,8 @@ class ScanPlanningEnv(gym.Env):
         self.config = load_scan_config(config) if isinstance(config, str) else config
         self.max_profiles, self.grid, self.max_steps = int(max_profiles), int(grid), int(max_steps)
         self.time_cost, self.refusal_cost = float(time_cost), float(refusal_cost)
-        self.views = 1 + 2 * (len(next_view.TILTS_DEG) - 1)
-        self.action_space = spaces.MultiDiscrete([next_view.TABLE_STEPS, self.views])
+        self.tilts = [0.0] + [t * sign for t in next_view.TILTS_DEG[1:] for sign in (1.0, -1.0)]
+        self.action_space = spaces.MultiDiscrete([next_view.TABLE_STEPS, len(self.tilts), 2])
         self.observation_space = spaces.Dict({
             "grid": spaces.Box(0, 2, (self.grid,) * 3, dtype=np.uint8),
             "probe": spaces.Box(np.array([-PROBE_REACH_MM] * 3 + [-1.0] * 3 + [0.0], dtype=np.float32),
@@ -59,12 +60,13 @@ class ScanPlanningEnv(gym.Env):
         self.scanner = Scanner(config=self.config)
         lo, hi = part_box(self.config)
         self.planner = NextBestView(self.scanner, lo, hi)
+        self._by_key = {c.key: c for c in self.planner.pool}
         self.profiles, self.steps = 0, 0
         return self._observation(), {"profiles": 0, "surface_cells": 0}
 
     def step(self, action):
-        table_step, view = (int(a) for a in np.asarray(action).reshape(2))
-        c = self.planner.pool[table_step * self.views + view]
+        table_step, view, kind = (int(a) for a in np.asarray(action).reshape(3))
+        c = self._by_key[self._key(table_step, view, kind)]
         self.steps += 1
         info = {"sweep": c.describe(), "refused": None}
         if c.frames > self.max_profiles - self.profiles:
@@ -74,12 +76,11 @@ class ScanPlanningEnv(gym.Env):
             reward, learnt = -self.refusal_cost, 0
             info["refused"] = self.planner.refused[-1]
         else:
-            start = self.scanner.pose("table")[:3, 3]
-            turn = abs((c.table_deg - self.scanner.table_deg + 180.0) % 360.0 - 180.0)
+            ranked = next_view.rank(self.planner.space, self.planner.probe, [c], self.scanner.table_deg,
+                                    self.scanner.pose("table")[:3, 3])
+            seconds = ranked[0].seconds if ranked else c.frames * next_view.FRAME_S
             profiles, learnt = self.planner.scan(self.scanner, c)
             self.profiles += len(profiles)
-            seconds = (len(profiles) * next_view.FRAME_S + turn / next_view.TABLE_DEG_PER_S
-                       + float(np.linalg.norm(c.from_mm - start)) / next_view.PROBE_MM_PER_S)
             reward = learnt / 1000.0 - self.time_cost * seconds
         info.update(profiles=self.profiles, learnt=learnt,
                     surface_cells=int((self.planner.space.state == SURFACE).sum()))
@@ -97,13 +98,18 @@ class ScanPlanningEnv(gym.Env):
                       self.scanner.table_deg % 360.0 / 360.0].astype(np.float32)
         return {"grid": grid, "probe": probe}
 
+    def _key(self, table_step: int, view: int, kind: int) -> tuple:
+        table_deg = 0.0 if kind == 1 else 360.0 * table_step / next_view.TABLE_STEPS
+        return ("turn" if kind == 1 else "sweep", round(table_deg, 6), round(self.tilts[view], 6))
+
     def reference_action(self) -> np.ndarray | None:
         """The reference planner's choice as an action (None: it would stop)."""
         c = self.planner.choose(self.scanner, self.max_profiles - self.profiles)
         if c is None:
             return None
-        i = next(k for k, p in enumerate(self.planner.pool) if p.key == c.key)
-        return np.array([i // self.views, i % self.views])
+        step = int(round(c.table_deg * next_view.TABLE_STEPS / 360.0)) % next_view.TABLE_STEPS
+        view = min(range(len(self.tilts)), key=lambda v: abs(self.tilts[v] - c.tilt_deg))
+        return np.array([step, view, 1 if c.kind == "turn" else 0])
 
 
 def coverage_curve(env: ScanPlanningEnv, policy, seed: int = 0) -> list[tuple[int, float]]:

@@ -17,27 +17,28 @@ def setup():
 def test_candidates_look_at_the_box_from_the_robots_side_within_the_probes_range():
     cfg, lo, hi, _ = setup()
     cands = next_view.candidates(cfg.cell, cfg.probe, lo, hi)
-    assert len(cands) == next_view.TABLE_STEPS * (1 + 2 * (len(next_view.TILTS_DEG) - 1))
+    views = 1 + 2 * (len(next_view.TILTS_DEG) - 1)
+    assert sum(c.kind == "sweep" for c in cands) == next_view.TABLE_STEPS * views
+    assert sum(c.kind == "turn" for c in cands) == views
     z0, z1 = cfg.probe.z_range_mm
     centre = 0.5 * (lo + hi)
     for c in cands:
-        mid = 0.5 * (c.from_mm + c.to_mm)
-        # The beam from the sweep's middle passes the box's axis at mid-range.
-        to_axis = centre[:2] - mid[:2]
-        along = c.beam @ (np.r_[to_axis, 0.0]) if abs(c.tilt_deg) > 0 else 0.0
-        assert along >= -1e-9
-        assert np.isclose(np.linalg.norm(c.beam), 1.0) and c.beam[2] < 0
-        wp = c.waypoints()
-        assert len(wp.probe2table) == c.frames
-        # The probe's whole path stays above the table and outside the box.
-        assert (wp.probe2table[:, 2, 3] > hi[2]).all() or abs(c.tilt_deg) > 0
-        depth_to_aim = np.linalg.norm(mid - (mid + 0.5 * (z0 + z1) * c.beam))
-        assert z0 < depth_to_aim < z1
+        P = c.waypoints().probe2table
+        assert len(P) == c.frames
+        beam = P[:, :3, 2]
+        assert np.allclose(np.linalg.norm(beam, axis=1), 1.0) and (beam[:, 2] < 0).all()
+        # Every frame's beam passes within the box's reach of its axis at mid-range.
+        aim = P[:, :3, 3] + 0.5 * (z0 + z1) * beam
+        assert (np.linalg.norm(aim[:, :2] - centre[:2], axis=1) < 0.5 * np.linalg.norm(hi - lo)).all()
+        assert (aim[:, 2] > lo[2] - 1.0).all() and (aim[:, 2] < hi[2] + 1.0).all()
+        if c.kind == "turn":  # the probe stands still in the world while the table turns
+            assert np.ptp(c.waypoints().table_rad) > np.radians(350)
 
 
 def test_gain_falls_where_the_model_already_knows_the_surface():
     cfg, lo, hi, space = setup()
-    top = [c for c in next_view.candidates(cfg.cell, cfg.probe, lo, hi) if c.tilt_deg == 0 and c.table_deg == 0][0]
+    top = [c for c in next_view.candidates(cfg.cell, cfg.probe, lo, hi)
+           if c.kind == "sweep" and c.tilt_deg == 0 and c.table_deg == 0][0]
     poses = top.waypoints().probe2table
     before = next_view.gain(space, cfg.probe, poses)
     assert before > 100

@@ -21,7 +21,7 @@ def test_equal_seeds_and_actions_give_equal_episodes():
         env = ScanPlanningEnv("demo", max_profiles=150, max_steps=2)
         obs, _ = env.reset(seed=3)
         out = [obs["grid"].sum()]
-        for action in ([1, 2], [5, 0]):
+        for action in ([1, 2, 0], [5, 0, 0]):
             obs, reward, *_ = env.step(np.array(action))
             out += [obs["grid"].sum(), round(reward, 9)]
         runs.append(out)

@@ -1,9 +1,9 @@
-"""Next-best-view planning on the known-space model: candidate sweeps around a part's bounding
+"""Next-best-view planning on the known-space model: candidate views around a part's bounding
 box, what each would newly see, and its cost in scan time. Never reads the part's mesh.
 
-A candidate is a table angle, a tilt of the beam from vertical (the probe on the robot's
-side of the table, looking towards the table's axis) and a straight sweep across that
-view, long enough to cross the box. Its **gain** is estimated by casting its laser fan
+A candidate is a straight sweep across the box at a table angle and a tilt of the beam
+from vertical (the probe on the robot's side of the table), or a full table turn with the
+probe still (see ``candidates``). Its **gain** is estimated by casting its laser fan
 (a subset of its frames and rays) through the model (geometry.known_space): a ray whose
 first cell that is not free is unknown, within the probe's range, would measure
 something new there; the gain is the number of distinct such cells. Its **cost** is the
@@ -15,7 +15,7 @@ the robot can reach without collision (checked by the caller, best first).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -29,34 +29,46 @@ PROBE_MM_PER_S = 250.0    # probe travel between sweeps
 SPACING_MM = 1.5          # profile spacing along a sweep
 TILTS_DEG = (0.0, 30.0, 45.0)
 TABLE_STEPS = 8
+MAX_TURN_FRAMES = 180   # a table turn's profiles at most
 SAMPLE_FRAMES = 6         # frames of a candidate cast into the model
 SAMPLE_RAYS = 17          # rays of the fan per cast frame
 
 
 @dataclass(frozen=True)
 class Candidate:
+    """A view to scan: ``kind`` "sweep" (the probe moves in a line) or "turn" (the probe still,
+    the table turning a full circle), its table angle at the start and tilt, and its waypoints
+    (probe poses in the table frame, table angles); gain and seconds once ranked."""
+
+    kind: str
     table_deg: float
     tilt_deg: float
-    from_mm: np.ndarray
-    to_mm: np.ndarray
-    beam: np.ndarray
-    frames: int
+    wp: scanpath.Waypoints
     gain: int = 0
     seconds: float = 0.0
 
     @property
-    def key(self) -> tuple[float, float]:
-        return (round(self.table_deg, 6), round(self.tilt_deg, 6))
+    def frames(self) -> int:
+        return len(self.wp.table_rad)
+
+    @property
+    def start_mm(self) -> np.ndarray:
+        return self.wp.probe2table[0, :3, 3]
+
+    @property
+    def key(self) -> tuple:
+        return (self.kind, round(self.table_deg, 6), round(self.tilt_deg, 6))
 
     @property
     def utility(self) -> float:
         return self.gain / max(self.seconds, 1e-9)
 
     def waypoints(self) -> scanpath.Waypoints:
-        return scanpath.sweep(self.frames, self.from_mm, self.to_mm, self.beam, table_rad=math.radians(self.table_deg))
+        return self.wp
 
     def describe(self) -> str:
-        return (f"table {self.table_deg:.0f} deg, tilt {self.tilt_deg:.0f} deg, {self.frames} profiles, "
+        what = "sweep" if self.kind == "sweep" else "table turn"
+        return (f"{what} at table {self.table_deg:.0f} deg, tilt {self.tilt_deg:.0f} deg, {self.frames} profiles, "
                 f"about {self.gain} new cells")
 
 
@@ -70,31 +82,44 @@ def robot_side(cell, table_deg: float) -> np.ndarray:
 
 
 def candidates(cell, probe: Probe, lo, hi) -> list[Candidate]:
-    """Sweeps around the box [lo, hi] (table frame, mm): TABLE_STEPS table angles × TILTS_DEG,
-    the probe at mid-range from the box's centre (its top, looking straight down), each
-    sweep crossing the box with SPACING_MM between profiles."""
+    """Views of the box [lo, hi] (table frame, mm), the probe at mid-range:
+
+    - sweeps at TABLE_STEPS table angles × TILTS_DEG: straight down at the box's top
+      (moving across the robot's reach), or tilted from either side of the part as the robot
+      sees it (moving towards the robot, so the arm stays on its side), SPACING_MM apart;
+    - table turns: the probe still at each tilt (and side), the laser plane holding the
+      table's axis, the table turning a full circle in steps of SPACING_MM at the box's rim."""
     lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
     centre = 0.5 * (lo + hi)
     half = 0.5 * float(np.linalg.norm((hi - lo)[:2])) + 5.0
     standoff = 0.5 * sum(probe.z_range_mm)
-    out = []
     up = np.array([0.0, 0.0, 1.0])
     frames = max(2, int(math.ceil(2 * half / SPACING_MM)))
+    turn_frames = max(8, min(MAX_TURN_FRAMES, int(math.ceil(2 * math.pi * half / SPACING_MM))))
+    out = []
     for k in range(TABLE_STEPS):
         table_deg = 360.0 * k / TABLE_STEPS
+        table_rad = math.radians(table_deg)
         s = robot_side(cell, table_deg)
         beside = np.cross(up, s)
         for tilt in TILTS_DEG:
             t = math.radians(tilt)
-            # Straight down, sweeping across the robot's reach; tilted, from either side of the
-            # part as the robot sees it, sweeping towards the robot (the arm stays on its side).
-            for side, motion in ([(None, beside)] if tilt == 0.0 else [(beside, s), (-beside, s)]):
+            for side in ([None] if tilt == 0.0 else [beside, -beside]):
                 beam = -math.cos(t) * up - (0.0 if side is None else math.sin(t)) * (s if side is None else side)
                 aim = centre.copy()
                 aim[2] = hi[2] if tilt == 0.0 else lo[2] + (hi[2] - lo[2]) * (0.7 if tilt < 40 else 0.5)
+                motion = beside if side is None else s
+                signed = tilt if side is None or side @ beside > 0 else -tilt
                 middle = aim - standoff * beam
-                out.append(Candidate(table_deg, tilt if side is None or side @ beside > 0 else -tilt,
-                                     middle - half * motion, middle + half * motion, beam, frames))
+                wp = scanpath.sweep(frames, middle - half * motion, middle + half * motion, beam, table_rad=table_rad)
+                out.append(Candidate("sweep", table_deg, signed, wp))
+                if k == 0:  # a full turn looks the same from every start angle
+                    # Aimed off the axis towards the probe's side (the near half of the part).
+                    off = np.zeros(3) if side is None else 0.5 * half * side
+                    at = aim + off + (0.2 * half * s if side is None else 0.0)
+                    turn = scanpath.turntable(turn_frames, at - standoff * beam, beam, up if side is not None else None,
+                                              start_rad=table_rad, table=cell.table)
+                    out.append(Candidate("turn", table_deg, signed, turn))
     return out
 
 
@@ -133,7 +158,9 @@ def rank(space: KnownSpace, probe: Probe, cands: list[Candidate], table_deg_now:
             continue
         g = int(round(g * c.frames / len(pick)))  # the frames between the cast ones see as much again
         turn = abs((c.table_deg - table_deg_now + 180.0) % 360.0 - 180.0)
-        travel = 0.0 if probe_now is None else float(np.linalg.norm(c.from_mm - probe_now))
+        travel = 0.0 if probe_now is None else float(np.linalg.norm(c.start_mm - probe_now))
         seconds = c.frames * FRAME_S + turn / TABLE_DEG_PER_S + travel / PROBE_MM_PER_S
-        out.append(Candidate(c.table_deg, c.tilt_deg, c.from_mm, c.to_mm, c.beam, c.frames, g, seconds))
+        if c.kind == "turn":
+            seconds += 360.0 / TABLE_DEG_PER_S  # the turn itself, besides its profiles
+        out.append(replace(c, gain=g, seconds=seconds))
     return sorted(out, key=lambda c: -c.utility)
