@@ -11,6 +11,7 @@ chosen, preview.png). Exit codes as for ``scan``.
 from __future__ import annotations
 
 import argparse
+import statistics
 import sys
 import time
 from dataclasses import replace
@@ -77,8 +78,8 @@ def run(args: argparse.Namespace) -> int:
         print_summary(result, time.perf_counter() - t)
         plan_s = [s.planning_s for s in steps]
         if plan_s:
-            print(f"  planner       {len(steps)} sweeps, {sum(s.profiles for s in steps)} profiles; planning "
-                  f"{max(plan_s):.2f} s at most per decision (median {sorted(plan_s)[len(plan_s) // 2]:.2f} s)")
+            print(f"  planner       {len(steps)} views, {sum(s.profiles for s in steps)} profiles; planning "
+                  f"{max(plan_s):.2f} s at most per decision (median {statistics.median(plan_s):.2f} s)")
         return 0
     except KeyboardInterrupt as exc:
         from headless.lifecycle import Interrupted
