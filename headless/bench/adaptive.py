@@ -180,9 +180,6 @@ def plot(results: dict, path) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import tempfile
-    from pathlib import Path
-
     rows, results = [], {}
     for name, mesh in parts().items():
         if args.only and not any(w.strip().lower() in name.lower() for w in args.only.split(",")):
@@ -211,9 +208,6 @@ def run(args: argparse.Namespace) -> int:
     if args.readme:
         from headless.bench import readme
 
-        with tempfile.TemporaryDirectory() as tmp:
-            png = Path(tmp) / "adaptive.png"
-            plot(results, png)
-            readme.update("adaptive", body + "\n\n![Coverage against profiles, per part and method]"
-                                             "(../headless/gallery/adaptive.png)", {"adaptive.png": png})
+        readme.update_with_picture("adaptive", body, lambda png: plot(results, png),
+                                   "Coverage against profiles, per part and method")
     return 0

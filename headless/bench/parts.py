@@ -155,9 +155,6 @@ def picture(rows: list[dict], path) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import tempfile
-    from pathlib import Path
-
     from headless.parts import all_parts
 
     rows = []
@@ -182,11 +179,6 @@ def run(args: argparse.Namespace) -> int:
     if args.readme:
         from headless.bench import readme
 
-        with tempfile.TemporaryDirectory() as tmp:
-            png = Path(tmp) / "parts.png"
-            picture(rows, png)
-            name = "parts" if args.probe == "default" else f"parts-{args.probe}"
-            where = "headless" if readme.page_with(name) == readme.README else "../headless"
-            readme.update(name, body + f"\n\n![Where the error sits on each part]({where}/gallery/{name}.png)",
-                          {f"{name}.png": png})
+        name = "parts" if args.probe == "default" else f"parts-{args.probe}"
+        readme.update_with_picture(name, body, lambda png: picture(rows, png), "Where the error sits on each part")
     return 0

@@ -58,3 +58,15 @@ def update(name: str, body: str, pictures: dict[str, Path] | None = None, readme
         tmp.replace(GALLERY / target)
     write_bytes_atomic(readme, new.encode("utf-8"))
     print(f"updated section '{name}' of {readme.name}" + (f" and {', '.join(pictures)}" if pictures else ""))
+
+
+def update_with_picture(name: str, body: str, draw, alt: str) -> None:
+    """``update`` with one picture, ``<name>.png``, drawn by ``draw(path)`` and shown under
+    ``body`` with the text ``alt`` (the link written for the page that holds the section)."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        png = Path(tmp) / f"{name}.png"
+        draw(png)
+        where = "headless" if page_with(name) == README else "../headless"
+        update(name, body + f"\n\n![{alt}]({where}/gallery/{name}.png)", {f"{name}.png": png})
