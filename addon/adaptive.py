@@ -58,8 +58,8 @@ def part_box(config, grow: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
 
 class NextBestView:
     """The planner's state: the known-space model over the box, the candidate sweeps, and the
-    ones done or impossible. ``choose(scanner)`` picks the next sweep (None: nothing left worth
-    it); ``learn(profiles)`` adds what a sweep measured."""
+    ones done or impossible. ``choose(scanner)`` picks the next view (None: nothing left worth
+    it); ``scan(scanner, view)`` scans it and adds what it measured to the model."""
 
     def __init__(self, scanner, lo, hi, *, min_gain: int = 30, voxel_mm: float = VOXEL_MM):
         lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)

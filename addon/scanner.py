@@ -280,11 +280,7 @@ class Scanner:
         motion; with ``table_deg``, the table turned to that angle first (the turn is part of
         the checked motion). Every pose is solved before anything moves or renders; the probe
         ends at the last one."""
-        q, table_rad, _ = self._plan_sweep(from_mm, to_mm, frames, beam, line, table_deg, record=True)
-        profiles = self._scan_frames(q, table_rad)
-        self._q = np.array(q[-1], dtype=np.float64)
-        self._table_rad = float(table_rad[-1])
-        return profiles
+        return self._scan_waypoints(self._sweep_waypoints(from_mm, to_mm, frames, beam, line, table_deg), "sweep")
 
     def plan_sweep(self, from_mm, to_mm, frames: int, *, beam=(0.0, 0.0, -1.0), line=None,
                    table_deg: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -292,9 +288,11 @@ class Scanner:
         checked for collisions from where the robot and the table are now, without moving or
         rendering anything (a planner's question: can the robot do this?). Raises
         UnreachablePose or CollisionError as ``sweep`` would."""
-        return self._plan_sweep(from_mm, to_mm, frames, beam, line, table_deg)[:2]
+        return self._plan_waypoints(self._sweep_waypoints(from_mm, to_mm, frames, beam, line, table_deg),
+                                    what="sweep")[:2]
 
-    def _plan_sweep(self, from_mm, to_mm, frames, beam, line, table_deg, record: bool = False):
+    def _sweep_waypoints(self, from_mm, to_mm, frames, beam, line, table_deg) -> Waypoints:
+        """The checked arguments of a sweep as its waypoints (table frame)."""
         check_whole(frames, "sweep frames", 1, MAX_FRAMES)
         if table_deg is not None and not (isinstance(table_deg, (int, float, np.number)) and math.isfinite(table_deg)):
             raise InputError(f"sweep table_deg must be a finite number of degrees, got {table_deg!r}")
@@ -306,8 +304,7 @@ class Scanner:
                 v = np.full(0, np.nan)
             if v.shape != (3,) or not np.isfinite(v).all():
                 raise InputError(f"sweep {name} must be three finite numbers [x, y, z] (mm), got {value!r}")
-        wp = sweep_waypoints(frames, from_mm, to_mm, beam, line, table_rad=table_rad)
-        return self._plan_waypoints(wp, record, "sweep")
+        return sweep_waypoints(frames, from_mm, to_mm, beam, line, table_rad=table_rad)
 
     def _plan_waypoints(self, wp: Waypoints, record: bool = False, what: str = "path"):
         """(joints, table angles, clearance) of waypoints: solved from the current joints and
@@ -333,7 +330,10 @@ class Scanner:
         """A profile at each of ``waypoints`` (probe poses in the table frame and table angles,
         e.g. ``core.kinematics.path.turntable``: the probe still while the table turns), solved
         and checked before anything moves; the robot and the table end at the last one."""
-        q, table_rad, _ = self._plan_waypoints(waypoints, record=True)
+        return self._scan_waypoints(waypoints, "path")
+
+    def _scan_waypoints(self, waypoints: Waypoints, what: str) -> list[Profile]:
+        q, table_rad, _ = self._plan_waypoints(waypoints, record=True, what=what)
         profiles = self._scan_frames(q, table_rad)
         self._q = np.array(q[-1], dtype=np.float64)
         self._table_rad = float(table_rad[-1])

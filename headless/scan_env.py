@@ -76,9 +76,7 @@ class ScanPlanningEnv(gym.Env):
             reward, learnt = -self.refusal_cost, 0
             info["refused"] = self.planner.refused[-1]
         else:
-            ranked = next_view.rank(self.planner.space, self.planner.probe, [c], self.scanner.table_deg,
-                                    self.scanner.pose("table")[:3, 3])
-            seconds = ranked[0].seconds if ranked else c.frames * next_view.FRAME_S
+            seconds = next_view.seconds(c, self.scanner.table_deg, self.scanner.pose("table")[:3, 3])
             profiles, learnt = self.planner.scan(self.scanner, c)
             self.profiles += len(profiles)
             reward = learnt / 1000.0 - self.time_cost * seconds

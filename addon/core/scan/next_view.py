@@ -157,10 +157,14 @@ def rank(space: KnownSpace, probe: Probe, cands: list[Candidate], table_deg_now:
         if g == 0:
             continue
         g = int(round(g * c.frames / len(pick)))  # the frames between the cast ones see as much again
-        turn = abs((c.table_deg - table_deg_now + 180.0) % 360.0 - 180.0)
-        travel = 0.0 if probe_now is None else float(np.linalg.norm(c.start_mm - probe_now))
-        seconds = c.frames * FRAME_S + turn / TABLE_DEG_PER_S + travel / PROBE_MM_PER_S
-        if c.kind == "turn":
-            seconds += 360.0 / TABLE_DEG_PER_S  # the turn itself, besides its profiles
-        out.append(replace(c, gain=g, seconds=seconds))
+        out.append(replace(c, gain=g, seconds=seconds(c, table_deg_now, probe_now)))
     return sorted(out, key=lambda c: -c.utility)
+
+
+def seconds(c: Candidate, table_deg_now: float, probe_now: np.ndarray | None) -> float:
+    """How long candidate ``c`` takes from where the table and the probe are now: its profiles,
+    the table's turn to its start (and a full turn for a table turn) and the probe's travel."""
+    turn = abs((c.table_deg - table_deg_now + 180.0) % 360.0 - 180.0)
+    travel = 0.0 if probe_now is None else float(np.linalg.norm(c.start_mm - probe_now))
+    out = c.frames * FRAME_S + turn / TABLE_DEG_PER_S + travel / PROBE_MM_PER_S
+    return out + (360.0 / TABLE_DEG_PER_S if c.kind == "turn" else 0.0)
