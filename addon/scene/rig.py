@@ -75,23 +75,35 @@ def build_robot(collection: bpy.types.Collection, robot: Robot, name: str = "Rob
     for k in range(N_JOINTS):
         pb = obj.pose.bones[bone_name(k + 1)]
         pb.rotation_mode = "YXZ"
-        pb.lock_rotation = (True, False, True)
-        pb.lock_location = (True, True, True)
+        slides = robot.prismatic[k]  # the bone moves along its y axis (DH z) instead of turning
+        pb.lock_rotation = (True, slides, True)
+        pb.lock_location = (True, not slides, True)
         pb.lock_scale = (True, True, True)
-        limit = pb.constraints.new("LIMIT_ROTATION")
-        limit.owner_space = "LOCAL"
-        limit.euler_order = "YXZ"
-        limit.use_limit_y = True
-        limit.min_y = float(robot.q_min_rad[k])
-        limit.max_y = float(robot.q_max_rad[k])
+        lo, hi = float(robot.q_min_rad[k]), float(robot.q_max_rad[k])
         prop = joint_property(k + 1)
         obj[prop] = 0.0
-        obj.id_properties_ui(prop).update(
-            subtype="ANGLE", min=float(robot.q_min_rad[k]), max=float(robot.q_max_rad[k]),
-            description=f"Joint {k + 1} angle (DH q{k + 1}, offset excluded)")
-        fcurve = pb.driver_add("rotation_euler", 1)
+        if slides:
+            limit = pb.constraints.new("LIMIT_LOCATION")
+            limit.owner_space = "LOCAL"
+            limit.use_min_y, limit.use_max_y = True, True
+            limit.min_y, limit.max_y = lo * 1e-3, hi * 1e-3
+            obj.id_properties_ui(prop).update(min=lo, max=hi, description=f"Joint {k + 1} travel (DH q{k + 1}, mm)")
+            fcurve = pb.driver_add("location", 1)
+        else:
+            limit = pb.constraints.new("LIMIT_ROTATION")
+            limit.owner_space = "LOCAL"
+            limit.euler_order = "YXZ"
+            limit.use_limit_y = True
+            limit.min_y, limit.max_y = lo, hi
+            obj.id_properties_ui(prop).update(subtype="ANGLE", min=lo, max=hi,
+                                              description=f"Joint {k + 1} angle (DH q{k + 1}, offset excluded)")
+            fcurve = pb.driver_add("rotation_euler", 1)
         driver = fcurve.driver
-        driver.type = "AVERAGE"  # the value of its one variable: no Python expression needed
+        # The value of its one variable (no Python expression needed); a sliding joint's mm
+        # become metres through Blender's own expression evaluator (no script execution).
+        driver.type = "SCRIPTED" if slides else "AVERAGE"
+        if slides:
+            driver.expression = "q * 0.001"
         var = driver.variables.new()
         var.name = "q"
         var.type = "SINGLE_PROP"
@@ -107,7 +119,7 @@ def bone_length_mm(robot: Robot) -> float:
 
 
 def set_joints(obj: bpy.types.Object, q) -> None:
-    """Pose the rig: joint angles q (6,) rad. Updates the view layer."""
+    """Pose the rig: joint values q (6,), rad (mm for a sliding joint). Updates the view layer."""
     q = np.asarray(q, dtype=np.float64)
     for k in range(N_JOINTS):
         obj[joint_property(k + 1)] = float(q[k])

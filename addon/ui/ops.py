@@ -110,7 +110,8 @@ class SCANNER_OT_go(bpy.types.Operator):
             self.report({"ERROR"}, f"Colliding, the robot stays put: {found.message()}")
             return {"CANCELLED"}
         rig.set_joints(robot_obj, res.q)
-        self.report({"INFO"}, "Reached: joints " + ", ".join(f"{math.degrees(v):.1f}" for v in res.q) + " deg")
+        values = (f"{v:.1f} mm" if slides else f"{math.degrees(v):.1f}°" for v, slides in zip(res.q, robot.prismatic))
+        self.report({"INFO"}, "Reached: joints " + ", ".join(values))
         return {"FINISHED"}
 
 

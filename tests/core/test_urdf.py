@@ -60,23 +60,31 @@ def xml_fk(path: Path, q, tool_link: str) -> np.ndarray:
         M[:3, :3] = _rpy(*rpy)
         M[:3, 3] = np.array(xyz) * 1000.0
         T = T @ M
+        a = j.find("axis")
+        axis = [float(v) for v in (a.get("xyz") if a is not None else "1 0 0").split()]
         if j.get("type") in ("revolute", "continuous"):
-            a = j.find("axis")
             R = np.eye(4)
-            R[:3, :3] = _rodrigues([float(v) for v in (a.get("xyz") if a is not None else "1 0 0").split()], q[k])
+            R[:3, :3] = _rodrigues(axis, q[k])
             T = T @ R
+            k += 1
+        elif j.get("type") == "prismatic":  # q in mm along the unit axis
+            S = np.eye(4)
+            S[:3, 3] = np.array(axis) / np.linalg.norm(axis) * q[k]
+            T = T @ S
             k += 1
     return T
 
 
 def write_chain(path: Path, origins, axes, types=None, extra: str = "", tool_origin="0 0 0.05") -> Path:
-    """A URDF of a serial chain: origins [(xyz, rpy) strings], axes [xyz strings]."""
+    """A URDF of a serial chain: origins [(xyz, rpy) strings], axes [xyz strings]; a prismatic
+    joint slides ±0.3 m, the others turn ±3.1 rad."""
     types = types or ["revolute"] * len(origins)
     links = "".join(f'<link name="l{i}"/>' for i in range(len(origins) + 2))
     joints = "".join(
         f'<joint name="j{i}" type="{t}"><parent link="l{i}"/><child link="l{i + 1}"/>'
         f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="{ax}"/>'
-        f'<limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>'
+        + ('<limit lower="-0.3" upper="0.3" effort="1" velocity="1"/>' if t == "prismatic" else
+           '<limit lower="-3.1" upper="3.1" effort="1" velocity="1"/>') + '</joint>'
         for i, ((xyz, rpy), ax, t) in enumerate(zip(origins, axes, types)))
     n = len(origins)
     tool = (f'<joint name="tool" type="fixed"><parent link="l{n}"/><child link="l{n + 1}"/>'
@@ -85,7 +93,7 @@ def write_chain(path: Path, origins, axes, types=None, extra: str = "", tool_ori
     return path
 
 
-def random_chain(rng, tmp: Path, name: str) -> Path:
+def random_chain(rng, tmp: Path, name: str, types=None) -> Path:
     origins, axes = [], []
     for _ in range(6):
         xyz = " ".join(f"{v:.4f}" for v in rng.uniform(-0.3, 0.3, 3))
@@ -93,7 +101,7 @@ def random_chain(rng, tmp: Path, name: str) -> Path:
         ax = rng.normal(size=3)
         origins.append((xyz, rpy))
         axes.append(" ".join(f"{v:.4f}" for v in ax / np.linalg.norm(ax)))
-    return write_chain(tmp / name, origins, axes)
+    return write_chain(tmp / name, origins, axes, types)
 
 
 # -- the bundled UR5 ----------------------------------------------------------------------
@@ -149,6 +157,40 @@ def test_random_chains_keep_their_kinematics(seed, tmp_path):
     assert res.success.all()
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_chains_with_prismatic_joints(seed, tmp_path):
+    """Sliding joints (q in mm) anywhere in the chain: FK as the XML says, the Jacobian as finite
+    differences of FK, no closed form, and the numeric IK reaches poses from afar."""
+    rng = np.random.default_rng(200 + seed)
+    types = list(rng.permutation(["prismatic"] * (1 + seed % 3) + ["revolute"] * (5 - seed % 3)))
+    path = random_chain(rng, tmp_path, f"slide{seed}.urdf", types)
+    robot = load_robot(path)
+    assert robot.prismatic == tuple(t == "prismatic" for t in types)
+    slides = np.array(robot.prismatic)
+    np.testing.assert_allclose(robot.q_max_rad[slides], 300.0)  # 0.3 m
+    for q in robot.random_q(30, rng):
+        np.testing.assert_allclose(robot.fk(q), xml_fk(path, q, "l7"), atol=1e-9)
+    q = robot.random_q(1, rng)[0]
+    J = robot.jacobian(q)
+    h = 1e-6
+    for i in range(6):
+        dq = np.zeros(6)
+        dq[i] = h
+        Tp, Tm = xml_fk(path, q + dq, "l7"), xml_fk(path, q - dq, "l7")
+        np.testing.assert_allclose(J[:3, i], (Tp[:3, 3] - Tm[:3, 3]) / (2 * h), atol=1e-5)
+        dR = (Tp[:3, :3] - Tm[:3, :3]) / (2 * h) @ xml_fk(path, q, "l7")[:3, :3].T
+        np.testing.assert_allclose(J[3:, i], [dR[2, 1], dR[0, 2], dR[1, 0]], atol=1e-6)
+    assert closed_form_arm(robot)[0] is None
+    q = robot.random_q(4, rng)
+    res = robot.ik_batch(robot.fk(q), robot.random_q(4, rng))
+    assert res.success.all()
+    np.testing.assert_allclose(robot.fk(res.q)[:, :3, 3], robot.fk(q)[:, :3, 3], atol=1e-6)
+    # The sliding joints' limits hold: a pose needing 0.5 m of travel is refused.
+    far = q[0].copy()
+    far[np.argmax(slides)] = 500.0
+    assert not robot.ik(robot.fk(far), q[0]).success
+
+
 def test_parallel_intersecting_and_collinear_axes(tmp_path):
     """Axes 2-3 parallel, 4-5 meeting, 5-6 on one line: the DH form's special cases."""
     origins = [("0 0 0.1", "0 0 0"), ("0 0.1 0", "1.5707963 0 0"), ("0.4 0 0", "0 0 0"),
@@ -202,7 +244,8 @@ def _six(tmp_path, **kw):
 
 
 @pytest.mark.parametrize("case,words", [
-    ("prismatic", "prismatic"),
+    ("planar", "planar"),
+    ("prismatic without limits", "needs <limit"),
     ("five", "5 moving joints"),
     ("not xml", "not a readable URDF"),
     ("two leaves", "tool_link"),
@@ -213,8 +256,11 @@ def _six(tmp_path, **kw):
 ])
 def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     kw = {}
-    if case == "prismatic":
+    if case == "planar":
+        path = _six(tmp_path, types=["revolute", "planar"] + ["revolute"] * 4)
+    elif case == "prismatic without limits":
         path = _six(tmp_path, types=["revolute", "prismatic"] + ["revolute"] * 4)
+        path.write_text(path.read_text().replace('<limit lower="-0.3" upper="0.3" effort="1" velocity="1"/>', ""))
     elif case == "five":
         path = write_chain(tmp_path / "r.urdf", [("0 0 0.1", "0 0 0")] * 5, ["0 0 1"] * 5)
     elif case == "not xml":

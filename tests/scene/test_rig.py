@@ -1,5 +1,7 @@
 """The armature rig reproduces the core's DH frames, probe and camera poses (Blender is float32)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -8,6 +10,7 @@ from addon.core.config.rigs import load_robot
 from addon.core.config.rigs import load_probe
 from addon.scene.cell import build_cell
 
+GANTRY = str(Path(__file__).resolve().parents[2] / "rigs" / "robots" / "urdf" / "gantry.urdf")
 POS_TOL_MM = 1e-3
 ROT_TOL = 1e-5  # rad, as a bound on rotation-matrix entries
 
@@ -28,7 +31,7 @@ def check(scene_cell, q):
         assert np.abs(got[:3, :3] - C[:3, :3]).max() < ROT_TOL
 
 
-@pytest.mark.parametrize("name", ["adept_viper_s650", "puma560", "ur5"])
+@pytest.mark.parametrize("name", ["adept_viper_s650", "puma560", "ur5", GANTRY])
 def test_rig_matches_core_for_200_random_poses_set_directly_and_keyframed(scene, name):
     sc = build_cell(scene, Cell(load_robot(name)), load_probe("default"))
     rng = np.random.default_rng(3)
@@ -51,6 +54,27 @@ def test_each_bone_turns_only_about_its_joint_axis(scene):
         assert limit.use_limit_y and not limit.use_limit_x and not limit.use_limit_z
         assert limit.min_y == pytest.approx(sc.cell.robot.q_min_rad[k - 1])
         assert limit.max_y == pytest.approx(sc.cell.robot.q_max_rad[k - 1])
+
+
+def test_sliding_joints_move_their_bones_along_the_axis_within_limits(scene):
+    """The gantry's first three joints slide (mm in the property, metres in Blender)."""
+    pytest.importorskip("yourdfpy", reason="installed by the README's set-up")
+    sc = build_cell(scene, Cell(load_robot(GANTRY)), load_probe("default"))
+    robot = sc.cell.robot
+    for k in range(1, 4):
+        pb = sc.robot.pose.bones[f"J{k}"]
+        assert tuple(pb.lock_location) == (True, False, True) and tuple(pb.lock_rotation) == (True, True, True)
+        (limit,) = [c for c in pb.constraints if c.type == "LIMIT_LOCATION"]
+        assert limit.min_y == pytest.approx(robot.q_min_rad[k - 1] * 1e-3)
+        assert limit.max_y == pytest.approx(robot.q_max_rad[k - 1] * 1e-3)
+    q = np.array([250.0, -120.0, -300.0, 0.4, -0.8, 1.2])
+    sc.pose(q)
+    check(sc, q)
+    beyond = q.copy()
+    beyond[0] = 900.0  # travel ends at 600 mm: Blender's constraint holds the bridge there
+    sc.pose(beyond)
+    beyond[0] = 600.0
+    np.testing.assert_allclose(sc.dh_frames_mm(), robot.link_frames(beyond), atol=1e-3)
 
 
 def test_limit_rotation_clamps_joints_beyond_their_limits(scene):

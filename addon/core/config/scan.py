@@ -267,7 +267,13 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
                                package_dirs=[d if d.is_absolute() else base / d for d in dirs])
     except ConfigError as exc:
         raise ConfigError(f"{path}: robot.{key}: {exc}") from None
-    q_start = np.radians(rt.numbers("start_deg", 6, lo=-720, hi=720)) if rt.has("start_deg") else None
+    q_start = None
+    if rt.has("start_deg"):  # degrees; a sliding joint's value is millimetres
+        values = np.array(rt.numbers("start_deg", 6, lo=-1e6, hi=1e6))
+        q_start = np.where(robot.prismatic, values, np.radians(values))
+        turning = ~np.array(robot.prismatic)
+        if (np.abs(values[turning]) > 720).any():
+            raise ConfigError(f"{path}: robot.start_deg: {values[turning].tolist()} holds an angle beyond ±720°")
     if rt.string("ik", default="local", choices=["local", "controller"]) == "controller":
         ct = rt.table("controller", default={})
         controller = Controller(ct.string("host", default="127.0.0.1"),

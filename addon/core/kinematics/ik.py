@@ -19,6 +19,7 @@ of one.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,7 +95,7 @@ def default_pos_tol(robot) -> float:
 
 def default_seed(robot) -> np.ndarray:
     """q = 0 moved inside the limits: the seed used when the caller gives none."""
-    return np.clip(np.zeros(6), robot.q_min_rad, robot.q_max_rad)
+    return np.minimum(np.maximum(0.0, robot.q_min_rad), robot.q_max_rad)
 
 
 def wrap_to_limits(robot, q: np.ndarray, seed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -109,8 +110,10 @@ def wrap_to_limits(robot, q: np.ndarray, seed: np.ndarray) -> tuple[np.ndarray, 
     # The turn nearest the seed is the answer whenever it fits; otherwise one of
     # its neighbours usually does. Rare leftovers get the exhaustive search.
     c0 = q + two_pi * np.round((seed - q) / two_pi)
-    out = c0.copy()
     fits = (c0 >= lo - LIMIT_TOL_RAD) & (c0 <= hi + LIMIT_TOL_RAD)
+    if fits.all():  # the usual case, kept short: a single solve is mostly numpy call overhead
+        return np.minimum(np.maximum(c0, lo), hi), np.ones(q.shape[:-1], dtype=bool)
+    out = c0.copy()
     for shift in (-two_pi, two_pi):
         c = c0 + shift
         ok = ~fits & (c >= lo - LIMIT_TOL_RAD) & (c <= hi + LIMIT_TOL_RAD)
@@ -129,15 +132,16 @@ def wrap_to_limits(robot, q: np.ndarray, seed: np.ndarray) -> tuple[np.ndarray, 
         pick = np.where(inside.any(1), np.argmin(dist, 1), np.argmin(violation, 1))
         out[bad] = cands[np.arange(len(pick)), pick]
         fits[bad] = inside.any(1)
-    out = np.where(fits, np.clip(out, lo, hi), out)
-    return out, np.all(fits, axis=-1)
+    out = np.where(fits, np.minimum(np.maximum(out, lo), hi), out)
+    return out, fits.all(axis=-1)
 
 
 def pose_errors(robot, q: np.ndarray, T_targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position (mm) and orientation (rad) distance of FK(q) from targets; q (..., 6)."""
     shape = q.shape[:-1]
     Tq = robot.fk(q.reshape(-1, 6)).reshape(shape + (4, 4))
-    pos = np.linalg.norm(Tq[..., :3, 3] - T_targets[..., :3, 3], axis=-1)
+    d = Tq[..., :3, 3] - T_targets[..., :3, 3]
+    pos = np.sqrt((d * d).sum(axis=-1))
     rel = np.swapaxes(T_targets[..., :3, :3], -1, -2) @ Tq[..., :3, :3]
     return pos, rotation_angle(rel)
 
@@ -147,6 +151,8 @@ def closed_form_arm(robot):
     """(the closed form's parameters, "") for an arm with one (a spherical wrist:
     ik_analytic; three parallel middle axes and an offset wrist, UR-type: ik_parallel),
     else (None, why not)."""
+    if robot.has_prismatic:
+        return None, f"no closed form for {robot.name}: it has a prismatic joint"
     arm, spherical = spherical_wrist_arm(robot)
     if arm is not None:
         return arm, ""
@@ -169,7 +175,7 @@ def _check_tols(robot, pos_tol_mm, rot_tol_rad) -> tuple[float, float]:
     pos_tol = default_pos_tol(robot) if pos_tol_mm is None else float(pos_tol_mm)
     rot_tol = ROT_TOL_RAD if rot_tol_rad is None else float(rot_tol_rad)
     for name, v in (("pos_tol_mm", pos_tol), ("rot_tol_rad", rot_tol)):
-        if not np.isfinite(v) or v <= 0:
+        if not math.isfinite(v) or v <= 0:
             raise InputError(f"{name} must be a positive finite number, got {v}")
     return pos_tol, rot_tol
 
@@ -235,37 +241,42 @@ def _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_star
     messages = ["ok"] * n
 
     # Farther from the shoulder than the sum of the link lengths: no solver needed.
-    dist = np.linalg.norm(T[:, :3, 3] - robot.shoulder_world, axis=1)
+    d = T[:, :3, 3] - robot.shoulder_world
+    dist = np.sqrt((d * d).sum(axis=1))
     bound = robot.reach_bound_mm
     far = dist > bound * (1.0 + 1e-12)
-    for i in np.nonzero(far)[0]:
-        reasons[i] = "out_of_reach"
-        messages[i] = (f"target is out of reach: {dist[i]:.6g} mm from the shoulder, and no joint vector "
-                       f"places the tool farther than {bound:.6g} mm")
-    todo = np.nonzero(~far)[0]
+    if far.any():
+        for i in np.nonzero(far)[0]:
+            reasons[i] = "out_of_reach"
+            messages[i] = (f"target is out of reach: {dist[i]:.6g} mm from the shoulder, and no joint vector "
+                           f"places the tool farther than {bound:.6g} mm")
+        todo = np.nonzero(~far)[0]
+    else:
+        todo = slice(None)  # every target: plain slicing, no copies
 
     pos = np.full(n, np.inf)
     rot = np.full(n, np.inf)
     checked = np.zeros(n, dtype=bool)  # pos and rot are already FK of the returned q
-    if todo.size and arm is not None:
+    rows = np.arange(n)[todo]
+    if rows.size and arm is not None:
         qa, ok, why, text, pa, ra = _solve_analytic(robot, arm, T[todo], q0[todo], pos_tol, rot_tol)
         q[todo], success[todo], pos[todo], rot[todo], checked[todo] = qa, ok, pa, ra, True
-        for j, i in enumerate(todo):
+        for j, i in enumerate(rows):
             reasons[i], messages[i] = why[j], text[j]
         # Rounding at a singularity can leave every branch a hair outside tolerance:
         # polish the best branch with a few damped least-squares steps.
-        polish = np.array([i for i in todo if reasons[i] == "numerical"], dtype=int)
+        polish = np.array([i for i in rows if reasons[i] == "numerical"], dtype=int)
         if polish.size:
             qp, _, _, conv, its = levenberg_marquardt(robot, T[polish], q[polish], pos_tol, rot_tol, 50)
             iterations[polish] += its
             for j, i in enumerate(polish):
                 if conv[j]:
                     q[i], success[i], reasons[i], messages[i], checked[i] = qp[j], True, "ok", "ok", False
-    elif todo.size:
+    elif rows.size:
         out = solve_numeric(robot, T[todo], q0[todo], pos_tol, rot_tol, np.random.default_rng(seed),
                             max_starts=max_starts)
         q[todo], success[todo], iterations[todo] = out.q, out.converged, out.iterations
-        for j, i in enumerate(todo):
+        for j, i in enumerate(rows):
             if not out.converged[j]:
                 reasons[i] = "not_converged"
                 messages[i] = (f"no joint vector within limits reaches the target: the best of "
@@ -278,9 +289,11 @@ def _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_star
         pos[again], rot[again] = pose_errors(robot, q[again], T[again])
     # Success is re-checked here, from FK of the returned q, for every method (the closed
     # form's errors above are FK of the very joint vectors it returns).
-    verified = success & (pos <= pos_tol) & (rot <= rot_tol) & robot.within_limits(q, LIMIT_TOL_RAD)
-    for i in np.nonzero(success & ~verified)[0]:
-        reasons[i], messages[i] = "numerical", f"solution failed verification ({pos[i]:.3g} mm, {rot[i]:.3g} rad)"
+    inside = ((q >= robot.q_min_rad - LIMIT_TOL_RAD) & (q <= robot.q_max_rad + LIMIT_TOL_RAD)).all(axis=1)
+    verified = success & (pos <= pos_tol) & (rot <= rot_tol) & inside
+    if (success & ~verified).any():
+        for i in np.nonzero(success & ~verified)[0]:
+            reasons[i], messages[i] = "numerical", f"solution failed verification ({pos[i]:.3g} mm, {rot[i]:.3g} rad)"
     return IKBatch(q, verified, pos, rot, iterations, messages, reasons, name)
 
 
@@ -290,13 +303,15 @@ def _solve_analytic(robot, arm, T, q0, pos_tol, rot_tol):
     m = T.shape[0]
     q, inside, pos, rot, geom_ok = all_branches(robot, arm, T, q0)
     ok = inside & (pos <= pos_tol) & (rot <= rot_tol)
-    dist = np.linalg.norm(q - q0[:, None, :], axis=-1)
+    d = q - q0[:, None, :]
+    dist2 = (d * d).sum(axis=-1)
     success = ok.any(axis=1)
-    pick = np.argmin(np.where(ok, dist, np.inf), axis=1)
+    pick = np.where(ok, dist2, np.inf).argmin(axis=1)
     # For failures return the branch nearest to success: inside the limits first, then smallest error.
-    err = pos + rot * robot.length_scale_mm
-    fallback = np.argmin(np.where(inside, err, err + 1e300), axis=1)
-    pick = np.where(success, pick, fallback)
+    if not success.all():
+        err = pos + rot * robot.length_scale_mm
+        fallback = np.where(inside, err, err + 1e300).argmin(axis=1)
+        pick = np.where(success, pick, fallback)
     reasons, messages = [], []
     for i in range(m):
         if success[i]:

@@ -33,7 +33,7 @@ LAMBDA_DOWN = 10.0  # λ divisor after an accepted step
 LAMBDA_UP = 4.0  # λ factor after a refused step
 STALL_STEPS = 15  # steps without a real improvement before a start counts as stuck
 STALL_GAIN = 1e-4  # relative cost decrease below which a step is "no real improvement"
-MAX_STEP_RAD = 0.5  # largest change of any joint in one step
+MAX_STEP_RAD = 0.5  # largest change of any joint in one step (a sliding joint: this × the arm's length)
 
 
 @dataclass
@@ -63,6 +63,10 @@ def _evaluate(robot, T: np.ndarray, q: np.ndarray, L: float):
     J[:, 1, :] = (zs[:, 2] * r[:, 0] - zs[:, 0] * r[:, 2]).T / L
     J[:, 2, :] = (zs[:, 0] * r[:, 1] - zs[:, 1] * r[:, 0]).T / L
     J[:, 3:, :] = np.transpose(zs, (2, 1, 0))
+    if robot.has_prismatic:  # a sliding joint moves the tool along z_{i-1} and turns nothing
+        slides = robot._slides
+        J[:, :3, slides] = np.transpose(zs[slides], (2, 1, 0)) / L
+        J[:, 3:, slides] = 0.0
     return e, J, np.linalg.norm(dp, axis=1), np.linalg.norm(w, axis=1)
 
 
@@ -72,7 +76,7 @@ class _Problems:
     def __init__(self, robot, T: np.ndarray, q: np.ndarray):
         self.robot, self.T, self.L = robot, T, robot.length_scale_mm
         lo, hi = robot.q_min_rad, robot.q_max_rad
-        self.lo, self.hi, self.full_turn = lo, hi, (hi - lo) >= 2.0 * np.pi
+        self.lo, self.hi, self.full_turn = lo, hi, ((hi - lo) >= 2.0 * np.pi) & ~robot._slides
         self.q = _into_limits(np.array(q, dtype=np.float64), lo, hi, self.full_turn)
         self.e, self.J, self.pe, self.re = _evaluate(robot, T, self.q, self.L)
         self.cost = np.einsum("ij,ij->i", self.e, self.e)
@@ -114,6 +118,7 @@ def levenberg_marquardt(robot, T: np.ndarray, q: np.ndarray, pos_tol: float, rot
     """
     P = _Problems(robot, T, q)
     N = P.q.shape[0]
+    step_unit = np.where(robot._slides, P.L, 1.0)
     lam = np.full(N, LAMBDA_START)
     stall = np.zeros(N, dtype=int)
     iters = np.zeros(N, dtype=int)
@@ -131,7 +136,7 @@ def levenberg_marquardt(robot, T: np.ndarray, q: np.ndarray, pos_tol: float, rot
         scale = lam[idx] * (np.trace(H, axis1=1, axis2=2) / 6.0 + 1e-300)
         dq = np.linalg.solve(H + scale[:, None, None] * eye, g[..., None])[..., 0]
         # Trust region: far from the solution a full Gauss-Newton step overshoots.
-        big = np.max(np.abs(dq), axis=1)
+        big = np.max(np.abs(dq) / step_unit, axis=1)
         dq *= np.minimum(1.0, MAX_STEP_RAD / np.maximum(big, 1e-300))[:, None]
         better, gain = P.try_step(idx, dq)
         iters[idx] += 1
@@ -196,7 +201,7 @@ def solve_numeric(robot, T: np.ndarray, seeds: np.ndarray, pos_tol: float, rot_t
         qk, pek, rek, convk = (a.reshape((todo.size, k) + a.shape[1:]) for a in (qk, pek, rek, convk))
         iters[todo] += itk.reshape(todo.size, k).sum(axis=1)
         starts[todo] += k
-        dist = np.linalg.norm(qk - seeds[todo, None, :], axis=-1)
+        dist = np.linalg.norm((qk - seeds[todo, None, :]) / np.where(robot._slides, L, 1.0), axis=-1)
         costk = (pek / L) ** 2 + rek ** 2
         # Converged starts compete on distance to the seed, the rest on error.
         pick = np.where(convk.any(axis=1), np.argmin(np.where(convk, dist, np.inf), axis=1),

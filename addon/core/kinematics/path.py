@@ -162,7 +162,8 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
             q[i], ok[i], messages[i] = res.q, res.success, res.message
             if res.success:
                 q_prev = res.q
-    step = np.r_[0.0, np.max(np.abs(np.diff(q, axis=0)), axis=1)] if n > 1 else np.zeros(n)
+    turning = ~np.array(robot.prismatic)  # a flip is a turn; sliding joints just travel
+    step = np.r_[0.0, np.max(np.abs(np.diff(q[:, turning], axis=0)), axis=1)] if n > 1 else np.zeros(n)
     # Between path entries the robot repositions; only steps within one entry can be flips.
     same = np.r_[False, waypoints.segment[1:] == waypoints.segment[:-1]]
     step[~ok | ~same] = 0.0

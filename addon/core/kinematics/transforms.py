@@ -17,6 +17,8 @@ from ..errors import InputError
 # Largest ‖RᵀR − I‖ (max-abs) accepted as "a rotation". Loose enough for values
 # typed into a config file with 6-8 digits, tight enough to catch a scale or shear.
 RIGID_TOL = 1e-6
+_IDENTITY3 = np.eye(3)
+_BOTTOM_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 def _cos_sin(angle):
@@ -117,7 +119,7 @@ def orthonormality_error(R: np.ndarray) -> np.ndarray:
     if R.shape[-2:] == (4, 4):
         R = R[..., :3, :3]
     RtR = np.swapaxes(R, -1, -2) @ R
-    return np.max(np.abs(RtR - np.eye(3)), axis=(-2, -1))
+    return np.abs(RtR - _IDENTITY3).max(axis=(-2, -1))
 
 
 def orthonormalize(T: np.ndarray) -> np.ndarray:
@@ -191,18 +193,17 @@ def check_transform(T, name: str = "transform", tol: float = RIGID_TOL) -> np.nd
         raise InputError(f"{name} must be a 4x4 array of numbers: {exc}") from None
     if T.shape[-2:] != (4, 4):
         raise InputError(f"{name} must have shape (4, 4) or (n, 4, 4), got {T.shape}")
-    if not np.all(np.isfinite(T)):
+    if not np.isfinite(T).all():
         raise InputError(f"{name} contains NaN or inf; a rigid transform must be finite")
-    if np.any(np.abs(T[..., 3, :] - [0.0, 0.0, 0.0, 1.0]) > tol):
+    if (np.abs(T[..., 3, :] - _BOTTOM_ROW) > tol).any():
         raise InputError(f"{name} bottom row must be [0, 0, 0, 1], got {T[..., 3, :].reshape(-1, 4)[0].tolist()}")
     err = orthonormality_error(T)
-    if np.any(err > tol):
+    if (err > tol).any():
         raise InputError(
             f"{name} rotation part is not orthonormal: max |RᵀR − I| = {float(np.max(err)):.3g} "
             f"(allowed ≤ {tol:g}); it must be a pure rotation without scale or shear"
         )
-    det = np.linalg.det(T[..., :3, :3])
-    if np.any(det < 0):
+    if (np.linalg.det(T[..., :3, :3]) < 0).any():
         raise InputError(f"{name} rotation part has determinant −1 (a reflection); it must be a proper rotation")
     return T
 

@@ -1,12 +1,13 @@
 """URDF robots: the serial chain of a URDF file as a Robot, with its meshes.
 
 The file is read with yourdfpy. The chain runs from a base link (default: the root)
-to a tool link (default: the one leaf of the tree); its joints must be six revolute
-or continuous joints, with any number of fixed joints between them (prismatic,
-planar and floating joints are refused). Lengths in URDF are metres; here they
-become millimetres.
+to a tool link (default: the one leaf of the tree); its joints must be six revolute,
+continuous or prismatic joints, with any number of fixed joints between them (planar
+and floating joints are refused). Lengths in URDF are metres; here they become
+millimetres, a prismatic joint's position and limits too.
 
-Every serial chain of revolute joints has a standard Denavit–Hartenberg description
+Every serial chain of revolute and prismatic joints has a standard Denavit–Hartenberg
+description (a prismatic joint slides d along z_{i−1} instead of turning θ about it)
 plus a base and a tool transform, so a URDF robot *is* a DH Robot: batched FK, the
 closed forms where the geometry qualifies (a UR-type URDF gets the UR closed form),
 damped least squares otherwise, limits, collision checks and the Blender rig all work
@@ -40,7 +41,7 @@ from .robot import N_JOINTS, Robot
 from .transforms import rigid_inverse
 
 M_TO_MM = 1000.0
-MOVING = ("revolute", "continuous")
+MOVING = ("revolute", "continuous", "prismatic")
 PARALLEL_TOL = 1e-9  # |u × v| below this: parallel axes
 MEET_TOL_MM = 1e-9   # common normal shorter than this: the axes meet
 
@@ -107,8 +108,8 @@ class UrdfChain:
         chain.reverse()
         for j in chain:
             if j.type not in MOVING + ("fixed",):
-                raise ConfigError(f"{path}: joint {j.name!r} is {j.type}; the chain may hold revolute, continuous "
-                                  "and fixed joints only")
+                raise ConfigError(f"{path}: joint {j.name!r} is {j.type}; the chain may hold revolute, continuous, "
+                                  "prismatic and fixed joints only")
             if j.mimic is not None:
                 raise ConfigError(f"{path}: joint {j.name!r} mimics another joint; that is not supported")
         moving = [j for j in chain if j.type in MOVING]
@@ -147,12 +148,16 @@ class UrdfChain:
     def limits(self) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = [], []
         for j in self.moving:
+            if j.type == "prismatic" and (j.limit is None or j.limit.lower is None or j.limit.upper is None):
+                raise ConfigError(f"{self.path}: prismatic joint {j.name!r} has no limits; a sliding joint needs "
+                                  "<limit lower=... upper=...> (metres)")
             if j.type == "continuous" or j.limit is None or j.limit.lower is None or j.limit.upper is None:
                 lo.append(-2 * np.pi)
                 hi.append(2 * np.pi)
             else:
-                lo.append(float(j.limit.lower))
-                hi.append(float(j.limit.upper))
+                unit = M_TO_MM if j.type == "prismatic" else 1.0
+                lo.append(float(j.limit.lower) * unit)
+                hi.append(float(j.limit.upper) * unit)
         lo, hi = np.array(lo), np.array(hi)
         bad = np.nonzero(~(np.isfinite(lo) & np.isfinite(hi)) | (lo >= hi))[0]
         if bad.size:
@@ -161,15 +166,25 @@ class UrdfChain:
                               "lower must be below upper, both finite")
         return lo, hi
 
+    @property
+    def prismatic(self) -> tuple[bool, ...]:
+        return tuple(j.type == "prismatic" for j in self.moving)
+
     def fk(self, q: np.ndarray) -> np.ndarray:
-        """The tool link's world pose (mm) at joint vector q (6,), by the URDF's own product."""
+        """The tool link's world pose (mm) at joint vector q (6,; rad, or mm where a joint
+        slides), by the URDF's own product."""
         T = np.eye(4)
         k = 0
         for j in self.joints:
             T = T @ _origin(j)
             if j.type in MOVING:
                 axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=np.float64)
-                T = T @ _axis_angle(axis, q[k])
+                if j.type == "prismatic":
+                    slide = np.eye(4)
+                    slide[:3, 3] = axis / np.linalg.norm(axis) * q[k]
+                    T = T @ slide
+                else:
+                    T = T @ _axis_angle(axis, q[k])
                 k += 1
         return T
 
@@ -255,7 +270,8 @@ def load_urdf_robot(path: str | Path, base_link: str | None = None, tool_link: s
     lo, hi = chain.limits()
     try:
         robot = Robot(name=f"{urdf.robot.name or path.stem} (URDF)", a_mm=a, d_mm=d, alpha_rad=alpha, theta_offset_rad=theta,
-                      q_min_rad=lo, q_max_rad=hi, base=base, tool=tool, source=f"URDF {path}")
+                      q_min_rad=lo, q_max_rad=hi, base=base, tool=tool, flange=tool, source=f"URDF {path}",
+                      prismatic=chain.prismatic)
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None
     _check_conversion(robot, chain)
@@ -270,7 +286,7 @@ def _parse(path: Path, package_dirs):
         from yourdfpy import URDF
     except ImportError:
         raise ConfigError(f"{path}: reading URDF files needs the yourdfpy package, which the headless set-up "
-                          "installs and the Blender extension does not carry yet") from None
+                          "and the Blender extension install; this Python has none") from None
     import xml.etree.ElementTree as ET
 
     try:  # well-formed XML first: the URDF parser would quietly recover from a cut file

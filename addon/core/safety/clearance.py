@@ -181,6 +181,7 @@ class CollisionModel:
         # Lever arm bound for the motion sampling: the farthest any robot point gets from a joint axis.
         self.arm_mm = robot.reach_bound_mm + max(b.radius + np.linalg.norm(b.centre) for b in self.bodies
                                                  if b.name == "probe")
+        self.joint_mm = np.where(robot.prismatic, 1.0, self.arm_mm)  # mm moved per unit of each joint
         # The table's disc turns into itself; what stands on it moves by its radius.
         self.table_mm = max([0.0] + [float(np.max(np.linalg.norm(b.support[:, :2], axis=1) + b.support_r))
                                      for b in self.bodies if b.carrier == "table" and b.name != "table"])
@@ -270,7 +271,8 @@ class CollisionModel:
         out_q, out_t, out_p = [q[:1]], [th[:1]], [np.array([offset])]
         for i in range(1, len(q)):
             dq, dt = q[i] - q[i - 1], th[i] - th[i - 1]
-            move = float(np.sum(np.abs(dq)) * self.arm_mm + abs(dt) * self.table_mm)
+            # A turning joint sweeps at most arm_mm per radian; a sliding one moves its mm.
+            move = float(np.sum(np.abs(dq) * self.joint_mm) + abs(dt) * self.table_mm)
             m = max(1, int(math.ceil(move / STEP_MM)))
             f = np.arange(1, m + 1) / m
             out_q.append(q[i - 1] + f[:, None] * dq)
