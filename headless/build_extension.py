@@ -28,15 +28,6 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 WHEELS = REPO / "wheels"
 PLATFORMS = ("linux-x64", "windows-x64", "macos-arm64", "macos-x64")
-# What each platform's wheels are built for, as pip's --platform tags.
-PIP_TAGS = {
-    "linux-x64": ["manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_24_x86_64", "manylinux2014_x86_64",
-                  "manylinux_2_17_x86_64"],
-    "windows-x64": ["win_amd64"],
-    "macos-arm64": ["macosx_14_0_arm64", "macosx_13_0_arm64", "macosx_12_0_arm64", "macosx_11_0_arm64"],
-    "macos-x64": ["macosx_14_0_x86_64", "macosx_13_0_x86_64", "macosx_10_14_x86_64", "macosx_10_13_x86_64",
-                  "macosx_10_9_x86_64"],
-}
 
 
 def supported_pythons() -> list[str]:
@@ -89,7 +80,7 @@ def check_pythons(wheels: list[str], platforms: list[str], pythons: list[str]) -
     refuse to enable the extension on the releases that lack one."""
     missing = []
     for platform in platforms:
-        for_platform = [w for w in wheels if wheel_platform(w) in (platform, None)]
+        for_platform = [w for w in wheels if wheel_for(w, [platform])]
         compiled = {w.split("-")[0] for w in for_platform if wheel_python(w) is not None}
         for package in sorted(compiled):
             have = {wheel_python(w) for w in for_platform if w.split("-")[0] == package}
@@ -98,18 +89,27 @@ def check_pythons(wheels: list[str], platforms: list[str], pythons: list[str]) -
         raise SystemExit("error: blender_manifest.toml lists no wheel of " + "; ".join(missing))
 
 
-def wheel_platform(filename: str) -> str | None:
-    """The Blender platform a wheel file is for; None for pure-Python wheels (all platforms)."""
+def wheel_platforms(filename: str) -> tuple[str, ...] | None:
+    """The Blender platforms a wheel file is for; None for pure-Python wheels (all platforms).
+    A macOS universal2 wheel serves both Macs, as Blender's own tool reads it."""
     tag = filename[:-4].split("-")[-1]
     if tag == "any":
         return None
     if "manylinux" in tag or "linux" in tag:
-        return "linux-x64"
+        return ("linux-x64",)
     if "win_amd64" in tag:
-        return "windows-x64"
+        return ("windows-x64",)
     if "macosx" in tag:
-        return "macos-arm64" if tag.endswith("arm64") else "macos-x64"
+        if tag.endswith("universal2"):
+            return ("macos-arm64", "macos-x64")
+        return ("macos-arm64",) if tag.endswith("arm64") else ("macos-x64",)
     raise SystemExit(f"error: cannot tell the platform of wheel {filename}")
+
+
+def wheel_for(filename: str, platforms) -> bool:
+    """Whether the wheel belongs in a build for any of ``platforms``."""
+    served = wheel_platforms(filename)
+    return served is None or any(p in served for p in platforms)
 
 
 def requirement_of(filename: str) -> str:
@@ -117,8 +117,9 @@ def requirement_of(filename: str) -> str:
     return f"{name.replace('_', '-')}=={version}"
 
 
-def fetch(wheel: str, platform: str | None) -> Path:
-    """Make sure ``wheels/<wheel>`` exists, downloading that exact file if needed."""
+def fetch(wheel: str) -> Path:
+    """Make sure ``wheels/<wheel>`` exists, downloading that exact file if needed (pip is
+    given the file's own platform tags, so it finds that file and no other)."""
     target = WHEELS / wheel
     if target.is_file():
         return target
@@ -126,7 +127,8 @@ def fetch(wheel: str, platform: str | None) -> Path:
     python = wheel_python(wheel) or "%d.%d" % sys.version_info[:2]
     cmd = [sys.executable, "-m", "pip", "download", "--disable-pip-version-check", "--no-deps", "--only-binary=:all:",
            "--python-version", python, "--implementation", "cp", "-d", str(WHEELS), requirement_of(wheel)]
-    for tag in PIP_TAGS.get(platform or "linux-x64", []):
+    tags = wheel[:-4].split("-")[-1]
+    for tag in (tags.split(".") if tags != "any" else []):
         cmd += ["--platform", tag]
     print(f"[wheels] downloading {wheel}", flush=True)
     if subprocess.call(cmd) != 0 or not target.is_file():
@@ -145,11 +147,11 @@ def build(platforms: list[str], out: Path, pythons: list[str] | None = None, too
     manifest_text = (REPO / "blender_manifest.toml").read_text()
     manifest = tomllib.loads(manifest_text)
     wheels = [Path(w).name for w in manifest.get("wheels", [])]
-    needed = [w for w in wheels if wheel_platform(w) in (None, *platforms)]
+    needed = [w for w in wheels if wheel_for(w, platforms)]
     check_pythons(needed, platforms, pythons or supported_pythons())
     tool = blender_ext_tool(tool)
     for w in needed:
-        fetch(w, wheel_platform(w))
+        fetch(w)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="scanner-ext-") as tmp:
         stage = Path(tmp) / manifest["id"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from headless.build_extension import blender_ext_tool, check_pythons, supported_pythons, wheel_platform, wheel_python
+from headless.build_extension import blender_ext_tool, check_pythons, supported_pythons, wheel_for, wheel_platforms, wheel_python
 
 REPO = Path(__file__).resolve().parents[1]
 MANIFEST = tomllib.loads((REPO / "blender_manifest.toml").read_text())
@@ -30,8 +30,9 @@ def test_every_compiled_wheel_comes_for_each_supported_python():
     assert supported_pythons() == ["3.11", "3.13"]
     check_pythons(WHEELS, MANIFEST["platforms"], supported_pythons())  # raises with the gaps named
     for platform in MANIFEST["platforms"]:
-        scipy = [w for w in WHEELS if w.startswith("scipy-") and wheel_platform(w) == platform]
-        assert sorted(wheel_python(w) for w in scipy) == ["3.11", "3.13"], platform
+        for package in ("scipy", "lxml"):  # lxml (for URDF files) serves both Macs with universal2 wheels
+            wheels = [w for w in WHEELS if w.startswith(package + "-") and wheel_for(w, [platform])]
+            assert sorted(wheel_python(w) for w in wheels) == ["3.11", "3.13"], (package, platform)
 
 
 def test_a_missing_python_is_named():
@@ -44,6 +45,9 @@ def test_wheel_tags_are_read_from_file_names():
     assert wheel_python("scipy-1.17.1-cp313-cp313-win_amd64.whl") == "3.13"
     assert wheel_python("opencv_contrib_python_headless-5.0.0.93-cp37-abi3-win_amd64.whl") is None
     assert wheel_python("trimesh-5.2.0-py3-none-any.whl") is None
-    assert wheel_platform("trimesh-5.2.0-py3-none-any.whl") is None
+    assert wheel_platforms("trimesh-5.2.0-py3-none-any.whl") is None
+    assert wheel_platforms("lxml-6.1.3-cp313-cp313-macosx_10_13_universal2.whl") == ("macos-arm64", "macos-x64")
+    assert wheel_platforms("scipy-1.17.1-cp313-cp313-macosx_12_0_arm64.whl") == ("macos-arm64",)
+    assert not wheel_for("scipy-1.17.1-cp313-cp313-win_amd64.whl", ["linux-x64"])
 
 # The built zip's contents, its install and removal: tests/extension/test_install.py.

@@ -54,6 +54,13 @@ try:
     out["trimesh_from_zip"] = Path(trimesh.__file__).is_relative_to(local)
     out["cv2_from_zip"] = Path(cv2.__file__).is_relative_to(local)
     out["numpy"] = numpy.__version__
+    out["step"] = "URDF robot"
+    import importlib, yourdfpy
+    out["yourdfpy_from_zip"] = Path(yourdfpy.__file__).is_relative_to(local)
+    ext = importlib.import_module(module)
+    rigs = importlib.import_module(module + ".addon.core.config.rigs")
+    gantry = rigs.load_robot(Path(ext.__file__).parent / "rigs" / "robots" / "urdf" / "gantry.urdf")
+    out["urdf_prismatic"] = list(gantry.prismatic)
     out["step"] = "build cell"
     check(bpy.ops.scanner.build_cell() == {"FINISHED"}, "scanner.build_cell did not finish")
     out["step"] = "render probe views"
@@ -105,7 +112,7 @@ def test_zip_ships_the_addon_its_rigs_and_linux_wheels_for_both_pythons(linux_zi
         assert needed in names
     wheels = [n for n in names if n.startswith("wheels/")]
     assert wheels and all(("linux" in w or "-any" in w) for w in wheels)
-    for package in ("scipy", "embreex"):
+    for package in ("scipy", "embreex", "lxml"):
         tags = {w.split("-")[2] for w in wheels if w.startswith(f"wheels/{package}-")}
         assert tags == {"cp311", "cp313"}, (package, tags)
     assert not [n for n in names if n.startswith(("tests/", "headless/", ".venv", ".ci/", ".git"))]
@@ -128,6 +135,7 @@ def test_install_enable_scan_disable_uninstall(release, linux_zip, tmp_path):
     assert out["blender"].startswith(release) and out["python"] == "%d.%d" % BLENDER_ENVS[release]
     assert {"trimesh", "cv2", "rtree", "scipy", "embreex"} <= set(out["wheels"]), where
     assert out["trimesh_from_zip"] and out["cv2_from_zip"], f"{where}: the zip's wheels are not what runs"
+    assert out["yourdfpy_from_zip"] and out["urdf_prismatic"] == [True] * 3 + [False] * 3, where
     for view in out["views"]:
         assert view["size"] == [160, 160] and view["max"] > 0.05, f"{where}: probe view {view}"
     assert out["cloud_object_points"] > 500, where
