@@ -25,7 +25,8 @@ from headless.bench.timing import fmt_time, median_seconds, median_single_call, 
 
 # The three bundled DH tables, and the UR5 again from its URDF file (the same arm through
 # the URDF loader: its DH form, base and tool, and the UR closed form).
-DEFAULT_ROBOTS = ["adept_viper_s650", "puma560", "ur5", str(RIGS_DIR / "robots" / "urdf" / "ur5.urdf")]
+DEFAULT_ROBOTS = ["adept_viper_s650", "puma560", "ur5", str(RIGS_DIR / "robots" / "urdf" / "ur5.urdf"),
+                  str(RIGS_DIR / "robots" / "urdf" / "gantry.urdf")]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -131,10 +132,14 @@ def _wrist_beyond_both_shoulders(robot: Robot, T: np.ndarray) -> bool:
 
 
 def literal_fk(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """Eq. 1–3 from elementary transforms: the independent check of claimed successes."""
+    """Eq. 1–3 from elementary transforms: the independent check of claimed successes (a
+    sliding joint adds q to d instead of θ)."""
     T = robot.base
     for i in range(6):
-        T = T @ rot_z(q[i] + robot.theta_offset_rad[i]) @ trans(robot.a_mm[i], 0, robot.d_mm[i]) @ rot_x(robot.alpha_rad[i])
+        slides = robot.prismatic[i]
+        theta = robot.theta_offset_rad[i] + (0.0 if slides else q[i])
+        d = robot.d_mm[i] + (q[i] if slides else 0.0)
+        T = T @ rot_z(theta) @ trans(robot.a_mm[i], 0, d) @ rot_x(robot.alpha_rad[i])
     return T @ robot.tool
 
 

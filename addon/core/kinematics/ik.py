@@ -33,6 +33,7 @@ from .transforms import check_transform, rotation_angle
 
 ROT_TOL_RAD = TOL.ik_rotation_rad
 LIMIT_TOL_RAD = TOL.joint_limit_rad
+_TURNS = np.array([0.0, -2.0 * np.pi, 2.0 * np.pi])
 METHODS = ("auto", "analytic", "numeric")
 # IKResult.reason values: success; farther than any joint vector reaches; reachable
 # only with joints outside their limits; closed form off by rounding at a singularity
@@ -107,19 +108,22 @@ def wrap_to_limits(robot, q: np.ndarray, seed: np.ndarray) -> tuple[np.ndarray, 
     lo, hi = robot.q_min_rad, robot.q_max_rad
     two_pi = 2.0 * np.pi
     seed = np.broadcast_to(seed, q.shape)
-    # The turn nearest the seed is the answer whenever it fits; otherwise one of
-    # its neighbours usually does. Rare leftovers get the exhaustive search.
+    # The turn nearest the seed is the answer whenever it fits; otherwise one of its
+    # neighbours does if any turn does (with the seed inside the limits, the nearest turn
+    # lies within π of them), and where none fits the neighbour nearest the limits is kept.
+    # Seeds outside the limits get the exhaustive search.
     c0 = q + two_pi * np.round((seed - q) / two_pi)
     fits = (c0 >= lo - LIMIT_TOL_RAD) & (c0 <= hi + LIMIT_TOL_RAD)
     if fits.all():  # the usual case, kept short: a single solve is mostly numpy call overhead
         return np.minimum(np.maximum(c0, lo), hi), np.ones(q.shape[:-1], dtype=bool)
-    out = c0.copy()
-    for shift in (-two_pi, two_pi):
-        c = c0 + shift
-        ok = ~fits & (c >= lo - LIMIT_TOL_RAD) & (c <= hi + LIMIT_TOL_RAD)
-        out = np.where(ok, c, out)
-        fits |= ok
-    if not fits.all():
+    cands = c0[..., None] + _TURNS  # (..., 6, 3): this turn, one less, one more
+    lo3, hi3 = lo[:, None], hi[:, None]
+    inside = (cands >= lo3 - LIMIT_TOL_RAD) & (cands <= hi3 + LIMIT_TOL_RAD)
+    violation = np.maximum(lo3 - cands, 0.0) + np.maximum(cands - hi3, 0.0)
+    score = np.where(inside, np.abs(cands - seed[..., None]), 1e9 + violation)
+    out = c0 + _TURNS[score.argmin(axis=-1)]
+    fits = inside.any(axis=-1)
+    if not fits.all() and not ((seed >= lo - LIMIT_TOL_RAD) & (seed <= hi + LIMIT_TOL_RAD))[~fits].all():
         bad = ~fits
         joint = np.broadcast_to(np.arange(6), q.shape)[bad]
         l, h = lo[joint], hi[joint]
@@ -312,15 +316,11 @@ def _solve_analytic(robot, arm, T, q0, pos_tol, rot_tol):
         err = pos + rot * robot.length_scale_mm
         fallback = np.where(inside, err, err + 1e300).argmin(axis=1)
         pick = np.where(success, pick, fallback)
-    reasons, messages = [], []
-    for i in range(m):
-        if success[i]:
-            reasons.append("ok")
-            messages.append("ok")
-        else:
-            r, t = _analytic_failure(robot, q[i], geom_ok[i], pos[i], rot[i], pos_tol, rot_tol)
-            reasons.append(r)
-            messages.append(t)
+    reasons, messages = ["ok"] * m, ["ok"] * m
+    if not success.all():
+        geom = geom_ok()
+        for i in np.nonzero(~success)[0]:
+            reasons[i], messages[i] = _analytic_failure(robot, q[i], geom[i], pos[i], rot[i], pos_tol, rot_tol)
     rows = np.arange(m)
     return q[rows, pick], success, reasons, messages, pos[rows, pick], rot[rows, pick]
 
@@ -328,15 +328,16 @@ def _solve_analytic(robot, arm, T, q0, pos_tol, rot_tol):
 def all_branches(robot, arm, T: np.ndarray, q0: np.ndarray):
     """Every closed-form branch for targets T (n, 4, 4), wrapped into limits near q0 (n, 6).
 
-    Returns q (n, 8, 6), inside (n, 8), pos_err (n, 8) mm, rot_err (n, 8) rad,
-    geometry_ok (n, 8) (False where the link lengths could not reach and values were clamped).
+    Returns q (n, 8, 6), inside (n, 8), pos_err (n, 8) mm, rot_err (n, 8) rad, and
+    geometry_ok, a function giving (n, 8) bool (False where the link lengths could not reach
+    and values were clamped), called only where a failure needs explaining.
     """
     F = flange_targets(robot, T)
     br = (parallel_branches if isinstance(arm, ParallelAxesArm) else branches)(arm, F, q0 + robot.theta_offset_rad)
     q_raw = br.theta - robot.theta_offset_rad
     q, inside = wrap_to_limits(robot, q_raw, q0[:, None, :])
     pos, rot = pose_errors(robot, q, T[:, None])
-    return q, inside, pos, rot, br.shoulder_ok & br.elbow_ok
+    return q, inside, pos, rot, br.geometry_ok
 
 
 def _analytic_failure(robot, q, geom_ok, pos, rot, pos_tol, rot_tol) -> tuple[str, str]:

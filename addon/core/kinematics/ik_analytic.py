@@ -38,6 +38,9 @@ from ..tolerances import TOL
 # A unit-vector component below this is treated as exactly zero (singular wrist,
 # wrist centre on the joint-1 axis).
 SINGULAR = TOL.singular
+# The two choices of each of shoulder, elbow and wrist, as a sign and as a half turn.
+_SHOULDER_SIGN = np.array([1.0, -1.0])
+_SHOULDER_TURN = np.array([0.0, np.pi])
 
 
 @dataclass(frozen=True)
@@ -99,13 +102,20 @@ class Branches:
     """All closed-form branches for n targets.
 
     theta : (n, 8, 6) DH angles (θ, not q), branch = 4·shoulder + 2·elbow + wrist
-    shoulder_ok, elbow_ok : (n, 8) bool, False where the geometry had no real
-        solution and a clamped (best-effort) value was used
+    shoulder_ok : (n,) and elbow_ok : (n, 2) (one per shoulder) or (n, 8) bool, False where
+        the geometry had no real solution and a clamped (best-effort) value was used;
+        :meth:`geometry_ok` spreads them over the eight branches (only failures need it)
     """
 
     theta: np.ndarray
     shoulder_ok: np.ndarray
     elbow_ok: np.ndarray
+
+    def geometry_ok(self) -> np.ndarray:
+        """(n, 8) bool: both the shoulder's and the elbow's equations had a real solution."""
+        n = len(self.shoulder_ok)
+        elbow = np.repeat(self.elbow_ok, 8 // self.elbow_ok.shape[1], axis=1)
+        return self.shoulder_ok[:, None] & elbow.reshape(n, 8)
 
 
 def flange_targets(robot, T_world: np.ndarray) -> np.ndarray:
@@ -143,7 +153,7 @@ def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> B
 
     # -- θ1 (shoulder): w_x sin θ1 − w_y cos θ1 = D·sin α1 --------------------
     phi, g, shoulder_ok = shoulder_angles(px, py, arm.shoulder_offset * arm.s1, arm.scale, seed_theta[:, 0])
-    th1 = np.stack([phi + g, phi + np.pi - g], axis=1)  # (n, 2)
+    th1 = phi[:, None] + _SHOULDER_TURN + _SHOULDER_SIGN * g[:, None]  # (n, 2): φ + g, φ + π − g
 
     # -- θ2, θ3 (planar arm in frame 1) ----------------------------------------
     c1, s1 = np.cos(th1), np.sin(th1)
@@ -152,7 +162,7 @@ def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> B
     K = (x * x + y * y - arm.a2 ** 2 - arm.L3 ** 2) / (2.0 * arm.a2 * arm.L3)
     elbow_ok = np.abs(K) <= 1.0 + 1e-12
     delta0 = np.arccos(np.clip(K, -1.0, 1.0))
-    delta = np.stack([delta0, -delta0], axis=2)  # (n, 2, 2)
+    delta = delta0[:, :, None] * _SHOULDER_SIGN  # (n, 2, 2): elbow up and down
     xx, yy = x[:, :, None], y[:, :, None]
     th3 = arm.beta + delta
     th2 = np.arctan2(yy, xx) - np.arctan2(arm.L3 * np.sin(delta), arm.a2 + arm.L3 * np.cos(delta))
@@ -178,11 +188,11 @@ def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> B
     c5 = -m22 * sa5 * sa4
     h = np.hypot(m02, m12)
     singular = h <= SINGULAR
-    th5 = np.stack([np.arctan2(h, c5), np.arctan2(-h, c5)], axis=-1)  # (n, 2, 2, 2)
+    th5 = np.arctan2(h[..., None] * _SHOULDER_SIGN, c5[..., None])  # (n, 2, 2, 2): wrist up and down
     th4_up = np.arctan2(sa5 * m12, sa5 * m02)
     seed4 = np.broadcast_to(seed_theta[:, 3, None, None], th4_up.shape)
     th4_up = np.where(singular, seed4, th4_up)
-    th4 = np.stack([th4_up, np.where(singular, seed4, th4_up + np.pi)], axis=-1)
+    th4 = np.where(singular[..., None], seed4[..., None], th4_up[..., None] + _SHOULDER_TURN)
     # θ6 from what θ4 and θ5 leave: N = (R_Z(θ4)R_X(α4)R_Z(θ5)R_X(α5))ᵀ M = R_Z(θ6), and
     # that product's first two columns are (c4 c5, s4 c5, sα4 s5) and sα4 sα5 (s4, −c4, 0).
     c4, s4 = np.cos(th4), np.sin(th4)
@@ -192,15 +202,9 @@ def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> B
     n10 = sa4 * sa5 * (s4 * m00 - c4 * m10)
     th6 = np.arctan2(n10, n00)
 
-    shape = (n, 2, 2, 2)
-    theta = np.stack([
-        np.broadcast_to(th1[:, :, None, None], shape),
-        np.broadcast_to(th2[..., None], shape),
-        np.broadcast_to(th3[..., None], shape),
-        th4, th5, th6,
-    ], axis=-1).reshape(n, 8, 6)
-    return Branches(
-        theta=theta,
-        shoulder_ok=np.broadcast_to(shoulder_ok[:, None, None, None], shape).reshape(n, 8),
-        elbow_ok=np.broadcast_to(elbow_ok[:, :, None, None], shape).reshape(n, 8),
-    )
+    theta = np.empty((n, 2, 2, 2, 6))  # filled by broadcasting: few numpy calls per target
+    theta[..., 0] = th1[:, :, None, None]
+    theta[..., 1] = th2[..., None]
+    theta[..., 2] = th3[..., None]
+    theta[..., 3], theta[..., 4], theta[..., 5] = th4, th5, th6
+    return Branches(theta=theta.reshape(n, 8, 6), shoulder_ok=shoulder_ok, elbow_ok=elbow_ok)

@@ -170,4 +170,4 @@ def parallel_branches(arm: ParallelAxesArm, F: np.ndarray, seed_theta: np.ndarra
     theta = np.empty((n, 8, 6))
     for j, angle in enumerate((th1, th2, th3, th4, th5, th6)):
         theta[:, :, j] = angle
-    return Branches(theta=theta, shoulder_ok=np.repeat(shoulder_ok[:, None], 8, axis=1), elbow_ok=elbow_ok)
+    return Branches(theta=theta, shoulder_ok=shoulder_ok, elbow_ok=elbow_ok)

@@ -265,15 +265,14 @@ class Robot:
         """Flange pose T*_DK (Eq. 2) in the world: (6,) -> (4, 4), (n, 6) -> (n, 4, 4)."""
         q = self.check_q(q)
         if q.ndim == 1:
-            return self.link_frames(q)[-1]
+            return self._fk_chain(q[None], with_tool=False)[0]
         return self._fk_batch(q, with_tool=False)
 
     def fk(self, q) -> np.ndarray:
         """Tool pose T_DK (Eq. 3) in the world: (6,) -> (4, 4), (n, 6) -> (n, 4, 4)."""
         q = self.check_q(q)
         if q.ndim == 1:
-            T = self.link_frames(q)[-1]
-            return T if self._tool_is_identity else T @ self.tool
+            return self._fk_chain(q[None], with_tool=True)[0]
         return self._fk_batch(q, with_tool=True)
 
     def _fk_batch(self, q: np.ndarray, with_tool: bool) -> np.ndarray:
