@@ -63,11 +63,9 @@ def test_sphere_error_within_the_derived_bound(sphere_scan):
     assert res.report["points_on_part"] > 2000 and res.report["coverage"] > 0.1  # 30 profiles, 1 mm tolerance
 
 
-def test_a_urdf_robot_scans_the_same_sphere_as_well(sphere_scan):
-    """rigs/scenes/ur5_urdf.toml: the demo's path with the UR5 read from its URDF file (the
-    Blender rig drawn from the file's geometry); the same derived bound on the sphere."""
-    cfg = load_scan_config("ur5_urdf").with_overrides(frames=slice(None, None, 6))
-    assert cfg.robot.source.startswith("URDF ") and cfg.robot.link_meshes
+def scan_within_the_sphere_bound(cfg):
+    """Scan ``cfg`` (the demo's sphere) and check the points seen within 45° of head-on
+    against the exact sphere and the derived bound; returns the result."""
     res = run_scan(cfg, None, write_outputs=False)
     sphere = cfg.workpiece.truth
     P = res.cloud.points
@@ -75,6 +73,15 @@ def test_a_urdf_robot_scans_the_same_sphere_as_well(sphere_scan):
     good = (np.abs(s) < 1.0) & (incidence_deg(P, sphere.pose[:3, 3]) < 45)
     assert good.sum() > 1000
     assert np.sqrt(np.mean(s[good] ** 2)) * 1e3 <= SPHERE_BOUND_UM
+    return res
+
+
+def test_a_urdf_robot_scans_the_same_sphere_as_well(sphere_scan):
+    """rigs/scenes/ur5_urdf.toml: the demo's path with the UR5 read from its URDF file (the
+    Blender rig drawn from the file's geometry); the same derived bound on the sphere."""
+    cfg = load_scan_config("ur5_urdf").with_overrides(frames=slice(None, None, 6))
+    assert cfg.robot.source.startswith("URDF ") and cfg.robot.link_meshes
+    res = scan_within_the_sphere_bound(cfg)
     # The probe follows the same path in the table frame whichever robot carries it.
     assert abs(res.report["points_on_part"] - sphere_scan[1].report["points_on_part"]) < 0.05 * res.report["points_on_part"]
 
@@ -84,13 +91,7 @@ def test_a_gantry_with_sliding_joints_scans_the_sphere(sphere_scan):
     URDF) carries the probe along the demo's path in the table frame; the same derived bound."""
     cfg = load_scan_config("gantry_urdf").with_overrides(frames=slice(None, None, 6))
     assert cfg.robot.prismatic == (True, True, True, False, False, False)
-    res = run_scan(cfg, None, write_outputs=False)
-    sphere = cfg.workpiece.truth
-    P = res.cloud.points
-    s = sphere.signed_distance(P)
-    good = (np.abs(s) < 1.0) & (incidence_deg(P, sphere.pose[:3, 3]) < 45)
-    assert good.sum() > 1000
-    assert np.sqrt(np.mean(s[good] ** 2)) * 1e3 <= SPHERE_BOUND_UM
+    res = scan_within_the_sphere_bound(cfg)
     assert not any("joint jumps" in w for w in res.report.get("warnings", []))
 
 
