@@ -31,8 +31,8 @@ DEFAULT_ROBOTS = ["adept_viper_s650", "puma560", "ur5", str(RIGS_DIR / "robots" 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robots", nargs="+", default=DEFAULT_ROBOTS, metavar="ROBOT",
-                        help="bundled robot names, rig file paths or URDF files (default: the three bundled robots "
-                             "and the UR5's URDF)")
+                        help="bundled robot names, rig file paths or URDF files (default: the three bundled robots, "
+                             "the UR5's URDF and the gantry's)")
     parser.add_argument("--n", type=int, default=10_000, help="random reachable targets per robot (default 10000)")
     parser.add_argument("--near", type=int, default=1_000, help="near-singular targets per robot (default 1000)")
     parser.add_argument("--unreachable", type=int, default=1_000, help="unreachable targets per robot (default 1000)")
