@@ -29,6 +29,7 @@ from ..tolerances import TOL
 from .ik_analytic import branches, flange_targets, spherical_wrist_arm
 from .ik_parallel import ParallelAxesArm, parallel_axes_arm, parallel_branches
 from .ik_numeric import levenberg_marquardt, solve_numeric
+from .robot import FEW_POSES
 from .transforms import check_transform, rotation_angle
 
 ROT_TOL_RAD = TOL.ik_rotation_rad
@@ -143,7 +144,8 @@ def wrap_to_limits(robot, q: np.ndarray, seed: np.ndarray) -> tuple[np.ndarray, 
 def pose_errors(robot, q: np.ndarray, T_targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position (mm) and orientation (rad) distance of FK(q) from targets; q (..., 6)."""
     shape = q.shape[:-1]
-    Tq = robot.fk(q.reshape(-1, 6)).reshape(shape + (4, 4))
+    flat = q.reshape(-1, 6)
+    Tq = (robot._fk_chain(flat, True) if len(flat) <= FEW_POSES else robot.fk(flat)).reshape(shape + (4, 4))
     d = Tq[..., :3, 3] - T_targets[..., :3, 3]
     pos = np.sqrt((d * d).sum(axis=-1))
     rel = np.swapaxes(T_targets[..., :3, :3], -1, -2) @ Tq[..., :3, :3]

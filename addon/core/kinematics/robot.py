@@ -33,8 +33,8 @@ from ..tolerances import TOL
 from .transforms import _cos_sin, check_transform
 
 N_JOINTS = 6
-# Up to this many poses, batched FK multiplies link matrices (fewer numpy calls); above, it
-# works on rotation columns (fewer operations per pose).
+# Up to this many poses, IK checks its branches by FK as a product of link matrices (fewer
+# numpy calls); above, on rotation columns (fewer operations per pose).
 FEW_POSES = 16
 
 # Sanity limits for rig files. Lengths up to 1 km and joint ranges up to two turns
@@ -265,21 +265,21 @@ class Robot:
         """Flange pose T*_DK (Eq. 2) in the world: (6,) -> (4, 4), (n, 6) -> (n, 4, 4)."""
         q = self.check_q(q)
         if q.ndim == 1:
-            return self._fk_chain(q[None], with_tool=False)[0]
+            return self.link_frames(q)[-1]
         return self._fk_batch(q, with_tool=False)
 
     def fk(self, q) -> np.ndarray:
         """Tool pose T_DK (Eq. 3) in the world: (6,) -> (4, 4), (n, 6) -> (n, 4, 4)."""
         q = self.check_q(q)
         if q.ndim == 1:
-            return self._fk_chain(q[None], with_tool=True)[0]
+            T = self.link_frames(q)[-1]
+            return T if self._tool_is_identity else T @ self.tool
         return self._fk_batch(q, with_tool=True)
 
     def _fk_batch(self, q: np.ndarray, with_tool: bool) -> np.ndarray:
-        """Batched Eq. 2/3 (n, 6) -> (n, 4, 4): :meth:`_fk_chain` for a few poses (an IK
-        call's eight branches), :meth:`_fk_columns` for many."""
-        if q.shape[0] <= FEW_POSES:
-            return self._fk_chain(q, with_tool)
+        """Batched Eq. 2/3 (n, 6) -> (n, 4, 4) via :meth:`_fk_columns`, whatever n: a pose's
+        rounding must not depend on the batch it came in (a farm's shards and one process
+        give the same cloud bit for bit)."""
         X, Y, Z, P, _, _ = self._fk_columns(q, with_tool=with_tool)
         T = np.zeros((q.shape[0], 4, 4))
         T[:, :3, 0] = X.T
@@ -292,7 +292,8 @@ class Robot:
     def _fk_chain(self, q: np.ndarray, with_tool: bool) -> np.ndarray:
         """Eq. 2/3 for q (n, 6) as the product of the link matrices, each R_Z(θ) times the
         link's constant T_Z(d)·T_X(a)·R_X(α): about 20 numpy calls whatever n, a quarter of
-        the column form's, which wins for a few poses only (its 4 × 4 products are slow per pose)."""
+        the column form's, which wins for a few poses only (its 4 × 4 products are slow per
+        pose). Used by IK's checks of a single target's branches, not by :meth:`fk`."""
         th = q + self.theta_offset_rad if not self.has_prismatic else self.joint_dh(q)[0]
         c, s = np.cos(th), np.sin(th)
         Rz = np.zeros(q.shape + (4, 4))
