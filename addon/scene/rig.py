@@ -88,7 +88,9 @@ def build_robot(collection: bpy.types.Collection, robot: Robot, name: str = "Rob
             limit.use_min_y, limit.use_max_y = True, True
             limit.min_y, limit.max_y = lo * 1e-3, hi * 1e-3
             obj.id_properties_ui(prop).update(min=lo, max=hi, description=f"Joint {k + 1} travel (DH q{k + 1}, mm)")
-            fcurve = pb.driver_add("location", 1)
+            driver = pb.driver_add("location", 1).driver
+            driver.type = "SCRIPTED"  # mm to metres by Blender's own expression evaluator (no script runs)
+            driver.expression = "q * 0.001"
         else:
             limit = pb.constraints.new("LIMIT_ROTATION")
             limit.owner_space = "LOCAL"
@@ -97,13 +99,8 @@ def build_robot(collection: bpy.types.Collection, robot: Robot, name: str = "Rob
             limit.min_y, limit.max_y = lo, hi
             obj.id_properties_ui(prop).update(subtype="ANGLE", min=lo, max=hi,
                                               description=f"Joint {k + 1} angle (DH q{k + 1}, offset excluded)")
-            fcurve = pb.driver_add("rotation_euler", 1)
-        driver = fcurve.driver
-        # The value of its one variable (no Python expression needed); a sliding joint's mm
-        # become metres through Blender's own expression evaluator (no script execution).
-        driver.type = "SCRIPTED" if slides else "AVERAGE"
-        if slides:
-            driver.expression = "q * 0.001"
+            driver = pb.driver_add("rotation_euler", 1).driver
+            driver.type = "AVERAGE"  # the value of its one variable: no Python expression needed
         var = driver.variables.new()
         var.name = "q"
         var.type = "SINGLE_PROP"

@@ -6,7 +6,6 @@ the user can fix are reported in the status bar, and nothing changes then.
 
 from __future__ import annotations
 
-import math
 
 import bpy
 import numpy as np
@@ -110,8 +109,7 @@ class SCANNER_OT_go(bpy.types.Operator):
             self.report({"ERROR"}, f"Colliding, the robot stays put: {found.message()}")
             return {"CANCELLED"}
         rig.set_joints(robot_obj, res.q)
-        values = (f"{v:.1f} mm" if slides else f"{math.degrees(v):.1f}°" for v, slides in zip(res.q, robot.prismatic))
-        self.report({"INFO"}, "Reached: joints " + ", ".join(values))
+        self.report({"INFO"}, "Reached: joints " + ", ".join(robot.joint_text(j, v, ".1f") for j, v in enumerate(res.q)))
         return {"FINISHED"}
 
 

@@ -295,11 +295,9 @@ def _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_star
         pos[again], rot[again] = pose_errors(robot, q[again], T[again])
     # Success is re-checked here, from FK of the returned q, for every method (the closed
     # form's errors above are FK of the very joint vectors it returns).
-    inside = ((q >= robot.q_min_rad - LIMIT_TOL_RAD) & (q <= robot.q_max_rad + LIMIT_TOL_RAD)).all(axis=1)
-    verified = success & (pos <= pos_tol) & (rot <= rot_tol) & inside
-    if (success & ~verified).any():
-        for i in np.nonzero(success & ~verified)[0]:
-            reasons[i], messages[i] = "numerical", f"solution failed verification ({pos[i]:.3g} mm, {rot[i]:.3g} rad)"
+    verified = success & (pos <= pos_tol) & (rot <= rot_tol) & robot.within_limits(q, LIMIT_TOL_RAD)
+    for i in np.nonzero(success & ~verified)[0]:
+        reasons[i], messages[i] = "numerical", f"solution failed verification ({pos[i]:.3g} mm, {rot[i]:.3g} rad)"
     return IKBatch(q, verified, pos, rot, iterations, messages, reasons, name)
 
 
@@ -313,13 +311,11 @@ def _solve_analytic(robot, arm, T, q0, pos_tol, rot_tol):
     dist2 = (d * d).sum(axis=-1)
     success = ok.any(axis=1)
     pick = np.where(ok, dist2, np.inf).argmin(axis=1)
-    # For failures return the branch nearest to success: inside the limits first, then smallest error.
-    if not success.all():
-        err = pos + rot * robot.length_scale_mm
-        fallback = np.where(inside, err, err + 1e300).argmin(axis=1)
-        pick = np.where(success, pick, fallback)
     reasons, messages = ["ok"] * m, ["ok"] * m
     if not success.all():
+        # For failures return the branch nearest to success: inside the limits first, then smallest error.
+        err = pos + rot * robot.length_scale_mm
+        pick = np.where(success, pick, np.where(inside, err, err + 1e300).argmin(axis=1))
         geom = geom_ok()
         for i in np.nonzero(~success)[0]:
             reasons[i], messages[i] = _analytic_failure(robot, q[i], geom[i], pos[i], rot[i], pos_tol, rot_tol)

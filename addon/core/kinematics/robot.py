@@ -209,12 +209,13 @@ class Robot:
         for j in range(N_JOINTS):
             tol = TOL.joint_limit_rad
             if not (self.q_min_rad[j] - tol <= q[j] <= self.q_max_rad[j] + tol):
-                if self.prismatic[j]:
-                    out.append(f"J{j + 1} = {q[j]:.3f} mm outside [{self.q_min_rad[j]:g} mm, {self.q_max_rad[j]:g} mm]")
-                else:
-                    out.append(f"J{j + 1} = {np.degrees(q[j]):.3f}° outside "
-                               f"[{np.degrees(self.q_min_rad[j]):g}°, {np.degrees(self.q_max_rad[j]):g}°]")
+                out.append(f"J{j + 1} = {self.joint_text(j, q[j], '.3f')} outside "
+                           f"[{self.joint_text(j, self.q_min_rad[j])}, {self.joint_text(j, self.q_max_rad[j])}]")
         return out
+
+    def joint_text(self, j: int, value: float, spec: str = "g") -> str:
+        """Joint j's value (rad, or mm where it slides) for people: "12.5°" or "250 mm"."""
+        return f"{value:{spec}} mm" if self.prismatic[j] else f"{np.degrees(value):{spec}}°"
 
     def random_q(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """(n, 6) joint vectors uniformly inside the limits."""
@@ -294,7 +295,7 @@ class Robot:
         link's constant T_Z(d)·T_X(a)·R_X(α): about 20 numpy calls whatever n, a quarter of
         the column form's, which wins for a few poses only (its 4 × 4 products are slow per
         pose). Used by IK's checks of a single target's branches, not by :meth:`fk`."""
-        th = q + self.theta_offset_rad if not self.has_prismatic else self.joint_dh(q)[0]
+        th = self.joint_dh(q)[0]
         c, s = np.cos(th), np.sin(th)
         Rz = np.zeros(q.shape + (4, 4))
         Rz[..., 0, 0] = c
@@ -324,7 +325,7 @@ class Robot:
         mixes y, z. Arrays are (3, n) so each step is a few contiguous vector ops.
         """
         n = q.shape[0]
-        th = (q + self.theta_offset_rad if not self.has_prismatic else self.joint_dh(q)[0]).T
+        th = self.joint_dh(q)[0].T
         ct, st = np.cos(th), np.sin(th)
         B = self.base
         X = np.repeat(B[:3, 0:1], n, axis=1)
