@@ -4,6 +4,7 @@ Commands:
   demo                 the demo scan (rigs/scenes/demo.toml): the README's first command
   scan CONFIG          a scan described by a config file (rigs/scenes/*.toml)
   adaptive CONFIG      scan the config's part adaptively from its bounding box (next-best-view planner)
+  calibrate CONFIG     calibrate the config's probe from rendered ChArUco boards and laser lines (probe.toml)
   gym-baselines        the Gymnasium environment's two baselines (reference planner, random sweeps): coverage curves
   kinematics           tool poses of the bundled robots and IK solves
   bench kinematics     FK/IK speed, IK success and accuracy, false successes
@@ -62,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
     from headless import adaptive
 
     adaptive.add_arguments(sub.add_parser("adaptive", help=_summary(adaptive.__doc__)))
+    from headless import calibrate
+
+    calibrate.add_arguments(sub.add_parser("calibrate", help=_summary(calibrate.__doc__)))
     from headless import scan_env
 
     scan_env.add_arguments(sub.add_parser("gym-baselines", help="run the Gymnasium environment's two baselines "

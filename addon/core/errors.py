@@ -26,6 +26,11 @@ class CollisionError(ScannerError):
     """A pose or a motion would bring the robot or the probe into (or too near) something."""
 
 
+class CalibrationError(ScannerError):
+    """A calibration cannot be made from these images and poses (board not found, too few
+    or degenerate poses, no laser line); the message says what to change."""
+
+
 class UnreachablePose(ScannerError):
     """Inverse kinematics found no joint vector within limits for a target pose.
 

@@ -9,7 +9,7 @@ import ast
 from pathlib import Path
 
 CORE = Path(__file__).resolve().parents[2] / "addon" / "core"
-STAGES = ["kinematics", "optics", "geometry", "safety", "config", "scan"]
+STAGES = ["kinematics", "optics", "geometry", "safety", "config", "scan", "calibration"]
 
 
 def stage_of(parts: list[str]) -> int:

@@ -9,6 +9,7 @@ Loaded rigs are cached by path and file time, so a panel redraw reads no file.
 from __future__ import annotations
 
 import functools
+import json
 import math
 from pathlib import Path
 
@@ -16,6 +17,9 @@ import numpy as np
 
 from ..errors import ConfigError, InputError
 from ..kinematics.robot import MAX_JOINT_DEG, MAX_LENGTH_MM, N_JOINTS, Robot
+from ..kinematics.euler import pose_to_xyz_yzz
+from ..kinematics.transforms import make_pose
+from ..optics.calibrated import CameraModel, ProbeCalibration
 from ..optics.probe import MAX_PIXELS, Probe, angles_from_range
 from .toml import load_toml, resolve_rig
 
@@ -194,10 +198,85 @@ def _read_probe(path: Path) -> Probe:
     wavelength = laser.number("wavelength_nm", default=650.0, lo=200.0, hi=20000.0)
     laser.finish()
     mount = top.pose("mount")
+    calibration = _read_calibration(top.table("calibration", default=None))
     top.finish()
     try:
         return Probe(name=name, a_mm=a, b_mm=b, phi_rad=phi, gamma_rad=gamma, rows_px=rows, cols_px=cols,
                      line_width_mm=width, fan_rad=math.radians(fan), wavelength_nm=wavelength, mount=mount,
-                     source=source)
+                     source=source, calibration=calibration)
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None
+
+
+def _read_calibration(cal) -> ProbeCalibration | None:
+    """``[calibration]``: ``source``; ``[calibration.camera0]`` and ``camera1`` with ``fx_px``,
+    ``fy_px``, ``cx_px``, ``cy_px``, ``distortion`` (k1, k2, p1, p2, k3), the camera's pose in
+    the probe frame as ``xyz_mm`` and ``rotvec_deg`` (axis times angle, OpenCV's Rodrigues
+    vector, in degrees); ``[calibration.laser]`` with ``normal`` and ``offset_mm`` (the laser
+    plane n·x = offset in the probe frame)."""
+    if cal is None:
+        return None
+    import cv2
+
+    source = cal.string("source", default="")
+    cams = []
+    for i in (0, 1):
+        c = cal.table(f"camera{i}")
+        fx = c.number("fx_px", lo=0.0, hi=1e7, lo_open=True)
+        fy = c.number("fy_px", lo=0.0, hi=1e7, lo_open=True)
+        cx = c.number("cx_px", lo=-1e6, hi=1e6)
+        cy = c.number("cy_px", lo=-1e6, hi=1e6)
+        dist = c.number_list("distortion", default=[0.0] * 5, lo=-1e6, hi=1e6)
+        if len(dist) not in (4, 5):
+            raise c.error("distortion", f"{len(dist)} numbers: expected 4 or 5 (k1, k2, p1, p2[, k3])")
+        xyz = c.numbers("xyz_mm", 3, lo=-1e6, hi=1e6)
+        rotvec = c.numbers("rotvec_deg", 3, lo=-360.0, hi=360.0)
+        c.finish()
+        R = cv2.Rodrigues(np.radians(rotvec))[0]
+        K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+        cams.append(CameraModel(K, dist, make_pose(R, xyz)))
+    laser = cal.table("laser")
+    normal = laser.numbers("normal", 3, lo=-1e6, hi=1e6)
+    offset = laser.number("offset_mm", lo=-1e6, hi=1e6)
+    laser.finish()
+    cal.finish()
+    try:
+        return ProbeCalibration(tuple(cams), normal, offset, source)
+    except InputError as exc:
+        raise laser.error("normal", str(exc)) from None
+
+
+def _numbers(values) -> str:
+    return "[" + ", ".join(repr(float(v)) for v in values) + "]"
+
+
+def probe_toml(probe: Probe) -> str:
+    """The probe as a rig file (``load_probe`` reads it back to the same numbers), its
+    calibration included where it has one."""
+    import cv2
+
+    xyz, yzz = pose_to_xyz_yzz(probe.mount)
+    text = [f"name = {_quoted(probe.name)}", f"source = {_quoted(probe.source)}", "",
+            "[camera]", f"a_mm = {float(probe.a_mm)!r}", f"b_mm = {float(probe.b_mm)!r}",
+            f"phi_deg = {float(math.degrees(probe.phi_rad))!r}", f"gamma_deg = {float(math.degrees(probe.gamma_rad))!r}",
+            f"rows_px = {probe.rows_px}", f"cols_px = {probe.cols_px}", "",
+            "[laser]", f"line_width_mm = {float(probe.line_width_mm)!r}", f"fan_deg = {float(math.degrees(probe.fan_rad))!r}",
+            f"wavelength_nm = {float(probe.wavelength_nm)!r}", "",
+            "[mount]", f"xyz_mm = {_numbers(xyz)}", f"yzz_deg = {_numbers(np.degrees(yzz))}"]
+    cal = probe.calibration
+    if cal is not None:
+        text += ["", "# What the calibration found: triangulation uses these, rendering the true geometry above.",
+                 "[calibration]", f"source = {_quoted(cal.source)}"]
+        for i, cam in enumerate(cal.cameras):
+            K, T = cam.K, cam.cam2probe
+            rotvec = np.degrees(cv2.Rodrigues(np.ascontiguousarray(T[:3, :3]))[0].ravel())
+            text += ["", f"[calibration.camera{i}]", f"fx_px = {float(K[0, 0])!r}", f"fy_px = {float(K[1, 1])!r}",
+                     f"cx_px = {float(K[0, 2])!r}", f"cy_px = {float(K[1, 2])!r}", f"distortion = {_numbers(cam.distortion)}",
+                     f"xyz_mm = {_numbers(T[:3, 3])}", f"rotvec_deg = {_numbers(rotvec)}"]
+        text += ["", "[calibration.laser]", f"normal = {_numbers(cal.plane_normal)}",
+                 f"offset_mm = {float(cal.plane_offset_mm)!r}"]
+    return "\n".join(text) + "\n"
+
+
+def _quoted(text: str) -> str:
+    return json.dumps(text)  # a JSON string is a valid TOML basic string

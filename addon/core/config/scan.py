@@ -7,7 +7,10 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
                  package_dirs: folders for package:// meshes), start_deg = [6 joint angles] (IK seed),
                  ik = "local" | "controller", [robot.controller] host, port, timeout_s (IK from
                  the robot controller over TCP/IP: addon.core.kinematics.ik_remote)
-    [probe]      rig (name or path), [probe.mount] xyz_mm, yzz_deg (optional T_L^6 override)
+    [probe]      rig (name or path), [probe.mount] xyz_mm, yzz_deg (optional T_L^6 override),
+                 calibration (a probe file with a [calibration] table, e.g. written by
+                 ``python -m headless calibrate``: the scan renders with the rig's true
+                 geometry and triangulates with what the calibration found)
     [table]      a_mm, d_mm (Eq. 4 placement; defaults −500, −200)
     [workpiece]  shape = plane|sphere|cylinder|step_block (+ its size keys) or file (+ scale),
                  material = grey|dark|glossy|mirror, roughness (glossy),
@@ -290,6 +293,8 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
         raise ConfigError(f"{path}: probe.rig: {exc}") from None
     if pt.has("mount"):
         probe = replace(probe, mount=pt.pose("mount"))
+    if pt.has("calibration"):
+        probe = with_calibration(probe, _rig_path(base, pt.string("calibration")), f"{path}: probe.calibration")
     pt.finish()
 
     tt = top.table("table", default={})
@@ -492,3 +497,18 @@ def _sensor(t: Table) -> SensorModel:
         raise t.table_error(str(exc)) from None
     t.finish()
     return model
+
+
+def with_calibration(probe: Probe, calibrated_file, where: str) -> Probe:
+    """``probe`` (rendered as it is) triangulating with the calibration in ``calibrated_file``."""
+    try:
+        found = load_probe(calibrated_file)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    if found.calibration is None:
+        raise ConfigError(f"{where}: {calibrated_file} has no [calibration] table; make one with "
+                          f"python -m headless calibrate CONFIG --out DIR (it writes DIR/probe.toml)")
+    if (found.rows_px, found.cols_px) != (probe.rows_px, probe.cols_px):
+        raise ConfigError(f"{where}: {calibrated_file} was calibrated on a {found.cols_px}x{found.rows_px} sensor; "
+                          f"this probe has {probe.cols_px}x{probe.rows_px}")
+    return replace(probe, calibration=found.calibration)

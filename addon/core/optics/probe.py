@@ -35,6 +35,7 @@ import numpy as np
 from ..errors import InputError
 from ..tolerances import TOL
 from ..kinematics.transforms import check_transform, make_pose, rigid_inverse
+from .calibrated import NOMINAL_PLANE, CameraModel, ProbeCalibration
 
 CAMERAS = (0, 1)
 MAX_PIXELS = 100_000
@@ -56,6 +57,8 @@ class Probe:
     fan_rad : full opening angle of the laser fan in the YZ plane
     wavelength_nm : laser wavelength (speckle and colour in later stages)
     mount : (4, 4) pose of the probe frame in the robot flange frame, the paper's T_L^6
+    calibration : what the probe's calibration found (cameras, laser plane); None: the probe
+        triangulates with its true geometry. Rendering always uses the true geometry.
     """
 
     name: str
@@ -70,6 +73,7 @@ class Probe:
     wavelength_nm: float = 650.0
     mount: np.ndarray = field(default_factory=lambda: np.eye(4))
     source: str = ""
+    calibration: "ProbeCalibration | None" = None
 
     def __post_init__(self) -> None:
         who = f"probe {self.name!r}"
@@ -103,6 +107,8 @@ class Probe:
             raise InputError(f"{who}: laser fan angle must be in (0°, 180°), got {deg(self.fan_rad):g}°")
         if self.wavelength_nm <= 0:
             raise InputError(f"{who}: laser wavelength must be > 0 nm, got {self.wavelength_nm:g}")
+        if self.calibration is not None and not isinstance(self.calibration, ProbeCalibration):
+            raise InputError(f"{who}: calibration must be a ProbeCalibration or None, got {self.calibration!r}")
         mount = check_transform(self.mount, f"{who} mount (T_L^6)")
         mount.setflags(write=False)
         object.__setattr__(self, "mount", mount)
@@ -214,7 +220,24 @@ class Probe:
 
     def with_resolution(self, rows_px: int, cols_px: int) -> "Probe":
         """The same optics (a, b, φ, γ) on another sensor."""
+        if self.calibration is not None and (rows_px, cols_px) != (self.rows_px, self.cols_px):
+            raise InputError(f"probe {self.name!r} carries a calibration made on its {self.cols_px}x{self.rows_px} "
+                             f"sensor; it cannot measure at {cols_px}x{rows_px} (calibrate at that resolution)")
         return replace(self, rows_px=rows_px, cols_px=cols_px)
+
+    def measuring_camera(self, camera: int) -> CameraModel:
+        """The camera model triangulation uses: the calibration's, else the true one."""
+        _check_camera(camera)
+        if self.calibration is not None:
+            return self.calibration.cameras[camera]
+        return CameraModel(self.K, np.zeros(5), self.cam2probe(camera))
+
+    @property
+    def measuring_plane(self) -> tuple[np.ndarray, float]:
+        """(unit normal (3,), offset mm) of the laser plane triangulation uses (X = 0 uncalibrated)."""
+        if self.calibration is not None:
+            return self.calibration.plane_normal, self.calibration.plane_offset_mm
+        return NOMINAL_PLANE
 
 
 def _check_camera(camera) -> None:

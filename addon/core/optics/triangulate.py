@@ -2,7 +2,8 @@
 
 ``method="exact"`` (default) intersects each pixel's viewing ray (from the
 camera's K and cam2probe) with the laser plane X = 0. It holds for any camera
-pose, not only the paper's symmetric one.
+pose, not only the paper's symmetric one. A calibrated probe
+(:mod:`addon.core.optics.calibrated`) uses its calibrated cameras and laser plane.
 
 ``method="paper"`` is Eq. 6 verbatim, with the paper's pixel coordinates
 p_x = ±(u − c_x), p_y = c_y − v (see :mod:`addon.core.probe`)::
@@ -75,6 +76,16 @@ class Profile:
 
 def _laser_plane_hits(probe: Probe, u: np.ndarray, v: np.ndarray, camera: int, method: str):
     """Points (n, 3) and triangulation angles (n,) for pixels (u, v); NaN where the ray misses."""
+    if method == "exact" and probe.calibration is not None:
+        origin, d = probe.measuring_camera(camera).rays(np.column_stack([u, v]))
+        n, offset = probe.measuring_plane
+        along = d @ n
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (offset - origin @ n) / along
+        hits = (t > 0) & np.isfinite(t)
+        P = origin + np.where(hits, t, np.nan)[:, None] * d
+        angle = np.arcsin(np.clip(np.abs(along), 0.0, 1.0))
+        return P, np.where(hits, angle, 0.0)
     if method == "exact":
         origin, d = probe.pixel_rays(np.column_stack([u, v]), camera)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -85,6 +96,9 @@ def _laser_plane_hits(probe: Probe, u: np.ndarray, v: np.ndarray, camera: int, m
         P[:, 0] = 0.0  # on the plane by construction; remove rounding
         angle = np.arcsin(np.clip(np.abs(d[:, 0]), 0.0, 1.0))
         return P, np.where(hits, angle, 0.0)
+    if probe.calibration is not None:
+        raise InputError(f"probe {probe.name!r} is calibrated: Eq. 6 (method 'paper') assumes the nominal "
+                         "symmetric geometry; triangulate with method 'exact'")
     cx, cy = probe.principal_point
     f = probe.f_px
     px = (u - cx) * (1.0 if camera == 0 else -1.0)

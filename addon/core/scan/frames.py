@@ -57,7 +57,10 @@ def detect_all(images, rows, config: ScanConfig):
 
 def frame_profile(probe, lines, config: ScanConfig):
     sensor = config.sensor
-    if sensor.distortion and sensor.undistort:  # a calibrated probe removes its lens distortion
+    if probe.calibration is not None:  # the calibration's own lens model, whatever the truth is
+        lines = [None if ln is None else _undistorted(ln, probe.measuring_camera(cam))
+                 for cam, ln in enumerate(lines)]
+    elif sensor.distortion and sensor.undistort:  # a perfectly calibrated probe removes its lens distortion
         undone = []
         for ln in lines:
             if ln is None:
@@ -80,3 +83,13 @@ def frame_profile(probe, lines, config: ScanConfig):
             setattr(merged, name, np.concatenate([getattr(merged, name), getattr(other, name)]))
         return drop_uncertain(merged, config.profile_filter)
     return drop_uncertain(profs[0], config.profile_filter)
+
+
+def _undistorted(line, camera):
+    """A detection with its valid positions moved to where the camera's ideal pinhole sees them."""
+    if not camera.distorted:
+        return line
+    ok = line.valid
+    u, v = line.col.astype(np.float64), line.row.astype(np.float64)
+    u[ok], v[ok] = camera.undistort(u[ok], v[ok])
+    return replace(line, col=u, row=v)

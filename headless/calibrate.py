@@ -1,0 +1,88 @@
+"""``python -m headless calibrate CONFIG``: calibrate the config's probe as a lab calibrates a real
+one, and write the calibrated probe file.
+
+A ChArUco board lies on the table in place of the part; the robot shows it to the probe
+from ``--views`` poses (the laser off, the room lit), then the laser draws its line on the
+plate's plain side at the same poses. Camera intrinsics (with lens distortion where the
+config's sensor has it), both cameras' poses (hand-eye) and the laser plane are solved
+from the rendered images. Writes DIR/probe.toml (a scan config takes it as
+``[probe] calibration = "DIR/probe.toml"``), DIR/calibration.json (reprojection errors,
+standard deviations, every parameter's deviation from the truth, the error it puts on
+the points) and DIR/calibration.png. Exit codes as for ``scan``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
+    parser.add_argument("--out", help="output folder (default: out/<config name>-calibration)")
+    parser.add_argument("--views", type=int, default=20, help="board poses the robot shows the probe (default 20)")
+    parser.add_argument("--distortion", choices=("auto", "yes", "no"), default="auto",
+                        help="fit lens distortion (auto: where the config's sensor has it)")
+    parser.add_argument("--quiet", action="store_true", help="no progress")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from addon.calibrate import FILES, calibrate
+    from addon.core.config.scan import load_scan_config
+    from addon.core.errors import InputError
+    from addon.core.files import OutputLock, check_output_folder
+    from headless.scan import ProgressBar
+
+    config = load_scan_config(args.config)
+    if not 4 <= args.views <= 1000:
+        raise InputError(f"--views must be in [4, 1000] (a calibration needs at least 4 board poses), "
+                         f"got {args.views}")
+    out = args.out or str(Path("out") / f"{Path(config.source).stem}-calibration")
+    check_output_folder(out, FILES)
+    distortion = None if args.distortion == "auto" else args.distortion == "yes"
+    print(f"calibrate: {config.name}: {config.robot.name}, {config.probe.name}; {args.views} board views",
+          flush=True)
+    stops = getattr(args, "stops", None)
+    bar = ProgressBar(args.quiet)
+
+    def progress(stage, done, total):
+        bar(stage, done, total)
+        if stops is not None:
+            stops.progress(stage, done, total)
+
+    lock = OutputLock(out).acquire()
+    if stops is not None:
+        stops.cleanups.append(lock.release)
+    try:
+        t = time.perf_counter()
+        run_ = calibrate(config, out, views=args.views, distortion=distortion, progress=progress)
+        s = run_.summary
+        print(f"calibrated in {time.perf_counter() - t:.1f} s from {s['views']} views "
+              f"({len(s['views_left_out'])} left out: unreachable or colliding)")
+        for c in (0, 1):
+            cam, dev = s[f"camera{c}"], s[f"camera{c}"]["deviation"]
+            print(f"  camera {c}   reprojection {cam['reprojection_error_px']:.3f} px over {cam['corners']} corners; "
+                  f"f {dev['fx_px']:+.2f}/{dev['fy_px']:+.2f} px, c {dev['cx_px']:+.2f}/{dev['cy_px']:+.2f} px, "
+                  f"position {dev['position_mm'] * 1e3:.0f} um, rotation {dev['rotation_deg'] * 60:.1f} arcmin "
+                  f"from the truth")
+        laser = s["laser"]
+        print(f"  laser plane  fit {laser['fit_rms_mm'] * 1e3:.1f} um RMS over {laser['points']} points; "
+              f"tilt {laser['deviation']['tilt_deg'] * 60:.1f} arcmin, offset {laser['deviation']['offset_mm'] * 1e3:+.0f}"
+              f" um from the truth")
+        err = s["triangulation_error"]["all"]
+        print(f"  points       the calibration moves points on the laser plane by {err['rms_mm'] * 1e3:.0f} um RMS "
+              f"({err['max_mm'] * 1e3:.0f} um at most) over the field of view")
+        for name, path in run_.files.items():
+            print(f"  wrote        {path}")
+        return 0
+    except KeyboardInterrupt as exc:
+        from headless.lifecycle import Interrupted
+
+        exc = exc if isinstance(exc, Interrupted) else Interrupted(2)
+        print(f"{exc.describe()}: nothing written to {out}", file=sys.stderr, flush=True)
+        return exc.exit_code
+    finally:
+        lock.release()
