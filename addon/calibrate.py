@@ -154,6 +154,7 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
     first, last = frames.start, frames.stop - 1
     sensor = cfg.sensor
     laser_settings = render_settings(cfg)
+    # The probe stands still for each calibration image: no motion blur from one view to the next.
     board_settings = replace(laser_settings, samples=max(BOARD_SAMPLES, laser_settings.samples), pixel_filter="BOX",
                              filter_width_px=1.0, ambient=ROOM_LIGHT, motion_blur_shutter=0.0)
     for light in sc.laser:
@@ -166,7 +167,7 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
             light.hide_render = False
     progress("board images", len(q), len(q))
     show_print(plate, False)
-    laser_images = sc.render(first, last, replace(laser_settings, ambient=0.0))
+    laser_images = sc.render(first, last, replace(laser_settings, ambient=0.0, motion_blur_shutter=0.0))
     progress("laser images", len(q), len(q))
     images, lines = [], []
     for i in range(len(q)):

@@ -55,6 +55,17 @@ def probe_with(old: str, new: str):
     return make
 
 
+def calibrated_on_another_sensor(tmp: Path):
+    from dataclasses import replace
+
+    from addon.core.config.rigs import load_probe, probe_toml
+    from addon.core.optics.calibrated import ProbeCalibration
+
+    hires = load_probe("hires")
+    (tmp / "cal.toml").write_text(probe_toml(replace(hires, calibration=ProbeCalibration.of(hires))))
+    return ["scan", scene(tmp, DEMO.replace('rig = "default"', 'rig = "default"\ncalibration = "cal.toml"', 1))]
+
+
 def robot_with(old: str, new: str, count: int = 1):
     def make(tmp: Path):
         assert old in ROBOT, old
@@ -377,6 +388,20 @@ CASES = [
     ("option: unknown bench", lambda t: ["bench", "everything"], 2, "everything"),
     ("option: bench kinematics robot unknown", lambda t: ["bench", "kinematics", "--robots", "abb_irb120",
                                                           "--n", "10"], 2, "abb_irb120"),
+    # calibration
+    ("config: calibration file without [calibration]",
+     demo_with('rig = "default"', f'rig = "default"\ncalibration = "{REPO / "rigs" / "probes" / "default.toml"}"'),
+     2, "no [calibration]"),
+    ("config: calibration file missing", demo_with('rig = "default"', 'rig = "default"\ncalibration = "nope.toml"'),
+     2, "nope.toml"),
+    ("config: calibration for another sensor", calibrated_on_another_sensor, 2, "sensor"),
+    ("calibrate: too few views", lambda t: ["calibrate", "demo", "--views", "3", "--out", str(t / "out")], 2,
+     "--views"),
+    ("calibrate: out is a file", lambda t: ((t / "f").write_text("x"), ["calibrate", "demo", "--out", str(t / "f")])[1],
+     2, "is a file"),
+    ("calibrate: calibration.json is a folder",
+     lambda t: ((t / "out" / "calibration.json").mkdir(parents=True),
+                ["calibrate", "demo", "--out", str(t / "out")])[1], 2, "calibration.json"),
     # output folders
     ("out: an existing file", out_is_file, 2, "is a file"),
     ("out: below a file", out_below_file, 2, "is a file"),

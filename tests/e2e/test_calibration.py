@@ -1,0 +1,82 @@
+"""Calibrating the simulated probe from rendered images, end to end, and scanning with the result.
+
+Truth from geometry: the probe's true cameras and laser plane (the rig file), the tilted
+plate's exact plane. The bounds come from the calibration's own covariance (4.5 σ), and the
+scan's point error from the calibration's error field over the view (what the calibration
+does to points on the laser plane, computed from the true and calibrated models alone).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from addon import Scanner
+from addon.calibrate import calibrate
+from addon.core.config.rigs import load_probe
+from addon.core.config.scan import load_scan_config
+from headless.cli import main
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory):
+    out = tmp_path_factory.mktemp("calibration")
+    run = calibrate("demo", out, views=8)
+    return run, out
+
+
+def test_calibration_recovers_the_true_probe_within_its_stated_deviation(calibrated):
+    run, out = calibrated
+    s = json.loads((out / "calibration.json").read_text())
+    assert s["views"] == 8
+    for c in (0, 1):
+        cam = s[f"camera{c}"]
+        # corners on rendered boards are found to about a tenth of a pixel
+        assert cam["reprojection_error_px"] < 0.3
+        assert cam["corners"] >= 8 * 8
+        dev, sd = cam["deviation"], cam["std"]
+        for key in ("fx_px", "fy_px", "cx_px", "cy_px"):
+            assert abs(dev[key]) <= 4.5 * sd[key], (c, key, dev[key], sd[key])
+        assert dev["position_mm"] <= 4.5 * sd["position_mm"]
+        assert dev["rotation_deg"] <= 4.5 * sd["rotation_deg"]
+    rot = max(s[f"camera{c}"]["std"]["rotation_deg"] for c in (0, 1))
+    laser = s["laser"]
+    assert laser["deviation"]["tilt_deg"] <= 4.5 * rot
+    assert abs(laser["deviation"]["offset_mm"]) < 0.1
+    assert laser["fit_rms_mm"] < 0.05  # the line's points lie on one plane
+    # the calibrated probe file reads back to the same calibration
+    back = load_probe(out / "probe.toml")
+    assert np.abs(back.calibration.cameras[0].K - run.fit.probe.calibration.cameras[0].K).max() < 1e-9
+    assert (out / "calibration.png").stat().st_size > 10_000
+
+
+def test_a_scan_with_the_calibrated_probe_shows_what_the_calibration_costs(calibrated, tmp_path):
+    run, out = calibrated
+    text = (REPO / "rigs" / "scenes" / "tilted_plane.toml").read_text()
+    cfg_path = tmp_path / "tilted_calibrated.toml"
+    cfg_path.write_text(text.replace('rig = "default"', f'rig = "default"\ncalibration = "{out / "probe.toml"}"', 1))
+    cfg = load_scan_config(cfg_path)
+    assert cfg.probe.calibration is not None
+    frames = slice(0, 30, 3)
+    truth = Scanner.from_config("tilted_plane", frames=frames).run()
+    measured = Scanner.from_config(cfg_path, frames=frames).run()
+    assert measured.frames == truth.frames == 10
+    assert measured.points > 0.8 * truth.points
+    field = run.summary["triangulation_error"]["all"]
+    # every point is off by no more than the calibration's error field allows (plus the true probe's own error)
+    assert measured.error_um.max_um <= 1e3 * field["max_mm"] + truth.error_um.max_um + 1.0
+    assert measured.error_um.rms_um > truth.error_um.rms_um  # a real calibration is never perfect
+
+
+def test_calibrate_command_writes_its_files_and_summary(tmp_path, capsys):
+    rc = main(["calibrate", "demo", "--views", "6", "--out", str(tmp_path / "cal"), "--quiet"])
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert "reprojection" in text and "laser plane" in text
+    assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == ["calibration.json", "calibration.png",
+                                                                     "probe.toml"]
