@@ -31,7 +31,6 @@ import numpy as np
 from .core.calibration import BoardView, ChArUcoBoard, board2table, board_for, board_views, calibrate_probe
 from .core.calibration import deviations, triangulation_error
 from .core.calibration.solve import MIN_VIEWS
-from .core.config.render import RenderOptions
 from .core.config.rigs import probe_toml
 from .core.config.scan import ScanConfig, load_scan_config
 from .core.errors import CalibrationError, CollisionError, check_whole
@@ -169,6 +168,9 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
     show_print(plate, False)
     laser_images = sc.render(first, last, replace(laser_settings, ambient=0.0, motion_blur_shutter=0.0))
     progress("laser images", len(q), len(q))
+    import bpy
+
+    bpy.data.objects.remove(plate, do_unlink=True)  # the cell is the scan's again
     images, lines = [], []
     for i in range(len(q)):
         pair = board_images[i]
@@ -217,7 +219,7 @@ def _picture(images, views, board, columns: int = 6):
             img = np.asarray(pair[c], dtype=np.float32)[..., :3]
             g = np.clip(img / max(float(np.percentile(img, 99.5)), 1e-9) * 255.0, 0, 255).astype(np.uint8)
             bgr = cv2.cvtColor(g.mean(axis=2).astype(np.uint8), cv2.COLOR_GRAY2BGR)
-            scale = max(1, int(math.ceil(240 / max(bgr.shape[:2]))))
+            scale = max(1, int(math.ceil(160 / max(bgr.shape[:2]))))
             bgr = cv2.resize(bgr, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
             for u, v in views[i].corners[c]:
                 cv2.drawMarker(bgr, (int(round((u + 0.5) * scale - 0.5)), int(round((v + 0.5) * scale - 0.5))),

@@ -33,10 +33,9 @@ def run(args: argparse.Namespace) -> int:
     from addon.adaptive import adaptive_scan, part_box
     from addon.core.config.scan import load_scan_config
     from addon.core.errors import InputError
-    from addon.core.files import OutputLock
     from addon.core.scan.outputs import OUTPUT_FILES
     from headless import preflight
-    from headless.scan import ProgressBar, print_summary
+    from headless.scan import print_summary, progress_and_lock
 
     config = load_scan_config(args.config)
     settings = config.adaptive
@@ -54,16 +53,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"adaptive: {config.name}: {config.robot.name}, {config.probe.name}; the planner is told the box "
           f"{lo.round(1).tolist()} .. {hi.round(1).tolist()} mm, budget {settings.max_profiles} profiles", flush=True)
     stops = getattr(args, "stops", None)
-    bar = ProgressBar(args.quiet)
-
-    def progress(stage, done, total):
-        bar(stage, done, total)
-        if stops is not None:
-            stops.progress(stage, done, total)
-
-    lock = OutputLock(out).acquire()
-    if stops is not None:
-        stops.cleanups.append(lock.release)
+    progress, lock = progress_and_lock(args, out)
     try:
         t = time.perf_counter()
         scanner = Scanner(config=config)

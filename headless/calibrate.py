@@ -33,8 +33,8 @@ def run(args: argparse.Namespace) -> int:
     from addon.calibrate import FILES, calibrate
     from addon.core.config.scan import load_scan_config
     from addon.core.errors import InputError
-    from addon.core.files import OutputLock, check_output_folder
-    from headless.scan import ProgressBar
+    from addon.core.files import check_output_folder
+    from headless.scan import progress_and_lock
 
     config = load_scan_config(args.config)
     if not 4 <= args.views <= 1000:
@@ -45,17 +45,7 @@ def run(args: argparse.Namespace) -> int:
     distortion = None if args.distortion == "auto" else args.distortion == "yes"
     print(f"calibrate: {config.name}: {config.robot.name}, {config.probe.name}; {args.views} board views",
           flush=True)
-    stops = getattr(args, "stops", None)
-    bar = ProgressBar(args.quiet)
-
-    def progress(stage, done, total):
-        bar(stage, done, total)
-        if stops is not None:
-            stops.progress(stage, done, total)
-
-    lock = OutputLock(out).acquire()
-    if stops is not None:
-        stops.cleanups.append(lock.release)
+    progress, lock = progress_and_lock(args, out)
     try:
         t = time.perf_counter()
         run_ = calibrate(config, out, views=args.views, distortion=distortion, progress=progress)

@@ -71,6 +71,25 @@ def _clock(seconds: float) -> str:
         f"{seconds // 60}:{seconds % 60:02d}"
 
 
+def progress_and_lock(args, out):
+    """For a command that writes into ``out``: its progress callback (the bar, and Ctrl-C
+    taking effect between steps) and the folder's lock, released also when stopped."""
+    from addon.core.files import OutputLock
+
+    stops = getattr(args, "stops", None)
+    bar = ProgressBar(args.quiet)
+
+    def progress(stage, done, total):
+        bar(stage, done, total)
+        if stops is not None:
+            stops.progress(stage, done, total)
+
+    lock = OutputLock(out).acquire()
+    if stops is not None:
+        stops.cleanups.append(lock.release)
+    return progress, lock
+
+
 class ProgressBar:
     """Progress of long work on stderr: one bar redrawn in place on a terminal (done/total,
     rate, time left); where stderr is not a terminal (a log, CI), a plain line per 10 %."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
-from bpy.props import StringProperty
+from bpy.props import IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from ..core.errors import ScannerError
@@ -332,5 +332,50 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
+class SCANNER_OT_calibrate(bpy.types.Operator):
+    """Calibrate the probe of the chosen scan config from rendered ChArUco boards and laser lines; writes probe.toml, calibration.json and calibration.png (rebuilds the cell)"""
+
+    bl_idname = "scanner.calibrate"
+    bl_label = "Calibrate Probe"
+    bl_options = {"REGISTER"}
+
+    config: StringProperty(name="Config", default="",
+                           description="Scan config whose cell and probe are calibrated (empty: the panel's choice)")
+    views: IntProperty(name="Board Poses", default=20, min=4, max=1000,
+                       description="Poses from which the robot shows the board to the probe")
+    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
+                               description="Folder for the calibration's files (empty: the panel's)")
+
+    def execute(self, context):
+        from ..calibrate import calibrate
+        from ..core.config.scan import load_scan_config
+
+        s = context.scene.scanner
+        wm = context.window_manager
+        try:
+            if self.config:
+                source = bpy.path.abspath(self.config) if self.config.endswith(".toml") else self.config
+            else:
+                source = models.chosen_file(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config
+            cfg = load_scan_config(source)
+            out = models.output_dir(self.output_dir or s.output_dir, f"{cfg.name} calibration")
+            wm.progress_begin(0, 3)
+            stages = {"plan": 1, "board images": 2, "laser images": 3}
+            with kept_render_settings(context.scene):
+                run = calibrate(cfg, out, views=self.views, scene=context.scene,
+                                progress=lambda stage, done, total: wm.progress_update(stages.get(stage, 0)))
+        except Exception as exc:
+            self.report({"ERROR"}, _message(exc))
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        c0, c1 = run.summary["camera0"], run.summary["camera1"]
+        err = run.summary["triangulation_error"]["all"]["rms_mm"] * 1e3
+        self.report({"INFO"}, f"Calibrated from {run.summary['views']} poses: reprojection "
+                              f"{c0['reprojection_error_px']:.3f}/{c1['reprojection_error_px']:.3f} px, "
+                              f"{err:.0f} um RMS on the laser plane; files in {out}")
+        return {"FINISHED"}
+
+
 CLASSES = (SCANNER_OT_build_cell, SCANNER_OT_load_probe, SCANNER_OT_go, SCANNER_OT_render_views, SCANNER_OT_scan,
-           SCANNER_OT_export_ply)
+           SCANNER_OT_calibrate, SCANNER_OT_export_ply)

@@ -180,6 +180,7 @@ class SCANNER_PT_scan(_ScannerPanel, bpy.types.Panel):
         col.prop(s, "import_cloud")
         col.operator("scanner.scan", icon="PLAY")
         col.operator("scanner.export_ply", icon="EXPORT")
+        col.operator("scanner.calibrate", icon="CAMERA_DATA")
 
 
 def _wrap(text: str, width: int) -> list[str]:

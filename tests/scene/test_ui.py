@@ -370,3 +370,16 @@ def test_go_refuses_a_colliding_target_and_leaves_the_robot_still(panel):
     with pytest.raises(RuntimeError, match="Colliding, the robot stays put"):
         bpy.ops.scanner.go()
     np.testing.assert_array_equal(rig.get_joints(robot_obj()), before)
+
+
+def test_the_calibrate_operator_writes_a_calibrated_probe_and_keeps_the_scene(panel, tmp_path):
+    """The panel's Calibrate button: files written, the board gone again, the artist's
+    render settings as they were."""
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.cycles.samples = 777, 9
+    assert bpy.ops.scanner.calibrate(config="demo", views=6, output_dir=str(tmp_path)) == {"FINISHED"}
+    folder = next(tmp_path.iterdir())
+    assert sorted(p.name for p in folder.iterdir()) == ["calibration.json", "calibration.png", "probe.toml"]
+    assert load_probe(folder / "probe.toml").calibration is not None
+    assert "Calibration board" not in bpy.data.objects
+    assert (scene.render.resolution_x, scene.cycles.samples) == (777, 9)

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from ..kinematics.transforms import make_pose, rot_x, rot_z, trans
+from ..kinematics.transforms import rot_x, rot_z, trans
 from .board import ChArUcoBoard
 
 GOLDEN_DEG = 137.50776405003785
