@@ -61,14 +61,23 @@ def _board_workpiece(board: ChArUcoBoard) -> Workpiece:
     return Workpiece("calibration board", slab, slab, "calibration board")
 
 
-def plan_views(config: ScanConfig, board: ChArUcoBoard, views: int, *, flat: bool = False):
+def plan_views(config: ScanConfig, board: ChArUcoBoard, views: int, poses=None):
     """(joints (n, 6), probe poses in the table frame (n, 4, 4), views left out with why):
-    the proposed views the robot reaches without a collision, in order, each solved from the
-    one before. Raises CalibrationError when fewer than the calibration needs are left."""
-    from .core.calibration.poses import flat_views
+    the views (``poses``, else ``views`` proposed ones) the robot reaches without a collision,
+    in order, each solved from the one before. Raises CalibrationError when fewer than the
+    calibration needs are left."""
+    from .core.kinematics.transforms import check_transform
     from .core.scan.plan import check_motion
 
-    targets = (flat_views if flat else board_views)(board, config.probe.z_range_mm, views)
+    if poses is None:
+        targets = board_views(board, config.probe.z_range_mm, views)
+    else:
+        targets = np.asarray(poses, dtype=np.float64)
+        if targets.ndim != 3 or targets.shape[1:] != (4, 4):
+            raise CalibrationError(f"calibration poses must be (n, 4, 4) probe poses, got shape {targets.shape}")
+        for k, T in enumerate(targets):
+            check_transform(T, f"calibration view {k}")
+        views = len(targets)
     cfg = replace(config, workpiece=_board_workpiece(board), fixtures=())
     q_prev = np.asarray(config.q_start if config.q_start is not None else
                         np.clip(np.zeros(6), config.robot.q_min_rad, config.robot.q_max_rad), dtype=np.float64)
@@ -95,11 +104,12 @@ def plan_views(config: ScanConfig, board: ChArUcoBoard, views: int, *, flat: boo
 
 
 def calibrate(config: ScanConfig | str | Path, out_dir: str | Path | None = None, *, views: int = 20,
-              board: ChArUcoBoard | None = None, distortion: bool | None = None, flat: bool = False,
+              board: ChArUcoBoard | None = None, distortion: bool | None = None, poses=None,
               progress=None, scene=None) -> CalibrationRun:
     """Calibrate the config's probe (see the module's text). ``distortion``: fit lens
-    distortion (default: where the config's sensor has it); ``flat``: every view straight
-    down (a degenerate set, refused by the solve); ``progress(stage, done, total)``."""
+    distortion (default: where the config's sensor has it); ``poses``: the views the user
+    chose, (n, 4, 4) probe poses in the table frame (``core.calibration.load_views`` reads
+    them from a file), instead of ``views`` proposed ones; ``progress(stage, done, total)``."""
     t0 = time.perf_counter()
     progress = progress or (lambda stage, done, total: None)
     cfg = config if isinstance(config, ScanConfig) else load_scan_config(config)
@@ -111,8 +121,8 @@ def calibrate(config: ScanConfig | str | Path, out_dir: str | Path | None = None
     board = board or board_for(truth)
     sensor = cfg.sensor
     distortion = bool(sensor.distortion) if distortion is None else bool(distortion)
-    q, poses, dropped = plan_views(cfg, board, views, flat=flat)
-    progress("plan", len(q), views)
+    q, poses, dropped = plan_views(cfg, board, views, poses)
+    progress("plan", len(q), len(poses) + len(dropped))
 
     images, lines = _render(cfg, board, q, progress, scene)
     flange2base = cfg.cell.robot.fk(q) @ rigid_inverse(truth.mount)  # the controller's flange poses

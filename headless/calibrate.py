@@ -23,6 +23,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
     parser.add_argument("--out", help="output folder (default: out/<config name>-calibration)")
     parser.add_argument("--views", type=int, default=20, help="board poses the robot shows the probe (default 20)")
+    parser.add_argument("--poses", metavar="FILE",
+                        help="the board views to take, a TOML file of [[view]] tables with xyz_mm and yzz_deg (probe "
+                             "poses in the table frame; the board lies face up at the table's centre) instead of "
+                             "--views proposed ones")
     parser.add_argument("--distortion", choices=("auto", "yes", "no"), default="auto",
                         help="fit lens distortion (auto: where the config's sensor has it)")
     parser.add_argument("--quiet", action="store_true", help="no progress")
@@ -43,12 +47,18 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or str(Path("out") / f"{Path(config.source).stem}-calibration")
     check_output_folder(out, FILES)
     distortion = None if args.distortion == "auto" else args.distortion == "yes"
-    print(f"calibrate: {config.name}: {config.robot.name}, {config.probe.name}; {args.views} board views",
-          flush=True)
+    poses = None
+    if args.poses:
+        from addon.core.calibration import load_views
+
+        poses = load_views(args.poses)
+    count = args.views if poses is None else len(poses)
+    print(f"calibrate: {config.name}: {config.robot.name}, {config.probe.name}; {count} board views"
+          + (f" from {args.poses}" if poses is not None else " (proposed)"), flush=True)
     progress, lock = progress_and_lock(args, out)
     try:
         t = time.perf_counter()
-        run_ = calibrate(config, out, views=args.views, distortion=distortion, progress=progress)
+        run_ = calibrate(config, out, views=args.views, distortion=distortion, poses=poses, progress=progress)
         s = run_.summary
         print(f"calibrated in {time.perf_counter() - t:.1f} s from {s['views']} views "
               f"({len(s['views_left_out'])} left out: unreachable or colliding)")

@@ -201,6 +201,8 @@ def test_calibration_recovers_the_truth_within_its_stated_deviation(probe_name):
     # the plane: its points carry the cameras' pose error; tilt within the cameras' rotation bound
     rot = max(c.std_pose["rotation_deg"] for c in fit.cameras)
     assert dev["laser"]["tilt_deg"] <= 4.5 * rot
+    pos = max(c.std_pose["position_mm"] for c in fit.cameras)
+    assert abs(dev["laser"]["offset_mm"]) <= 4.5 * pos
     assert fit.plane_rms_mm < 0.05
     # the points: a perfect calibration moves nothing, this one little
     assert triangulation_error(probe, replace(probe, calibration=ProbeCalibration.of(probe)))["all"]["max_mm"] < 1e-9

@@ -51,6 +51,26 @@ def board_views(board: ChArUcoBoard, z_range_mm: tuple[float, float], count: int
     return out
 
 
+def load_views(path) -> np.ndarray:
+    """(n, 4, 4) probe poses in the table frame from a TOML file of ``[[view]]`` tables, each
+    with ``xyz_mm`` (the probe origin) and ``yzz_deg`` (its YZZ' angles), as scan paths give poses."""
+    from ..config.toml import load_toml
+    from ..errors import ConfigError
+    from ..kinematics.euler import pose_from_xyz_yzz
+
+    top = load_toml(path)
+    if not top.has("view"):
+        raise ConfigError(f"{path}: no [[view]] tables: give each board view as [[view]] with xyz_mm and yzz_deg")
+    out = []
+    for t in top.tables("view"):
+        xyz = t.numbers("xyz_mm", 3, lo=-1e5, hi=1e5)
+        yzz = t.numbers("yzz_deg", 3, lo=-720.0, hi=720.0)
+        t.finish()
+        out.append(pose_from_xyz_yzz(xyz, np.radians(yzz)))
+    top.finish()
+    return np.array(out)
+
+
 def flat_views(board: ChArUcoBoard, z_range_mm, count: int) -> np.ndarray:
     """Views that all look straight down (no tilt, no turn): a degenerate set, for tests and
     for showing what the calibration refuses."""
