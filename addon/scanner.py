@@ -123,6 +123,7 @@ class Scanner:
         self._warnings: list[str] = []
         self._t0 = time.perf_counter()
         self._cached = None  # (frames measured, ScanResult) of the last result(): report() after save() is free
+        self._extra: dict = {}  # what joins the report besides the scan itself (an adaptive scan's sweeps)
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
         self._clearances: list = []  # the collision check of every move and path (PathClearance)
         if not len(config.waypoints):
@@ -424,6 +425,28 @@ class Scanner:
                                q[i].copy(), math.degrees(table_rad[i]), run.frame_codes.get(i, {}), first + i))
         return out
 
+    def adaptive(self, box=None, *, max_profiles: int | None = None, min_gain: int | None = None,
+                 progress=None, log=None) -> list:
+        """Scan the part adaptively with the reference next-best-view planner (``addon.adaptive``)
+        from here on, told only ``box`` = (lo, hi) (table frame, mm; default: the config's
+        [adaptive] box, else the part's bounding box grown by 10 %), never the part's mesh.
+        ``max_profiles`` and ``min_gain`` default to the config's [adaptive] table. Returns the
+        sweeps chosen (``AdaptiveStep``); they join the report under ``adaptive``, and
+        ``save(out_dir)`` writes what a scan writes. ``progress(stage, done, total)`` after each
+        sweep; ``log(line)`` for each decision."""
+        from .adaptive import adaptive_scan, part_box
+
+        settings = self.config.adaptive
+        lo, hi = part_box(self.config) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
+        budget = settings.max_profiles if max_profiles is None else max_profiles
+        steps = adaptive_scan(self, lo, hi, max_profiles=budget,
+                              min_gain=settings.min_gain if min_gain is None else min_gain,
+                              voxel_mm=settings.voxel_mm, progress=progress, log=log)
+        done = self._extra.get("adaptive", {}).get("sweeps", [])
+        self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": budget,
+                                   "sweeps": done + [s.as_dict() for s in steps]}
+        return steps
+
     # -- results -------------------------------------------------------------------------
     def result(self, out_dir: str | Path | None = None, extra: dict | None = None):
         """Everything measured so far, measured against the truth (a ScanResult: cloud, the
@@ -432,8 +455,12 @@ class Scanner:
         next measurement, so report() after save() is free."""
         from .pipeline import Plan, assemble, merge_stats
 
-        if out_dir is None and extra is None and self._cached is not None and self._cached[0] == self._frames:
+        import json
+
+        key = (self._frames, json.dumps(self._extra, sort_keys=True))
+        if out_dir is None and extra is None and self._cached is not None and self._cached[0] == key:
             return self._cached[1]
+        extra = {**self._extra, **(extra or {})}
         q = np.concatenate([p[0] for p in self._poses]) if self._poses else np.zeros((0, 6))
         table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
         from .core.safety import PathClearance
@@ -441,8 +468,8 @@ class Scanner:
         plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings),
                     PathClearance.merge(self._clearances) if self._clearances else None)
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
-                          {"render_device": getattr(self._sc, "device_used", None), **(extra or {})})
-        self._cached = (self._frames, result)
+                          {"render_device": getattr(self._sc, "device_used", None), **extra})
+        self._cached = (key, result)
         return result
 
     def report(self) -> ScanReport:

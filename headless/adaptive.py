@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from addon import Scanner
-    from addon.adaptive import adaptive_scan, part_box
+    from addon.adaptive import part_box
     from addon.core.config.scan import load_scan_config
     from addon.core.errors import InputError
     from addon.core.scan.outputs import OUTPUT_FILES
@@ -56,15 +56,12 @@ def run(args: argparse.Namespace) -> int:
     progress, lock = progress_and_lock(args, out)
     try:
         t = time.perf_counter()
-        scanner = Scanner(config=config)
-        steps = adaptive_scan(scanner, lo, hi, max_profiles=settings.max_profiles, min_gain=settings.min_gain,
-                              voxel_mm=settings.voxel_mm, progress=progress,
-                              log=None if args.quiet else (lambda m: print(m, flush=True)))
+        scanner = Scanner(config=replace(config, adaptive=settings))
+        steps = scanner.adaptive((lo, hi), progress=progress,
+                                 log=None if args.quiet else (lambda m: print(m, flush=True)))
         if stops is not None:
             stops.check()
-        result = scanner.result(out, extra={"adaptive": {
-            "box_mm": [lo.tolist(), hi.tolist()], "max_profiles": settings.max_profiles,
-            "sweeps": [s.as_dict() for s in steps]}})
+        result = scanner.result(out)
         print_summary(result, time.perf_counter() - t)
         plan_s = [s.planning_s for s in steps]
         if plan_s:

@@ -168,6 +168,18 @@ def _message(exc: Exception) -> str:
     return str(exc) if isinstance(exc, ScannerError) else f"{type(exc).__name__}: {exc}"
 
 
+def _panel_config(context, config: str):
+    """A scan config: the operator's own (a name or a .toml path), else the panel's choice."""
+    from ..core.config.scan import load_scan_config
+
+    s = context.scene.scanner
+    if config:
+        source = bpy.path.abspath(config) if config.endswith(".toml") else config
+    else:
+        source = models.chosen_file(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config
+    return load_scan_config(source)
+
+
 class SCANNER_OT_scan(bpy.types.Operator):
     """Run the chosen scan: render, detect, triangulate, and bring the cloud into the scene (Esc cancels)"""
 
@@ -191,14 +203,10 @@ class SCANNER_OT_scan(bpy.types.Operator):
     _state = None
 
     def _config(self, context):
-        from ..core.config.scan import load_scan_config, parse_frames
+        from ..core.config.scan import parse_frames
 
         s = context.scene.scanner
-        if self.config:
-            source = bpy.path.abspath(self.config) if self.config.endswith(".toml") else self.config
-        else:
-            source = models.chosen_file(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config
-        cfg = load_scan_config(source).with_overrides(frames=parse_frames(self.frames))
+        cfg = _panel_config(context, self.config).with_overrides(frames=parse_frames(self.frames))
         if s.scan_sensor == "PANEL" and not self.config:
             cfg = cfg.with_realism(models.sensor_from(s), s.material, s.roughness, s.ambient)
         return cfg
@@ -348,16 +356,11 @@ class SCANNER_OT_calibrate(bpy.types.Operator):
 
     def execute(self, context):
         from ..calibrate import calibrate
-        from ..core.config.scan import load_scan_config
 
         s = context.scene.scanner
         wm = context.window_manager
         try:
-            if self.config:
-                source = bpy.path.abspath(self.config) if self.config.endswith(".toml") else self.config
-            else:
-                source = models.chosen_file(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config
-            cfg = load_scan_config(source)
+            cfg = _panel_config(context, self.config)
             out = models.output_dir(self.output_dir or s.output_dir, f"{cfg.name} calibration")
             wm.progress_begin(0, 3)
             stages = {"plan": 1, "board images": 2, "laser images": 3}
@@ -377,5 +380,56 @@ class SCANNER_OT_calibrate(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class SCANNER_OT_adaptive(bpy.types.Operator):
+    """Scan the chosen config's part adaptively: the next-best-view planner, told only the part's bounding box, picks sweep after sweep; writes what a scan writes and brings the cloud in"""
+
+    bl_idname = "scanner.adaptive"
+    bl_label = "Adaptive Scan"
+    bl_options = {"REGISTER", "UNDO"}
+
+    config: StringProperty(name="Config", default="",
+                           description="Scan config (its [[path]] is ignored; empty: the panel's choice)")
+    max_profiles: IntProperty(name="Profile Budget", default=0, min=0, max=100_000,
+                              description="Profiles the planner may take (0: the config's [adaptive] budget)")
+    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
+                               description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
+
+    def execute(self, context):
+        from ..scanner import Scanner
+        from ..scene.cloud_object import import_cloud
+
+        s = context.scene.scanner
+        wm = context.window_manager
+        try:
+            cfg = _panel_config(context, self.config)
+            budget = self.max_profiles or cfg.adaptive.max_profiles
+            wm.progress_begin(0, budget)
+            with kept_render_settings(context.scene):
+                scanner = Scanner(config=cfg, scene=context.scene)
+                steps = scanner.adaptive(max_profiles=budget,
+                                         progress=lambda stage, done, total: wm.progress_update(done))
+                folder = models.output_dir(self.output_dir or s.output_dir, f"{cfg.name} adaptive")
+                result = scanner.result(folder) if steps else None
+        except Exception as exc:
+            self.report({"ERROR"}, _message(exc))
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        if not steps:
+            self.report({"WARNING"}, f"Adaptive scan: no reachable sweep fits the budget of {budget} profiles; "
+                                     "nothing was scanned")
+            return {"CANCELLED"}
+        old = bpy.data.objects.get(models.CLOUD_NAME)
+        if old is not None:
+            bpy.data.objects.remove(old, do_unlink=True)
+        if s.import_cloud and scanner.scene_cell is not None:
+            import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
+                         result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
+        r = result.report
+        self.report({"INFO"}, f"Adaptive scan: {len(steps)} sweeps, {r['frames']} profiles, {r['points']} points, "
+                              f"RMS {r['error_um']['rms_um']:.1f} um; files in {result.files['cloud'].parent}")
+        return {"FINISHED"}
+
+
 CLASSES = (SCANNER_OT_build_cell, SCANNER_OT_load_probe, SCANNER_OT_go, SCANNER_OT_render_views, SCANNER_OT_scan,
-           SCANNER_OT_calibrate, SCANNER_OT_export_ply)
+           SCANNER_OT_adaptive, SCANNER_OT_calibrate, SCANNER_OT_export_ply)

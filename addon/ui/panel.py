@@ -179,6 +179,7 @@ class SCANNER_PT_scan(_ScannerPanel, bpy.types.Panel):
         col.prop(s, "scan_sensor")
         col.prop(s, "import_cloud")
         col.operator("scanner.scan", icon="PLAY")
+        col.operator("scanner.adaptive", icon="VIEWZOOM")
         col.operator("scanner.export_ply", icon="EXPORT")
         col.operator("scanner.calibrate", icon="CAMERA_DATA")
 

@@ -383,3 +383,19 @@ def test_the_calibrate_operator_writes_a_calibrated_probe_and_keeps_the_scene(pa
     assert load_probe(folder / "probe.toml").calibration is not None
     assert "Calibration board" not in bpy.data.objects
     assert (scene.render.resolution_x, scene.cycles.samples) == (777, 9)
+
+
+def test_the_adaptive_operator_scans_from_the_box_and_brings_the_cloud_in(panel, tmp_path):
+    # a budget no sweep fits: told so, nothing written
+    assert bpy.ops.scanner.adaptive(config="demo", max_profiles=2, output_dir=str(tmp_path)) == {"CANCELLED"}
+    assert not any(tmp_path.iterdir())
+    assert bpy.ops.scanner.adaptive(config="demo", max_profiles=120, output_dir=str(tmp_path)) == {"FINISHED"}
+    import json
+
+    (folder,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    report = json.loads((folder / "report.json").read_text())
+    assert 0 < report["frames"] <= 120 and report["adaptive"]["sweeps"]
+    assert report["points"] > 0
+    from addon.ui import models
+
+    assert models.CLOUD_NAME in bpy.data.objects
