@@ -41,6 +41,7 @@ from .core.kinematics.transforms import rigid_inverse
 
 FILES = ("probe.toml", "calibration.json", "calibration.png")
 BOARD_SAMPLES = 32      # samples per pixel of the board images: a one-pixel box filter, integrated
+CHUNK_PIXELS = 200_000  # sensor pixels per render call of the calibration images (both cameras render each)
 ROOM_LIGHT = 0.7        # world strength for the board images: the white print at about 0.6 of full scale
 
 
@@ -168,16 +169,25 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
                              filter_width_px=1.0, ambient=ROOM_LIGHT, motion_blur_shutter=0.0)
     for light in sc.laser:
         light.hide_render = True
+    # A few frames per render call: progress (and a stop request) between calls, within about
+    # a second or two of work each on two cores.
+    chunk = max(1, min(len(q), CHUNK_PIXELS // (cfg.probe.rows_px * cfg.probe.cols_px)))
+
+    def render_all(settings, stage):
+        images = []
+        for a in range(first, last + 1, chunk):
+            images += sc.render(a, min(a + chunk, last + 1) - 1, settings)
+            progress(stage, len(images), len(q))
+        return images
+
     show_print(plate, True)
     try:
-        board_images = sc.render(first, last, board_settings)
+        board_images = render_all(board_settings, "board images")
     finally:
         for light in sc.laser:
             light.hide_render = False
-    progress("board images", len(q), len(q))
     show_print(plate, False)
-    laser_images = sc.render(first, last, replace(laser_settings, ambient=0.0, motion_blur_shutter=0.0))
-    progress("laser images", len(q), len(q))
+    laser_images = render_all(replace(laser_settings, ambient=0.0, motion_blur_shutter=0.0), "laser images")
     import bpy
 
     bpy.data.objects.remove(plate, do_unlink=True)  # the cell is the scan's again
