@@ -78,6 +78,13 @@ try:
     s.output_dir = scans
     check(bpy.ops.scanner.scan(frames="0:120:12") == {"FINISHED"}, "scanner.scan did not finish")
     out["cloud_object_points"] = len(bpy.data.objects["Scan cloud"].data.vertices)
+    out["step"] = "calibrate"
+    calibrations = str(Path(scans).parent / "calibrations")
+    check(bpy.ops.scanner.calibrate(config="demo", views=6, output_dir=calibrations) == {"FINISHED"},
+          "scanner.calibrate did not finish")
+    summary = json.loads(next(Path(calibrations).rglob("calibration.json")).read_text())
+    out["calibration_px"] = [summary[f"camera{c}"]["reprojection_error_px"] for c in (0, 1)]
+    out["calibration_field_um"] = summary["triangulation_error"]["all"]["rms_mm"] * 1e3
     out["step"] = "disable"
     bpy.ops.preferences.addon_disable(module=module)
     out["after_disable"] = {"scene_prop": hasattr(bpy.types.Scene, "scanner"),
@@ -139,6 +146,8 @@ def test_install_enable_scan_disable_uninstall(release, linux_zip, tmp_path):
     for view in out["views"]:
         assert view["size"] == [160, 160] and view["max"] > 0.05, f"{where}: probe view {view}"
     assert out["cloud_object_points"] > 500, where
+    # ChArUco boards rendered and found inside each Blender: corners to a fraction of a pixel
+    assert max(out["calibration_px"]) < 0.3 and out["calibration_field_um"] < 500, f"{where}: {out}"
     assert out["after_disable"] == {"scene_prop": False, "classes": [], "enabled": False}, where
     assert out["installed_after_uninstall"] is False, where
     # The cloud against the demo's exact part: a sphere of 30 mm radius standing on the table.
@@ -156,4 +165,6 @@ def test_install_enable_scan_disable_uninstall(release, linux_zip, tmp_path):
     print(f"\nBlender {out['blender']} (CPython {out['python']}, numpy {out['numpy']}): enabled, cell built, "
           f"probe views {out['views'][0]['size'][0]}x{out['views'][0]['size'][1]}, scan of 10 demo frames "
           f"{len(points)} points, sphere RMS {np.sqrt(np.mean(error_um ** 2)):.1f} um "
-          f"(max {np.abs(error_um).max():.1f} um), table |z| max {np.abs(on_table[:, 2]).max() * 1000:.1f} um")
+          f"(max {np.abs(error_um).max():.1f} um), table |z| max {np.abs(on_table[:, 2]).max() * 1000:.1f} um; "
+          f"calibration from 6 poses {out['calibration_px'][0]:.3f}/{out['calibration_px'][1]:.3f} px, "
+          f"{out['calibration_field_um']:.0f} um RMS on the laser plane")
