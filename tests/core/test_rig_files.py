@@ -149,3 +149,52 @@ def test_a_link_mesh_that_is_not_a_mesh_is_refused_when_the_rig_loads(tmp_path, 
     path.write_text(path.read_text().replace("max_deg = 170.0", 'max_deg = 170.0\nmesh = "link1.stl"', 1))
     with pytest.raises(ConfigError, match=fragment):
         load_robot(path)
+
+
+SLIDE = """
+[[link]]
+joint = "prismatic"
+a_mm = 0.0
+d_mm = 50.0
+alpha_deg = -90.0
+theta_offset_deg = 90.0
+min_mm = 0.0
+max_mm = 400.0
+"""
+
+
+def test_a_dh_rig_declares_sliding_joints(tmp_path):
+    """A linear axis under a 5R arm: the first joint slides. Checked against geometry: its
+    q moves the flange by exactly q mm along the base's z axis, the others stay revolute."""
+    path = tmp_path / "rail.toml"
+    path.write_text('name = "arm on a lift"\n' + SLIDE + LINK * 5)
+    robot = load_robot(str(path))
+    assert robot.prismatic == (True,) + (False,) * 5
+    assert (robot.q_min_rad[0], robot.q_max_rad[0]) == (0.0, 400.0)
+    np.testing.assert_allclose(robot.q_max_rad[1], np.radians(170.0))
+    q = np.radians([0.0, 20.0, -30.0, 40.0, 10.0, 5.0])
+    q[0] = 120.0
+    lifted = q.copy()
+    lifted[0] = 250.0
+    moved = robot.fk(lifted)[:3, 3] - robot.fk(q)[:3, 3]
+    np.testing.assert_allclose(moved, [0.0, 0.0, 130.0], atol=1e-9)
+    assert "mm" in robot.joint_text(0, 250.0, ".1f")
+
+
+@pytest.mark.parametrize("edit, fragment", [
+    (lambda s: s.replace("min_mm", "min_deg"), "min_mm"),
+    (lambda s: s.replace('"prismatic"', '"sliding"'), "joint"),
+    (lambda s: s.replace("max_mm = 400.0", "max_mm = -5.0"), "max_mm"),
+])
+def test_sliding_joint_mistakes_name_the_key(tmp_path, edit, fragment):
+    path = tmp_path / "rail.toml"
+    path.write_text('name = "arm on a lift"\n' + edit(SLIDE) + LINK * 5)
+    with pytest.raises(ConfigError, match=fragment):
+        load_robot(str(path))
+
+
+def test_a_revolute_joint_refuses_millimetre_limits(tmp_path):
+    path = tmp_path / "arm.toml"
+    path.write_text('name = "arm"\n' + LINK.replace("min_deg = -170.0", "min_deg = -170.0\nmin_mm = 3.0") * 6)
+    with pytest.raises(ConfigError, match="min_deg and max_deg"):
+        load_robot(str(path))

@@ -84,7 +84,8 @@ def _read_robot(path: Path) -> Robot:
 
     The file has a ``name``, a ``source`` (where the numbers come from), exactly six
     ``[[link]]`` tables with ``a_mm``, ``d_mm``, ``alpha_deg``, ``theta_offset_deg``,
-    ``min_deg``, ``max_deg``, optional ``mesh`` (+ ``[link.mesh_offset]``), and optional
+    ``min_deg``, ``max_deg`` (or, with ``joint = "prismatic"``, a sliding joint whose q adds
+    millimetres to d: ``min_mm``, ``max_mm``), optional ``mesh`` (+ ``[link.mesh_offset]``), and optional
     ``[base]`` and ``[tool]`` poses (``xyz_mm``, ``yzz_deg``); ``meshes_optional = true``
     draws procedural links where the mesh files are not (all) there. Raises ConfigError
     naming file, key and allowed range.
@@ -102,17 +103,26 @@ def _read_robot(path: Path) -> Robot:
     missing = False
     cols: dict[str, list[float]] = {k: [] for k in ("a", "d", "alpha", "offset", "lo", "hi")}
     meshes: list[tuple[str, np.ndarray]] = []
+    slides: list[bool] = []
     for t in links:
         cols["a"].append(t.number("a_mm", lo=-MAX_LENGTH_MM, hi=MAX_LENGTH_MM))
         cols["d"].append(t.number("d_mm", lo=-MAX_LENGTH_MM, hi=MAX_LENGTH_MM))
         cols["alpha"].append(t.number("alpha_deg", lo=-360.0, hi=360.0))
         cols["offset"].append(t.number("theta_offset_deg", default=0.0, lo=-360.0, hi=360.0))
-        lo = t.number("min_deg", lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG)
-        hi = t.number("max_deg", lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG)
+        # A sliding joint (joint = "prismatic"): q is millimetres added to d_mm along z_{i-1},
+        # θ stays at theta_offset_deg, and the limits are min_mm and max_mm.
+        slides.append(t.string("joint", default="revolute", choices=("revolute", "prismatic")) == "prismatic")
+        unit, other, top_value = ("mm", "deg", MAX_LENGTH_MM) if slides[-1] else ("deg", "mm", MAX_JOINT_DEG)
+        for key in (f"min_{other}", f"max_{other}"):
+            if t.has(key):
+                raise t.error(key, f"a {'prismatic' if slides[-1] else 'revolute'} joint's limits are "
+                                   f"min_{unit} and max_{unit}")
+        lo = t.number(f"min_{unit}", lo=-top_value, hi=top_value)
+        hi = t.number(f"max_{unit}", lo=-top_value, hi=top_value)
         if lo >= hi:
-            raise t.error("max_deg", f"{hi:g} must be greater than min_deg = {lo:g}")
-        cols["lo"].append(lo)
-        cols["hi"].append(hi)
+            raise t.error(f"max_{unit}", f"{hi:g} must be greater than min_{unit} = {lo:g}")
+        cols["lo"].append(lo if slides[-1] else math.radians(lo))
+        cols["hi"].append(hi if slides[-1] else math.radians(hi))
         # Display meshes (the Blender scene loads them); the path is relative to the rig file.
         mesh = ""
         if t.has("mesh"):
@@ -148,8 +158,9 @@ def _read_robot(path: Path) -> Robot:
             d_mm=cols["d"],
             alpha_rad=np.radians(cols["alpha"]),
             theta_offset_rad=np.radians(cols["offset"]),
-            q_min_rad=np.radians(cols["lo"]),
-            q_max_rad=np.radians(cols["hi"]),
+            q_min_rad=np.array(cols["lo"]),
+            q_max_rad=np.array(cols["hi"]),
+            prismatic=tuple(slides),
             base=base,
             tool=tool,
             source=source,
