@@ -50,7 +50,6 @@ class CalibrationRun:
     fit: object                 # core.calibration.ProbeFit
     summary: dict               # what calibration.json holds
     files: dict                 # name -> path (empty without an output folder)
-    images: list                # [view][camera] board images (float32, H × W × 3)
 
 
 def _board_workpiece(board: ChArUcoBoard) -> Workpiece:
@@ -140,9 +139,9 @@ def calibrate(config: ScanConfig | str | Path, out_dir: str | Path | None = None
     if out_dir is not None:
         contents = {"probe.toml": probe_toml(fit.probe).encode(),
                     "calibration.json": (json.dumps(summary, indent=2) + "\n").encode(),
-                    "calibration.png": png_bytes(_picture(images, found, board))}
+                    "calibration.png": png_bytes(_picture(images, found))}
         files = write_set(out_dir, contents)
-    return CalibrationRun(fit, summary, files, images)
+    return CalibrationRun(fit, summary, files)
 
 
 def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene):
@@ -220,7 +219,7 @@ def _summary(cfg, board, fit, views, dropped, distortion, seconds) -> dict:
             "reprojection_error_px": cam.reprojection_error_px, "zhang_error_px": cam.zhang_error_px,
             "views_with_board": cam.views, "corners": cam.corners,
             "K": cam.K.tolist(), "distortion": cam.distortion.tolist(), "cam2flange_mm": cam.cam2flange.tolist(),
-            "std": {**cam.std_intrinsics, **{f"{k}": v for k, v in cam.std_pose.items()}},
+            "std": {**cam.std_intrinsics, **cam.std_pose},
             "deviation": dev[f"camera{c}"]}
     out["laser"] = {"normal": fit.probe.calibration.plane_normal.tolist(),
                     "offset_mm": fit.probe.calibration.plane_offset_mm, "fit_rms_mm": fit.plane_rms_mm,
@@ -229,7 +228,7 @@ def _summary(cfg, board, fit, views, dropped, distortion, seconds) -> dict:
     return out
 
 
-def _picture(images, views, board, columns: int = 6):
+def _picture(images, views, columns: int = 6):
     """Up to 12 views × both cameras: the board image, found corners as green crosses."""
     import cv2
 

@@ -20,9 +20,10 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ..kinematics.transforms import check_transform, rigid_inverse
+from ..kinematics.transforms import check_transform
 
 NOMINAL_PLANE = (np.array([1.0, 0.0, 0.0]), 0.0)  # X = 0: the laser plane of the probe frame
+NOMINAL_PLANE[0].setflags(write=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,10 +115,3 @@ class ProbeCalibration:
         """The exact calibration of a probe's true geometry (a perfect calibration)."""
         cams = tuple(CameraModel(probe.K, np.zeros(5), probe.cam2probe(c)) for c in (0, 1))
         return cls(cams, NOMINAL_PLANE[0], NOMINAL_PLANE[1], source)
-
-    def plane_in(self, a2probe: np.ndarray) -> tuple[np.ndarray, float]:
-        """The laser plane (normal, offset) in frame a, given a's pose in the probe frame."""
-        probe2a = rigid_inverse(a2probe)
-        n = probe2a[:3, :3] @ self.plane_normal
-        p = probe2a[:3, :3] @ (self.plane_normal * self.plane_offset_mm) + probe2a[:3, 3]
-        return n, float(n @ p)

@@ -58,19 +58,11 @@ def detect_all(images, rows, config: ScanConfig):
 def frame_profile(probe, lines, config: ScanConfig):
     sensor = config.sensor
     if probe.calibration is not None:  # the calibration's own lens model, whatever the truth is
-        lines = [None if ln is None else _undistorted(ln, probe.measuring_camera(cam))
+        lines = [None if ln is None else _undistorted(ln, probe.measuring_camera(cam).undistort)
                  for cam, ln in enumerate(lines)]
     elif sensor.distortion and sensor.undistort:  # a perfectly calibrated probe removes its lens distortion
-        undone = []
-        for ln in lines:
-            if ln is None:
-                undone.append(None)
-                continue
-            ok = ln.valid
-            u, v = ln.col.astype(np.float64), ln.row.copy()
-            u[ok], v[ok] = sensor.undistort_pixels(probe, u[ok], v[ok])
-            undone.append(replace(ln, col=u, row=v))
-        lines = undone
+        lines = [None if ln is None else _undistorted(ln, lambda u, v: sensor.undistort_pixels(probe, u, v))
+                 for ln in lines]
     profs = [filter_profile(triangulate_profile(probe, ln, cam, config.triangulate_method), config.profile_filter)
              for cam, ln in enumerate(lines) if ln is not None]
     if len(profs) == 2 and config.fuse:
@@ -85,11 +77,10 @@ def frame_profile(probe, lines, config: ScanConfig):
     return drop_uncertain(profs[0], config.profile_filter)
 
 
-def _undistorted(line, camera):
-    """A detection with its valid positions moved to where the camera's ideal pinhole sees them."""
-    if not camera.distorted:
-        return line
+def _undistorted(line, undistort):
+    """A detection with its valid positions moved by ``undistort(u, v) -> (u, v)`` to where
+    the camera's ideal pinhole sees them."""
     ok = line.valid
     u, v = line.col.astype(np.float64), line.row.astype(np.float64)
-    u[ok], v[ok] = camera.undistort(u[ok], v[ok])
+    u[ok], v[ok] = undistort(u[ok], v[ok])
     return replace(line, col=u, row=v)
