@@ -413,3 +413,66 @@ def test_ur_closed_form_respects_narrow_limits():
     qs = narrow.random_q(500, rng)
     batch = narrow.ik_batch(narrow.fk(qs))
     assert batch.success.all() and narrow.within_limits(batch.q).all()
+
+
+# -- a single target: the float path gives the batch path's answer -------------------------
+
+@pytest.mark.parametrize("name", SPHERICAL + ["ur5"])
+def test_single_target_branches_on_floats_match_the_batch_branches(name):
+    """branches_one / parallel_branches_one compute the same eight branches as the
+    vectorised forms (same order, angles equal modulo 2π); None exactly where the batch
+    form says the geometry has no real solution."""
+    from addon.core.kinematics.ik import closed_form_arm
+    from addon.core.kinematics.ik_analytic import branches, branches_one, flange_targets
+    from addon.core.kinematics.ik_parallel import ParallelAxesArm, parallel_branches, parallel_branches_one
+
+    robot = load_robot(name)
+    arm, _ = closed_form_arm(robot)
+    parallel = isinstance(arm, ParallelAxesArm)
+    rng = np.random.default_rng(31)
+    F = flange_targets(robot, robot.fk(robot.random_q(400, rng)))
+    batch = (parallel_branches if parallel else branches)(arm, F, np.zeros((400, 6)))
+    geometry_ok = batch.geometry_ok()
+    one = parallel_branches_one if parallel else branches_one
+    compared = 0
+    for i in range(400):
+        thetas = one(arm, F[i])
+        assert thetas is not None and len(thetas) == 8
+        for k, theta in enumerate(thetas):
+            assert (theta is not None) == geometry_ok[i, k], (i, k)
+            if theta is not None:
+                wrapped = np.mod(np.array(theta) - batch.theta[i, k] + np.pi, 2 * np.pi) - np.pi
+                assert np.abs(wrapped).max() < 1e-12
+                compared += 1
+    assert compared >= 400 * 4
+
+
+@pytest.mark.parametrize("limits", ["bundled", "lopsided"])
+@pytest.mark.parametrize("name", SPHERICAL + ["ur5"])
+def test_single_solve_gives_the_batch_answer(name, limits):
+    """robot.ik (one target, the float path) and robot.ik_batch agree on random reachable
+    targets with random seeds, on targets beyond reach, at the wrist singularity and with
+    a seed outside the limits (the last three fall back to the batch path). Lopsided
+    limits (-250°..200°) make the turn nearest the seed miss them, so that a neighbouring
+    turn is taken."""
+    robot = load_robot(name)
+    if limits == "lopsided":
+        robot = replace(robot, q_min_rad=np.full(6, np.radians(-250.0)), q_max_rad=np.full(6, np.radians(200.0)))
+    rng = np.random.default_rng(32)
+    qs = robot.random_q(300, rng)
+    T = robot.fk(qs)
+    seeds = np.clip(qs + rng.normal(0.0, 0.8, qs.shape), robot.q_min_rad, robot.q_max_rad)
+    far = T[:20].copy()
+    far[:, :3, 3] *= 3.0 * robot.reach_bound_mm / np.linalg.norm(far[:, :3, 3], axis=1, keepdims=True)
+    q_singular = qs[:5].copy()
+    q_singular[:, 4] = 0.0
+    T_all = np.concatenate([T, far, robot.fk(q_singular)])
+    seeds_all = np.concatenate([seeds, seeds[:20], seeds[:5]])
+    batch = robot.ik_batch(T_all, seeds_all)
+    for i in range(len(T_all)):
+        one = robot.ik(T_all[i], q0=seeds_all[i])
+        assert one.success == batch.success[i] and one.reason == batch.reasons[i], i
+        np.testing.assert_allclose(one.q, batch.q[i], atol=1e-12)
+    assert batch.success[:300].all() and not batch.success[300:320].any()
+    outside = robot.q_max_rad + 0.5
+    np.testing.assert_allclose(robot.ik(T[0], q0=outside).q, robot.ik_batch(T[:1], outside).q[0], atol=1e-12)

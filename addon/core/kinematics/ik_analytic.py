@@ -28,11 +28,11 @@ and verifies every one by forward kinematics; nothing here decides success.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .transforms import rigid_inverse
 from ..tolerances import TOL
 
 # A unit-vector component below this is treated as exactly zero (singular wrist,
@@ -122,9 +122,9 @@ def flange_targets(robot, T_world: np.ndarray) -> np.ndarray:
     """Tool targets (n, 4, 4) in the world -> flange poses (n, 4, 4) in DH frame 0."""
     F = T_world
     if not robot._base_is_identity:
-        F = rigid_inverse(robot.base) @ F
+        F = robot._base_inverse @ F
     if not robot._tool_is_identity:
-        F = F @ rigid_inverse(robot.tool)
+        F = F @ robot._tool_inverse
     return F
 
 
@@ -208,3 +208,60 @@ def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> B
     theta[..., 2] = th3[..., None]
     theta[..., 3], theta[..., 4], theta[..., 5] = th4, th5, th6
     return Branches(theta=theta.reshape(n, 8, 6), shoulder_ok=shoulder_ok, elbow_ok=elbow_ok)
+
+
+def clip_unit(v: float) -> float:
+    return -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)
+
+
+def branches_one(arm: SphericalWristArm, F: np.ndarray) -> list[tuple[float, ...] | None] | None:
+    """The eight branches of :func:`branches` for one flange pose F (4, 4), in the same order,
+    computed on Python floats: for a single target numpy's cost per call outweighs the
+    arithmetic several times over. A branch the geometry gives no real solution is None.
+    None for the whole target where it is singular (the wrist centre on the joint-1 axis,
+    sin θ5 = 0) or the shoulder cannot reach it: :func:`branches` handles those with the
+    seed."""
+    (r00, r01, r02, px), (r10, r11, r12, py), (r20, r21, r22, pz) = F[:3].tolist()
+    px, py, pz = px - arm.d6 * r02, py - arm.d6 * r12, pz - arm.d6 * r22
+    r = math.hypot(px, py)
+    if r <= SINGULAR * arm.scale:
+        return None
+    ratio = arm.shoulder_offset * arm.s1 / r
+    if abs(ratio) > 1.0:
+        return None
+    phi, g = math.atan2(py, px), math.asin(ratio)
+    sa1, sa3, sa4, sa5 = arm.s1, arm.s3, arm.s4, arm.s5
+    out = []
+    for th1 in (phi + g, phi + math.pi - g):
+        c1, s1 = math.cos(th1), math.sin(th1)
+        x = c1 * px + s1 * py - arm.a1
+        y = sa1 * (pz - arm.d1)
+        K = (x * x + y * y - arm.a2 ** 2 - arm.L3 ** 2) / (2.0 * arm.a2 * arm.L3)
+        if abs(K) > 1.0:  # the elbow cannot reach this shoulder's wrist centre
+            out.extend([None] * 4)
+            continue
+        delta0 = math.acos(K)
+        for delta in (delta0, -delta0):
+            th3 = arm.beta + delta
+            th2 = math.atan2(y, x) - math.atan2(arm.L3 * math.sin(delta), arm.a2 + arm.L3 * math.cos(delta))
+            c23, s23 = math.cos(th2 + th3), math.sin(th2 + th3)
+            # Columns 0 and 2 of M = R_3^0ᵀ R, as in branches().
+            m00 = c1 * c23 * r00 + s1 * c23 * r10 + sa1 * s23 * r20
+            m10 = sa1 * sa3 * (s1 * r00 - c1 * r10)
+            m20 = sa3 * (c1 * s23 * r00 + s1 * s23 * r10 - sa1 * c23 * r20)
+            m02 = c1 * c23 * r02 + s1 * c23 * r12 + sa1 * s23 * r22
+            m12 = sa1 * sa3 * (s1 * r02 - c1 * r12)
+            m22 = sa3 * (c1 * s23 * r02 + s1 * s23 * r12 - sa1 * c23 * r22)
+            h = math.hypot(m02, m12)
+            if h <= SINGULAR:
+                return None
+            c5 = -m22 * sa5 * sa4
+            th4_up = math.atan2(sa5 * m12, sa5 * m02)
+            for sign, turn in ((1.0, 0.0), (-1.0, math.pi)):
+                th5 = math.atan2(h * sign, c5)
+                th4 = th4_up + turn
+                c4, s4, c5b, s5b = math.cos(th4), math.sin(th4), math.cos(th5), math.sin(th5)
+                n00 = c4 * c5b * m00 + s4 * c5b * m10 + sa4 * s5b * m20
+                n10 = sa4 * sa5 * (s4 * m00 - c4 * m10)
+                out.append((th1, th2, th3, th4, th5, math.atan2(n10, n00)))
+    return out

@@ -32,12 +32,13 @@ the joint limits and verifies every one by forward kinematics.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..tolerances import TOL
-from .ik_analytic import Branches, shoulder_angles
+from .ik_analytic import Branches, clip_unit, shoulder_angles
 
 SINGULAR = TOL.singular
 
@@ -171,3 +172,52 @@ def parallel_branches(arm: ParallelAxesArm, F: np.ndarray, seed_theta: np.ndarra
     for j, angle in enumerate((th1, th2, th3, th4, th5, th6)):
         theta[:, :, j] = angle
     return Branches(theta=theta, shoulder_ok=shoulder_ok, elbow_ok=elbow_ok)
+
+
+def parallel_branches_one(arm: ParallelAxesArm, F: np.ndarray) -> list[tuple[float, ...] | None] | None:
+    """The eight branches of :func:`parallel_branches` for one flange pose F (4, 4), in the
+    same order, on Python floats (a single target's solve is otherwise mostly numpy's cost
+    per call); a branch the geometry gives no real solution is None. None for the whole
+    target where it is singular (the wrist on the base axis, sin θ5 = 0) or the shoulder
+    cannot reach it: :func:`parallel_branches` handles those with the seed."""
+    (r00, r01, r02, px), (r10, r11, r12, py), (r20, r21, r22, pz) = F[:3].tolist()
+    ox, oy, oz = px - arm.d6 * r02, py - arm.d6 * r12, pz - arm.d6 * r22
+    r = math.hypot(ox, oy)
+    if r <= SINGULAR * arm.scale:
+        return None
+    ratio = arm.offset * arm.s1 / r
+    if abs(ratio) > 1.0:
+        return None
+    phi, g = math.atan2(oy, ox), math.asin(ratio)
+    sa1, sa4, sa5 = arm.s1, arm.s4, arm.s5
+    out = []
+    for th1 in (phi + g, phi + math.pi - g):
+        c1, s1 = math.cos(th1), math.sin(th1)
+        z1x, z1y = sa1 * s1, -sa1 * c1
+        d0, d1, d2 = (z1x * r00 + z1y * r10, z1x * r01 + z1y * r11, z1x * r02 + z1y * r12)
+        acos5 = math.acos(clip_unit(-sa4 * sa5 * d2))
+        wrist = []
+        for th5 in (acos5, -acos5):
+            s5, c5 = math.sin(th5), math.cos(th5)
+            if abs(s5) <= SINGULAR:
+                return None
+            th6 = math.atan2(-d1 / (sa4 * s5), d0 / (sa4 * s5))
+            c6, s6 = math.cos(th6), math.sin(th6)
+            a, b, c = c5 * c6, -c5 * s6, sa5 * s5
+            x4 = (r00 * a + r01 * b + r02 * c, r10 * a + r11 * b + r12 * c, r20 * a + r21 * b + r22 * c)
+            k = arm.d5 * sa5
+            o4 = (ox - k * (r00 * s6 + r01 * c6), oy - k * (r10 * s6 + r11 * c6), oz - k * (r20 * s6 + r21 * c6))
+            x = c1 * o4[0] + s1 * o4[1] - arm.a1
+            y = sa1 * (o4[2] - arm.d1)
+            K = (x * x + y * y - arm.a2 ** 2 - arm.a3 ** 2) / (2.0 * arm.a2 * arm.a3)
+            wrist.append((th5, th6, x4, x, y, math.acos(K) if abs(K) <= 1.0 else None))
+        for elbow in (1.0, -1.0):
+            for th5, th6, x4, x, y, acos3 in wrist:
+                if acos3 is None:  # the elbow cannot reach this branch's wrist
+                    out.append(None)
+                    continue
+                th3 = elbow * acos3
+                th2 = math.atan2(y, x) - math.atan2(arm.a3 * math.sin(th3), arm.a2 + arm.a3 * math.cos(th3))
+                th4 = math.atan2(sa1 * x4[2], c1 * x4[0] + s1 * x4[1]) - th2 - th3
+                out.append((th1, th2, th3, th4, th5, th6))
+    return out

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..tolerances import TOL
-from .transforms import _cos_sin, check_transform
+from .transforms import _cos_sin, check_transform, rigid_inverse
 
 N_JOINTS = 6
 # Up to this many poses, IK checks its branches by FK as a product of link matrices (fewer
@@ -128,6 +128,8 @@ class Robot:
         object.__setattr__(self, "_link_constants", _readonly(links))
         object.__setattr__(self, "_base_is_identity", bool(np.array_equal(self.base, np.eye(4))))
         object.__setattr__(self, "_tool_is_identity", bool(np.array_equal(self.tool, np.eye(4))))
+        object.__setattr__(self, "_base_inverse", _readonly(rigid_inverse(self.base)))
+        object.__setattr__(self, "_tool_inverse", _readonly(rigid_inverse(self.tool)))
         # Sizes every IK call reads, computed once (the robot is immutable).
         shoulder = _readonly(self.base[:3, :3] @ np.array([0.0, 0.0, self.d_mm[0]]) + self.base[:3, 3])
         travel = np.where(slides, np.maximum(np.abs(self.q_min_rad), np.abs(self.q_max_rad)), 0.0)
