@@ -182,7 +182,8 @@ def bench_robot(robot: Robot, args, rng: np.random.Generator) -> list[dict]:
         single_batch = float("nan")
         if method == "analytic":
             pairs = [(median_single_call(lambda T: robot.ik(T), Ts[k:k + 20]),
-                      median_single_call(lambda T: robot.ik_batch(T[None]), Ts[k:k + 20])) for k in range(0, 200, 20)]
+                      median_single_call(lambda T: robot.ik_batch(T[None]), Ts[k:k + 20]))
+                     for k in range(0, min(200, len(Ts)), 20)]
             single = float(np.median([p[0] for p in pairs]))
             single_batch = float(np.median([p[1] for p in pairs]))
         near_b = robot.ik_batch(near, method=method, seed=args.seed + 1)

@@ -228,3 +228,39 @@ def test_a_row_offset_that_is_not_a_whole_number_is_refused():
         with pytest.raises(InputError, match="row_offset"):
             detect_line(img, row_offset=bad)
     assert np.nanmax(detect_line(img, row_offset=10.0).row) > 10
+
+
+def bent_strip_image(curvature_px: np.ndarray, strip_sigma: float = 1.2, rows: int = 40) -> tuple[np.ndarray, float]:
+    """Columns imaging a Gaussian strip (σ across the line, in its own units) through
+    row = r0 + x + c·x², c per column: a strip on a surface that bends across the line. Each
+    pixel integrates its row's share of the strip (fine sampling of x). Returns the image and
+    r0, the row of the strip's centre line x = 0 (the laser plane), which the probe means."""
+    r0 = rows / 2 + 0.3
+    x = np.linspace(-6 * strip_sigma, 6 * strip_sigma, 24001)
+    weight = np.exp(-0.5 * (x / strip_sigma) ** 2)
+    img = np.zeros((rows, len(curvature_px)))
+    for j, c in enumerate(curvature_px):
+        r = r0 + x + c * x * x
+        img[:, j] = np.bincount(np.clip(np.floor(r + 0.5).astype(int), 0, rows - 1), weights=weight, minlength=rows)
+    return 0.8 * img / img.max(), r0  # below full scale: not saturated
+
+
+def test_a_strip_bent_across_the_line_states_the_shift_its_asymmetry_shows():
+    """The strip's mean moves by c·σ² (E[c x²] for x ~ N(0, σ²)) and its peak, which the
+    detector fits, by up to 2cσ² (the density φ(x)/(1 + 2cx) peaks at x ≈ −2cσ²); the
+    detector's stated σ grows with the bend and covers the detected centre's distance from
+    the laser plane's row, while an unbent strip keeps a small σ."""
+    strip_sigma = 1.2
+    c = np.repeat([0.0, 0.02, 0.05, 0.1, 0.15], 8)  # the fold x = −1/2c stays beyond 2.7 σ
+    img, r0 = bent_strip_image(c, strip_sigma)
+    line = detect_line(img, "gauss", DetectParams(smoothing_px=0.0))
+    assert line.valid.all()
+    err = np.abs(line.row - r0)
+    assert np.median(line.sigma_px[c == 0]) < 0.02 and err[c == 0].max() < 0.02
+    for k in (0.05, 0.1, 0.15):
+        at = c == k
+        mean_shift = k * strip_sigma ** 2  # what the strip's curvature moves its mean by
+        assert mean_shift < err[at].min() <= 2.0 * mean_shift  # the bend moves the fitted peak
+        assert np.all(err[at] <= 2.0 * line.sigma_px[at]), (k, err[at], line.sigma_px[at])
+        assert mean_shift <= np.median(line.sigma_px[at]) <= 4.0 * mean_shift
+    assert np.all(np.diff([np.median(line.sigma_px[c == k]) for k in np.unique(c)]) > 0)

@@ -49,3 +49,31 @@ def test_a_step_inside_the_strip_moves_or_rejects_the_point():
     far.apply_translation([-20.0 + 5.0, 0.0, 0.0])     # the same step 5 mm away
     F = _floor(far, 170.0, ys, 10.0, 1)
     assert np.max(np.abs(F[:, 2] - 10.0)) < 0.004
+
+
+def test_coverage_ceiling_is_whole_on_a_plate_and_lower_across_ridges():
+    """A sweep over a flat plate: every measurable spot gets a floor on the face (ceiling 1).
+    Over a row of sharp ridges along the line (a saw-tooth across it, crests every 2 mm), the
+    strip bends across the line where it straddles a crest or a trough: the lines there are
+    off by more than 50 µm, those on the flat flanks are not, so the ceiling lies between
+    0 and 1, and rises as the allowed error does."""
+    from shapely.geometry import Polygon
+
+    from addon.core.geometry.line_floor import coverage_ceiling
+
+    probe = load_probe("default")
+    poses = np.concatenate([make_pose(probe_orientation(DOWN, (0.0, 1.0, 0.0)), [x, 0.0, 165.0])[None]
+                            for x in np.arange(-10.0, 10.0, 0.25)])
+    plate = trimesh.creation.box(extents=[60.0, 60.0, 10.0])
+    assert coverage_ceiling(probe, poses, SurfaceCaster([plate]), plate, 65.0, 0.05, 1.0) > 0.99
+    # Ridges along y, the line's direction: z = 5 + 0.6·(saw-tooth in x), 2 mm period.
+    xs = np.arange(-30.0, 30.01, 1.0)
+    zs = 5.0 + np.where(np.arange(len(xs)) % 2 == 0, 0.0, 0.6)
+    profile = np.column_stack([xs, zs])
+    ridges = trimesh.creation.extrude_polygon(Polygon(np.vstack([profile, [[30.0, -5.0], [-30.0, -5.0]]])), 60.0)
+    ridges.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
+    ridges.apply_translation([0.0, 30.0, 0.0])
+    # Coverage within 0.3 mm of a point (the lines are 0.25 mm apart): a crest's bad lines leave a gap.
+    tight = coverage_ceiling(probe, poses, SurfaceCaster([ridges]), ridges, 65.0, 0.05, 0.3)
+    loose = coverage_ceiling(probe, poses, SurfaceCaster([ridges]), ridges, 65.0, 0.5, 0.3)
+    assert 0.1 < tight < 0.9 and loose > tight + 0.05, (tight, loose)

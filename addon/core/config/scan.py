@@ -25,7 +25,7 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
                  smoothing_px (default: none on noise-free images of the gobo line; otherwise matched
                  to the line, none for lines under 0.8 px σ; the slit's flat top always smoothed)
     [triangulate] method (exact|paper), fuse (both cameras into one profile),
-                 max_incidence_deg (65), edge_px (2), max_sigma_mm (0.05): see
+                 max_incidence_deg (65), edge_px (1), max_sigma_mm (0.05): see
                  addon.core.optics.profile_filter
     [leave_out]  render_band, skip_blind_cameras, hide_robot, chunk_frames, band_margin_px
     [sensor]     the realistic sensor (all off by default): integrate_pixels, saturate, noise,
@@ -93,9 +93,12 @@ class LeaveOut:
 
 # Steep points and the ends of runs are dropped unless a config says otherwise: on the
 # tilted plate they are all of the error above 8 µm (see profile_filter and the README).
+# One column at each end of a run: the detector already rejects a line cut across its
+# width, and a second column cost coverage (bunny 77 → 82 %, step block 92 → 95 % of the
+# measurable surface) without moving any part's error.
 # A point whose own σ (see triangulate and detect) exceeds 50 µm is dropped: a quarter of the
 # 0.2 mm a point may stray from the part, so that what is kept strays less than that.
-DEFAULT_FILTER = ProfileFilter(max_incidence_deg=65.0, edge_px=2, max_sigma_mm=0.05)
+DEFAULT_FILTER = ProfileFilter(max_incidence_deg=65.0, edge_px=1, max_sigma_mm=0.05)
 # Columns whose line is 1.6 times wider than the image's median are rejected: the part turns
 # away from the laser across the line there (grazing along the scan); and those whose profile
 # is narrower than 0.8 times the median (σ₃, see detect): an edge of the part cuts the line

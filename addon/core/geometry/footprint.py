@@ -127,13 +127,23 @@ def measurable_points(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCa
     of the fan (``rays`` per frame, default one per sensor column) on the part (the first
     ``part_faces`` faces of ``surfaces``) inside the probe's range, within ``max_incidence_deg``
     of the face's normal, and seen by at least one camera."""
+    points, _, seen = measurable_hits(probe, probe2table, surfaces, part_faces, max_incidence_deg, rays, chunk)
+    return points[seen.any(axis=0)]
+
+
+def measurable_hits(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCaster, part_faces: int,
+                    max_incidence_deg: float = 90.0, rays: int | None = None, chunk: int = 200
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fan's first hits on the part in range and within the incidence limit, as in
+    :func:`measurable_points`, before the cameras are asked: (points (m, 3) mm, table frame;
+    frame (m,) index into ``probe2table``; seen (2, m) bool, by camera 0 and camera 1)."""
     rays = rays or probe.cols_px
     alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
     d_probe = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
     normals = surfaces.mesh.face_normals
     cos_limit = np.cos(np.radians(min(max_incidence_deg, 90.0)))
     z0, z1 = probe.z_range_mm
-    out = []
+    out_points, out_frames, out_seen = [], [], []
     for start in range(0, len(probe2table), chunk):
         T = probe2table[start:start + chunk]
         R, t = T[:, :3, :3], T[:, :3, 3]
@@ -150,11 +160,13 @@ def measurable_points(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCa
         if not len(pts):
             continue
         local = np.einsum("nji,nj->ni", R[frame], pts - t[frame])
-        seen = np.zeros(len(pts), bool)
-        for camera in (0, 1):
-            seen |= _seen_by(probe, surfaces.caster, camera, R[frame], t[frame], pts, local)[1]
-        out.append(pts[seen])
-    return np.concatenate(out) if out else np.zeros((0, 3))
+        out_points.append(pts)
+        out_frames.append(frame + start)
+        out_seen.append(np.stack([_seen_by(probe, surfaces.caster, camera, R[frame], t[frame], pts, local)[1]
+                                  for camera in (0, 1)]))
+    if not out_points:
+        return np.zeros((0, 3)), np.zeros(0, dtype=int), np.zeros((2, 0), bool)
+    return np.concatenate(out_points), np.concatenate(out_frames), np.concatenate(out_seen, axis=1)
 
 
 def _first_hits(caster, origins, dirs):

@@ -33,7 +33,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..optics.probe import Probe
-from .footprint import SurfaceCaster
+from .footprint import SurfaceCaster, measurable_hits
+from .metrics import coverage_of_measurable, distances
 
 FLOOR_SAMPLES = 41         # rays across the beam
 FLOOR_SPAN_SIGMAS = 4.0    # the rays cover ±this many beam σ
@@ -168,3 +169,25 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
     both = 0.5 * (floors[0] + floors[1])
     chosen = np.where((cam == 3)[:, None], both, chosen)
     return np.einsum("nij,nj->ni", R, chosen) + t
+
+
+def coverage_ceiling(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCaster, mesh,
+                     max_incidence_deg: float, max_error_mm: float, tolerance_mm: float) -> float:
+    """The coverage of the measurable surface (``footprint.measurable_hits``: the path's laser
+    in range, within the incidence limit, seen by a camera) that a probe keeping exactly the
+    points whose floor (:func:`line_width_floor`, from its better camera) lies within
+    ``max_error_mm`` of the part would reach: what the line's width alone leaves coverable
+    by points that good. ``mesh`` is the part, the first faces of ``surfaces``."""
+    points, frame, seen = measurable_hits(probe, probe2table, surfaces, len(mesh.faces), max_incidence_deg)
+    best = np.full(len(points), np.inf)
+    for camera in (0, 1):
+        m = seen[camera]
+        if not m.any():
+            continue
+        F = line_width_floor(probe, probe2table, points[m], frame[m], np.full(int(m.sum()), camera + 1), surfaces)
+        found = np.isfinite(F).all(axis=1)
+        error = np.full(int(m.sum()), np.inf)
+        error[found] = distances(F[found], mesh)[0]
+        best[m] = np.minimum(best[m], error)
+    reach = seen.any(axis=0)
+    return coverage_of_measurable(points[reach & (best <= max_error_mm)], mesh, points[reach], tolerance_mm)[0]

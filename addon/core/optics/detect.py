@@ -39,8 +39,10 @@ like here. A column whose line is cut across its width (an edge of the part, a
 ridge hiding part of the strip) is narrower than that: its centre is no longer on
 the laser plane, and it is coded EDGE (``min_width_ratio``). For the rest, the two
 flanks of the profile each give the centre if the width is the image's, and the
-two answers differ by |σ_med²/σ₃² − 1| pixels: half of that, with the image noise's
-effect on the fit, is the centre's uncertainty ``sigma_px``.
+two answers differ by |σ_med²/σ₃² − 1| pixels: half of that, the shift the profile's
+asymmetry shows (a strip bent across the line by the surface's curvature images as a
+skewed Gaussian whose peak moves by μ₃ / (3·var)), and the image noise's effect on the
+fit make up the centre's uncertainty ``sigma_px``.
 """
 
 from __future__ import annotations
@@ -389,23 +391,55 @@ def _local_median(values: np.ndarray, ok: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
+SKEW_WINDOW_SIGMAS = 3.0  # the profile's moments are taken over ± this many line σ around the peak
+
+
+def _skew_shift(S: np.ndarray, r: np.ndarray, cols: np.ndarray, line_sigma_px: float) -> np.ndarray:
+    """(W,) px: how far the lit strip's curvature across the line moves each column's centre,
+    read off the profile's asymmetry. The camera maps the strip's width x to rows as
+    a·x + c·x² once the surface bends across the line (c from its curvature). For the
+    strip's Gaussian of σ in x the image is skewed: its mean moves by c·σ², and its peak,
+    which the three-point fit finds (the density φ(x)/|a + 2cx| is largest at
+    x ≈ −2cσ²/a), by 2cσ² the other way. To first order in c, μ₃ = 6a²cσ⁴ and
+    var = a²σ², so the peak's shift is μ₃ / (3·var). Moments over ±SKEW_WINDOW_SIGMAS line
+    σ of the contrast around the peak row (wide enough that sampling a whole Gaussian
+    reads under 0.01 px); a symmetric profile gives 0."""
+    H = S.shape[0]
+    half = max(2, int(np.ceil(SKEW_WINDOW_SIGMAS * line_sigma_px)))
+    offsets = np.arange(-half, half + 1, dtype=np.float64)[:, None]
+    rows = np.clip(r[None, :] + np.arange(-half, half + 1)[:, None], 0, H - 1)
+    # Within `half` rows of the image's first or last row the sensor cuts a tail off, which
+    # would read as asymmetry (and a shrunken window misreads a whole Gaussian by up to 0.1 px):
+    # there the asymmetry is not measured (0).
+    whole = (r >= half) & (r <= H - 1 - half)
+    w = np.where(whole[None, :], np.maximum(S[rows, cols[None, :]], 0.0), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        total = w.sum(axis=0)
+        mean = (w * offsets).sum(axis=0) / total
+        d = offsets - mean
+        var = (w * d * d).sum(axis=0) / total
+        return np.where(whole, np.abs((w * d ** 3).sum(axis=0) / total) / (3.0 * var), 0.0)
+
+
 def _centre_sigma(C, S, r, cols, shape, shape_median, p: DetectParams) -> np.ndarray:
     """Uncertainty (W,) px of each column's centre: the disagreement of the profile's two
     flanks if the line is as wide as its neighbours' (half of |σ_ref²/σ₃² − 1|, σ_ref the
     median over LOCAL_WIDTH_COLUMNS columns: the whole line's width changes along the line
-    with the surface's slope, a cut one from one column to the next), the image noise
+    with the surface's slope, a cut one from one column to the next), the shift its
+    asymmetry shows (:func:`_skew_shift`: the strip bent across the line), the image noise
     through the three-point fit, and a floor, added in quadrature."""
     H = S.shape[0]
     rr = np.clip(r, 1, H - 2)
     reference = _local_median(shape, np.isfinite(shape), LOCAL_WIDTH_COLUMNS)
+    line_sigma = shape_median if np.isfinite(shape_median) else 1.0
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         flanks = 0.5 * np.abs(reference ** 2 / shape ** 2 - 1.0)
         noise = _image_noise(C, p)
-        s2 = (shape_median if np.isfinite(shape_median) else 1.0) ** 2
-        fit = 0.5 * s2 * noise * np.hypot(1.0 / S[rr - 1, cols], 1.0 / S[rr + 1, cols])
+        fit = 0.5 * line_sigma ** 2 * noise * np.hypot(1.0 / S[rr - 1, cols], 1.0 / S[rr + 1, cols])
     flanks = np.minimum(np.nan_to_num(flanks, nan=0.5, posinf=0.5), 0.5)
     fit = np.minimum(np.nan_to_num(fit, nan=0.5, posinf=0.5), 0.5)
-    return np.minimum(np.sqrt(CENTRE_FLOOR_PX ** 2 + flanks ** 2 + fit ** 2), 0.5)
+    skew = np.minimum(np.nan_to_num(_skew_shift(S, r, cols, line_sigma), nan=0.5, posinf=0.5), 0.5)
+    return np.minimum(np.sqrt(CENTRE_FLOOR_PX ** 2 + flanks ** 2 + skew ** 2 + fit ** 2), 0.5)
 
 
 def _wider_than_the_line(width: np.ndarray, code: np.ndarray, p: DetectParams) -> np.ndarray:
