@@ -29,6 +29,10 @@ from typing import Callable
 from addon.core.scan import shards
 from addon.core.errors import InputError, ScannerError, check_whole
 
+# Times a shard is submitted again after the cluster cancels it (its scattered inputs lost
+# with a dying worker) before the farm gives up.
+SHARD_RETRIES = 3
+
 # A worker process's cell, kept between shards of the same scan: {fingerprint: SceneCell}.
 _WORKER_CELL: dict = {}
 
@@ -169,11 +173,33 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
             worker_addresses = sorted(client.scheduler_info()["workers"])
             log(f"farm: scheduler {address}, {len(worker_addresses)} workers")
             # The config (with its meshes) and the plan go to every worker once, not with every task.
-            config_f, plan_f = client.scatter([config, plan], broadcast=True, hash=False)
-            futures = [client.submit(run_shard, config_f, plan_f, s, str(folder / s.file_name()), fp, threads,
-                                     key=f"scan-shard-{fp[:12]}-{s.index}", pure=False) for s, _ in todo]
+            shared = client.scatter([config, plan], broadcast=True, hash=False)
+            tries = {s.index: 0 for s, _ in todo}
+
+            def submit(s):
+                return client.submit(run_shard, *shared, s, str(folder / s.file_name()), fp, threads,
+                                     key=f"scan-shard-{fp[:12]}-{s.index}-{tries[s.index]}", pure=False)
+
+            shard_of = {}
+            for s, _ in todo:
+                shard_of[submit(s)] = s
             done = 0
-            for fut in as_completed(futures):
+            pending = as_completed(list(shard_of))
+            for fut in pending:
+                if fut.cancelled():
+                    # Dask cancels a task whose scattered inputs went down with a dying worker
+                    # (they have no recipe to recompute them): scatter again and resubmit.
+                    s = shard_of.pop(fut)
+                    tries[s.index] += 1
+                    if tries[s.index] > SHARD_RETRIES:
+                        raise ScannerError(f"{s.describe()} was cancelled by the cluster {tries[s.index]} times "
+                                           "(its workers keep dying); nothing merged")
+                    log(f"  {s.describe()} cancelled by the cluster (a worker died); submitting it again")
+                    shared = client.scatter([config, plan], broadcast=True, hash=False)
+                    again = submit(s)
+                    shard_of[again] = s
+                    pending.add(again)
+                    continue
                 info = fut.result()  # a shard that raised raises here, with the worker's message
                 done += 1
                 progress("shards", done, len(todo))

@@ -136,3 +136,53 @@ def test_a_farm_manager_can_run_one_shard_per_task_then_merge(single, tmp_path):
     cloud = load_ply(out / "cloud.ply")
     np.testing.assert_allclose(cloud.points, single.cloud.points, atol=1e-4)  # PLY holds float32
     np.testing.assert_array_equal(cloud.frame, single.cloud.frame)
+
+
+def cancel_shard_once(index: int, marker: str):
+    """A Dask worker plugin: the first task of shard ``index`` cancels itself through the
+    client, as the scheduler does when a dying worker takes the shard's scattered inputs
+    with it (``marker`` records it)."""
+    from dask.distributed import WorkerPlugin
+
+    class CancelShard(WorkerPlugin):
+        def __init__(self, index: int, marker: str):
+            self.index, self.marker = index, marker
+
+        def setup(self, worker):
+            import time
+            from pathlib import Path
+
+            from headless import farm as worker_farm
+
+            run_shard = worker_farm.run_shard
+            plugin = self
+
+            def cancelled_run_shard(config, plan, shard, *args, **kwargs):
+                from dask.distributed import Future, get_client, get_worker
+
+                if shard.index == plugin.index and not Path(plugin.marker).exists():
+                    Path(plugin.marker).write_text(f"shard {shard.index} cancelled\n")
+                    client = get_client()
+                    client.cancel([Future(get_worker().get_current_task(), client)], force=True)
+                    time.sleep(2.0)
+                return run_shard(config, plan, shard, *args, **kwargs)
+
+            worker_farm.run_shard = cancelled_run_shard
+
+    return CancelShard(index, marker)
+
+
+def test_a_shard_the_cluster_cancels_is_submitted_again(config, single, tmp_path):
+    from dask.distributed import Client, LocalCluster
+
+    marker = tmp_path / "cancelled.txt"
+    lines = []
+    with LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1", dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        client.register_plugin(cancel_shard_once(2, str(marker)), name="cancel-shard-2")
+        res = farm.run_farm(config, tmp_path / "out", scheduler=cluster.scheduler_address, shard_frames=5,
+                            log=lines.append, render_threads=1)
+    assert marker.exists(), "the cancellation was not injected"
+    assert any("cancelled by the cluster" in line for line in lines), lines
+    same_cloud(res.cloud, single.cloud)
+    assert res.report["farm"]["computed"] == 4
