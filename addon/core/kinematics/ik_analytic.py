@@ -214,6 +214,20 @@ def clip_unit(v: float) -> float:
     return -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)
 
 
+def wrist_and_shoulder_one(F: np.ndarray, d6: float, offset: float, s1: float, scale: float):
+    """For one flange pose F (4, 4): (rotation rows as floats, the wrist point p − d6·z6, and
+    the shoulder equation's φ and g as in :func:`shoulder_angles`), or None where the wrist
+    point lies on the joint-1 axis or nearer it than the offset allows (the batch forms
+    handle those)."""
+    (r00, r01, r02, px), (r10, r11, r12, py), (r20, r21, r22, pz) = F[:3].tolist()
+    w = (px - d6 * r02, py - d6 * r12, pz - d6 * r22)
+    r = math.hypot(w[0], w[1])
+    if r <= SINGULAR * scale or abs(offset * s1) > r:
+        return None
+    rows = ((r00, r01, r02), (r10, r11, r12), (r20, r21, r22))
+    return rows, w, math.atan2(w[1], w[0]), math.asin(offset * s1 / r)
+
+
 def branches_one(arm: SphericalWristArm, F: np.ndarray) -> list[tuple[float, ...] | None] | None:
     """The eight branches of :func:`branches` for one flange pose F (4, 4), in the same order,
     computed on Python floats: for a single target numpy's cost per call outweighs the
@@ -221,15 +235,10 @@ def branches_one(arm: SphericalWristArm, F: np.ndarray) -> list[tuple[float, ...
     None for the whole target where it is singular (the wrist centre on the joint-1 axis,
     sin θ5 = 0) or the shoulder cannot reach it: :func:`branches` handles those with the
     seed."""
-    (r00, r01, r02, px), (r10, r11, r12, py), (r20, r21, r22, pz) = F[:3].tolist()
-    px, py, pz = px - arm.d6 * r02, py - arm.d6 * r12, pz - arm.d6 * r22
-    r = math.hypot(px, py)
-    if r <= SINGULAR * arm.scale:
+    start = wrist_and_shoulder_one(F, arm.d6, arm.shoulder_offset, arm.s1, arm.scale)
+    if start is None:
         return None
-    ratio = arm.shoulder_offset * arm.s1 / r
-    if abs(ratio) > 1.0:
-        return None
-    phi, g = math.atan2(py, px), math.asin(ratio)
+    ((r00, _, r02), (r10, _, r12), (r20, _, r22)), (px, py, pz), phi, g = start
     sa1, sa3, sa4, sa5 = arm.s1, arm.s3, arm.s4, arm.s5
     out = []
     for th1 in (phi + g, phi + math.pi - g):

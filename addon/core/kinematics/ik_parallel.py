@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..tolerances import TOL
-from .ik_analytic import Branches, clip_unit, shoulder_angles
+from .ik_analytic import Branches, clip_unit, shoulder_angles, wrist_and_shoulder_one
 
 SINGULAR = TOL.singular
 
@@ -180,15 +180,10 @@ def parallel_branches_one(arm: ParallelAxesArm, F: np.ndarray) -> list[tuple[flo
     per call); a branch the geometry gives no real solution is None. None for the whole
     target where it is singular (the wrist on the base axis, sin θ5 = 0) or the shoulder
     cannot reach it: :func:`parallel_branches` handles those with the seed."""
-    (r00, r01, r02, px), (r10, r11, r12, py), (r20, r21, r22, pz) = F[:3].tolist()
-    ox, oy, oz = px - arm.d6 * r02, py - arm.d6 * r12, pz - arm.d6 * r22
-    r = math.hypot(ox, oy)
-    if r <= SINGULAR * arm.scale:
+    start = wrist_and_shoulder_one(F, arm.d6, arm.offset, arm.s1, arm.scale)
+    if start is None:
         return None
-    ratio = arm.offset * arm.s1 / r
-    if abs(ratio) > 1.0:
-        return None
-    phi, g = math.atan2(oy, ox), math.asin(ratio)
+    ((r00, r01, r02), (r10, r11, r12), (r20, r21, r22)), (ox, oy, oz), phi, g = start
     sa1, sa4, sa5 = arm.s1, arm.s4, arm.s5
     out = []
     for th1 in (phi + g, phi + math.pi - g):
