@@ -29,7 +29,9 @@ TRIES = 12        # candidates asked for reachability per decision, best first
 @dataclass(frozen=True)
 class AdaptiveStep:
     """One decision: the sweep chosen (its description), the profiles it took, the cells it
-    taught the model, the planning time and the candidates refused as unreachable or colliding."""
+    taught the model, the planning time and the candidates refused as unreachable or colliding;
+    on the first decision, ``setup_s``: the planner's one-off set-up before it (the model, the
+    candidate sweeps, the cell's collision model), which no later decision pays again."""
 
     sweep: str
     table_deg: float
@@ -39,6 +41,7 @@ class AdaptiveStep:
     expected_cells: int
     planning_s: float
     refused: int
+    setup_s: float = 0.0
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -72,6 +75,10 @@ class NextBestView:
         self.pool = next_view.candidates(scanner.config.cell, self.probe, lo, hi)
         self.impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
         self.refused: list[str] = []  # why, for the last decision
+        # The cell builds its collision model once, at its first check: here, with the rest of
+        # the set-up, rather than inside the first decision (the Scanner reads the part for it,
+        # as a real cell's safety system knows its fixtures; the planner does not).
+        scanner.prepare_checks()
 
     def choose(self, scanner, budget: int | None = None):
         """The best candidate the robot can do from where it is now (checked without moving),
@@ -115,7 +122,11 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
     returns the decisions. ``progress(stage, done, total)`` after each sweep (profiles)."""
     if isinstance(max_profiles, bool) or not isinstance(max_profiles, int) or max_profiles < 1:
         raise InputError(f"max_profiles must be a positive whole number, got {max_profiles!r}")
+    t = time.perf_counter()
     planner = NextBestView(scanner, lo, hi, min_gain=min_gain, voxel_mm=voxel_mm)
+    setup = time.perf_counter() - t
+    if log:
+        log(f"adaptive: planner set up in {setup:.2f} s ({len(planner.pool)} candidate sweeps)")
     steps: list[AdaptiveStep] = []
     taken = 0
     while taken < max_profiles:
@@ -133,7 +144,7 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
         profiles, learnt = planner.scan(scanner, chosen)
         taken += len(profiles)
         step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
-                            chosen.gain, planning, len(planner.refused))
+                            chosen.gain, planning, len(planner.refused), 0.0 if steps else setup)
         steps.append(step)
         if log:
             log(f"adaptive: sweep {len(steps)}: {step.sweep}; learnt {step.new_cells} cells "

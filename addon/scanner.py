@@ -322,6 +322,15 @@ class Scanner:
         found = self._check_path(sol.q, wp.table_rad, what, record=record)
         return np.asarray(sol.q, dtype=np.float64), np.asarray(wp.table_rad, dtype=np.float64), found
 
+    def prepare_checks(self) -> None:
+        """Build the cell's collision model now rather than inside the first collision check
+        (for callers that time their decisions, such as the adaptive planner while it sets up);
+        nothing when the config turns the checks off."""
+        from .core.scan.plan import collision_model
+
+        if self.config.safety.check:
+            collision_model(self.config)
+
     def plan_path(self, waypoints: Waypoints) -> tuple[np.ndarray, np.ndarray]:
         """``plan_sweep`` for any waypoints (core.kinematics.path: a turntable pass, a sweep,
         several concatenated): (joints, table angles rad), nothing moved."""

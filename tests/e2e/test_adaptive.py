@@ -21,6 +21,8 @@ def test_the_planner_covers_the_sphere_from_a_box_alone(tmp_path, capsys):
     assert all(s["new_cells"] > 0 for s in sweeps) and sweeps[0]["new_cells"] >= sweeps[-1]["new_cells"]
     assert len({s["sweep"].split(",")[0] + str(s["tilt_deg"]) for s in sweeps}) == len(sweeps)  # never twice
     assert max(s["planning_s"] for s in sweeps) < 5.0
+    # The one-off set-up is reported once, before the first decision, not inside it.
+    assert sweeps[0]["setup_s"] > 0.0 and all(s["setup_s"] == 0.0 for s in sweeps[1:])
     assert "sweep 1:" in log and "planner" in log
     # Scored against the truth only now: the points lie on the sphere, and the views it chose
     # see far more of it than the demo's whole 180-frame path does (27 %).
