@@ -372,10 +372,7 @@ def _solve_one(robot, arm, T: np.ndarray, q0: np.ndarray, pos_tol: float, rot_to
             candidates.append((dist2, q))
     candidates.sort(key=lambda item: item[0])
     for _, q in candidates:
-        Tq = robot._fk_chain(np.array([q]), True)[0]
-        d = Tq[:3, 3] - T[:3, 3]
-        pos = math.sqrt(float(d @ d))
-        rot = float(rotation_angle(T[:3, :3].T @ Tq[:3, :3]))
+        pos, rot = (float(e[0]) for e in pose_errors(robot, np.array([q]), T[None]))
         if pos <= pos_tol and rot <= rot_tol:
             return IKResult(np.array(q), True, pos, rot, 0, "ok", "analytic", "ok")
     return None

@@ -210,10 +210,6 @@ def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> B
     return Branches(theta=theta.reshape(n, 8, 6), shoulder_ok=shoulder_ok, elbow_ok=elbow_ok)
 
 
-def clip_unit(v: float) -> float:
-    return -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)
-
-
 def wrist_and_shoulder_one(F: np.ndarray, d6: float, offset: float, s1: float, scale: float):
     """For one flange pose F (4, 4): (rotation rows as floats, the wrist point p − d6·z6, and
     the shoulder equation's φ and g as in :func:`shoulder_angles`), or None where the wrist

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..tolerances import TOL
-from .ik_analytic import Branches, clip_unit, shoulder_angles, wrist_and_shoulder_one
+from .ik_analytic import Branches, shoulder_angles, wrist_and_shoulder_one
 
 SINGULAR = TOL.singular
 
@@ -174,6 +174,10 @@ def parallel_branches(arm: ParallelAxesArm, F: np.ndarray, seed_theta: np.ndarra
     return Branches(theta=theta, shoulder_ok=shoulder_ok, elbow_ok=elbow_ok)
 
 
+def _clip_unit(v: float) -> float:
+    return -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)
+
+
 def parallel_branches_one(arm: ParallelAxesArm, F: np.ndarray) -> list[tuple[float, ...] | None] | None:
     """The eight branches of :func:`parallel_branches` for one flange pose F (4, 4), in the
     same order, on Python floats (a single target's solve is otherwise mostly numpy's cost
@@ -190,7 +194,7 @@ def parallel_branches_one(arm: ParallelAxesArm, F: np.ndarray) -> list[tuple[flo
         c1, s1 = math.cos(th1), math.sin(th1)
         z1x, z1y = sa1 * s1, -sa1 * c1
         d0, d1, d2 = (z1x * r00 + z1y * r10, z1x * r01 + z1y * r11, z1x * r02 + z1y * r12)
-        acos5 = math.acos(clip_unit(-sa4 * sa5 * d2))
+        acos5 = math.acos(_clip_unit(-sa4 * sa5 * d2))
         wrist = []
         for th5 in (acos5, -acos5):
             s5, c5 = math.sin(th5), math.cos(th5)

@@ -412,7 +412,7 @@ def _skew_shift(S: np.ndarray, r: np.ndarray, cols: np.ndarray, line_sigma_px: f
     # would read as asymmetry (and a shrunken window misreads a whole Gaussian by up to 0.1 px):
     # there the asymmetry is not measured (0).
     whole = (r >= half) & (r <= H - 1 - half)
-    w = np.where(whole[None, :], np.maximum(S[rows, cols[None, :]], 0.0), 0.0)
+    w = np.maximum(S[rows, cols[None, :]], 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         total = w.sum(axis=0)
         mean = (w * offsets).sum(axis=0) / total
