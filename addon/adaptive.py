@@ -6,7 +6,8 @@ rank candidate sweeps by the new surface they would see per second of scanning, 
 to what every laser ray so far has taught (core.scan.next_view over
 core.geometry.known_space); ask the Scanner whether the robot can do the best one (solved
 and collision-checked without moving: ``Scanner.plan_path``), else the next; scan it; add
-its profiles to the model. It stops when no candidate promises ``min_gain`` new cells or
+its profiles to the model. It stops when no candidate promises ``min_gain`` new cells, when
+the model's own coverage estimate reaches ``target_coverage`` (where one is set), or when
 the profile budget is spent. The ground truth is used only afterwards, to score.
 """
 
@@ -29,9 +30,11 @@ TRIES = 12        # candidates asked for reachability per decision, best first
 @dataclass(frozen=True)
 class AdaptiveStep:
     """One decision: the sweep chosen (its description), the profiles it took, the cells it
-    taught the model, the planning time and the candidates refused as unreachable or colliding;
-    on the first decision, ``setup_s``: the planner's one-off set-up before it (the model, the
-    candidate sweeps, the cell's collision model), which no later decision pays again."""
+    taught the model, the planning time, the candidates refused as unreachable or colliding,
+    and the model's coverage estimate after it (KnownSpace.coverage_estimate: the part's
+    surface seen, as the model alone tells it); on the first decision, ``setup_s``: the
+    planner's one-off set-up before it (the model, the candidate sweeps, the cell's collision
+    model), which no later decision pays again."""
 
     sweep: str
     table_deg: float
@@ -41,6 +44,7 @@ class AdaptiveStep:
     expected_cells: int
     planning_s: float
     refused: int
+    coverage_estimate: float = 0.0
     setup_s: float = 0.0
 
     def as_dict(self) -> dict:
@@ -105,6 +109,10 @@ class NextBestView:
             return False
         return True
 
+    def coverage_estimate(self) -> float:
+        """How much of the part's surface the model says is seen (0..1), from its box alone."""
+        return self.space.coverage_estimate(self.lo, self.hi)
+
     def scan(self, scanner, c) -> tuple[list, int]:
         """Scan candidate ``c`` and learn from it: (its profiles, the cells it taught)."""
         before = self.space.counts()["unknown"]
@@ -116,12 +124,23 @@ class NextBestView:
         return profiles, before - self.space.counts()["unknown"]
 
 
+def check_target_coverage(target) -> None:
+    """A coverage target is None or a number in (0, 1]."""
+    if target is None:
+        return
+    if isinstance(target, bool) or not isinstance(target, (int, float)) or not 0.0 < target <= 1.0:
+        raise InputError(f"the target coverage must be a share in (0, 1] (0.9 for 90 %), got {target!r}")
+
+
 def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 30,
-                  voxel_mm: float = VOXEL_MM, progress=None, log=None) -> list[AdaptiveStep]:
+                  target_coverage: float | None = None, voxel_mm: float = VOXEL_MM, progress=None,
+                  log=None) -> list[AdaptiveStep]:
     """Scan the part inside the box [lo, hi] (table frame, mm) adaptively with ``scanner``;
-    returns the decisions. ``progress(stage, done, total)`` after each sweep (profiles)."""
+    returns the decisions. ``target_coverage`` (0..1, None: none): stop once the model's
+    coverage estimate reaches it. ``progress(stage, done, total)`` after each sweep (profiles)."""
     if isinstance(max_profiles, bool) or not isinstance(max_profiles, int) or max_profiles < 1:
         raise InputError(f"max_profiles must be a positive whole number, got {max_profiles!r}")
+    check_target_coverage(target_coverage)
     t = time.perf_counter()
     planner = NextBestView(scanner, lo, hi, min_gain=min_gain, voxel_mm=voxel_mm)
     setup = time.perf_counter() - t
@@ -143,14 +162,20 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
             break
         profiles, learnt = planner.scan(scanner, chosen)
         taken += len(profiles)
+        estimate = planner.coverage_estimate()
         step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
-                            chosen.gain, planning, len(planner.refused), 0.0 if steps else setup)
+                            chosen.gain, planning, len(planner.refused), estimate, 0.0 if steps else setup)
         steps.append(step)
         if log:
-            log(f"adaptive: sweep {len(steps)}: {step.sweep}; learnt {step.new_cells} cells "
-                f"(planned in {planning:.2f} s, {step.refused} refused)")
+            log(f"adaptive: sweep {len(steps)}: {step.sweep}; learnt {step.new_cells} cells, coverage estimate "
+                f"{estimate * 100:.0f} % (planned in {planning:.2f} s, {step.refused} refused)")
         if progress:
             progress("adaptive", taken, max_profiles)
+        if target_coverage is not None and estimate >= target_coverage:
+            if log:
+                log(f"adaptive: stopping after {len(steps)} sweeps: the coverage estimate {estimate * 100:.1f} % "
+                    f"reached the target {target_coverage * 100:.1f} %")
+            break
         if len(steps) >= 2 and all(s.new_cells < min_gain for s in steps[-2:]):
             if log:
                 log(f"adaptive: stopping after {len(steps)} sweeps: the last two taught fewer than {min_gain} cells")

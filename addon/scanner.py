@@ -435,11 +435,12 @@ class Scanner:
         return out
 
     def adaptive(self, box=None, *, max_profiles: int | None = None, min_gain: int | None = None,
-                 progress=None, log=None) -> list:
+                 target_coverage: float | None = None, progress=None, log=None) -> list:
         """Scan the part adaptively with the reference next-best-view planner (``addon.adaptive``)
         from here on, told only ``box`` = (lo, hi) (table frame, mm; default: the config's
         [adaptive] box, else the part's bounding box grown by 10 %), never the part's mesh.
-        ``max_profiles`` and ``min_gain`` default to the config's [adaptive] table. Returns the
+        ``max_profiles``, ``min_gain`` and ``target_coverage`` (stop once the planner's own
+        coverage estimate reaches this share) default to the config's [adaptive] table. Returns the
         sweeps chosen (``AdaptiveStep``); they join the report under ``adaptive``, and
         ``save(out_dir)`` writes what a scan writes. ``progress(stage, done, total)`` after each
         sweep; ``log(line)`` for each decision."""
@@ -450,9 +451,12 @@ class Scanner:
         budget = settings.max_profiles if max_profiles is None else max_profiles
         steps = adaptive_scan(self, lo, hi, max_profiles=budget,
                               min_gain=settings.min_gain if min_gain is None else min_gain,
+                              target_coverage=settings.target_coverage if target_coverage is None else target_coverage,
                               voxel_mm=settings.voxel_mm, progress=progress, log=log)
         done = self._extra.get("adaptive", {}).get("sweeps", [])
         self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": budget,
+                                   "target_coverage": (settings.target_coverage if target_coverage is None
+                                                       else target_coverage),
                                    "sweeps": done + [s.as_dict() for s in steps]}
         return steps
 

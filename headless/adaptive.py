@@ -23,6 +23,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", help="output folder (default: out/<config name>-adaptive)")
     parser.add_argument("--max-profiles", type=int, help="profile budget (default: the config's, else 600)")
     parser.add_argument("--min-gain", type=int, help="new cells a sweep must promise (default 30)")
+    parser.add_argument("--target-coverage", type=float, metavar="F",
+                        help="stop once the planner's own coverage estimate reaches this share, 0..1 "
+                             "(default: the config's, else none)")
     parser.add_argument("--force", action="store_true", help="as for scan: skip the memory and time limits")
     parser.add_argument("--quiet", action="store_true", help="no progress and no log of the sweeps")
     parser.set_defaults(run=run)
@@ -30,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from addon import Scanner
-    from addon.adaptive import part_box
+    from addon.adaptive import check_target_coverage, part_box
     from addon.core.config.scan import load_scan_config
     from addon.core.errors import InputError
     from addon.core.scan.outputs import OUTPUT_FILES
@@ -47,11 +50,16 @@ def run(args: argparse.Namespace) -> int:
         if args.min_gain < 1:
             raise InputError(f"--min-gain must be at least 1, got {args.min_gain}")
         settings = replace(settings, min_gain=args.min_gain)
+    if args.target_coverage is not None:
+        check_target_coverage(args.target_coverage)
+        settings = replace(settings, target_coverage=args.target_coverage)
     out = args.out or str(Path("out") / f"{Path(config.source).stem}-adaptive")
     preflight.check_scan(config, out, names=OUTPUT_FILES.values(), force=args.force)
     lo, hi = part_box(config)
     print(f"adaptive: {config.name}: {config.robot.name}, {config.probe.name}; the planner is told the box "
-          f"{lo.round(1).tolist()} .. {hi.round(1).tolist()} mm, budget {settings.max_profiles} profiles", flush=True)
+          f"{lo.round(1).tolist()} .. {hi.round(1).tolist()} mm, budget {settings.max_profiles} profiles"
+          + ("" if settings.target_coverage is None else f", target coverage {settings.target_coverage * 100:.0f} %"),
+          flush=True)
     stops = getattr(args, "stops", None)
     progress, lock = progress_and_lock(args, out)
     try:
@@ -66,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
         plan_s = [s.planning_s for s in steps]
         if plan_s:
             print(f"  planner       {len(steps)} views, {sum(s.profiles for s in steps)} profiles; planning "
-                  f"{max(plan_s):.2f} s at most per decision (median {statistics.median(plan_s):.2f} s)")
+                  f"{max(plan_s):.2f} s at most per decision (median {statistics.median(plan_s):.2f} s); "
+                  f"its coverage estimate {steps[-1].coverage_estimate * 100:.1f} %")
         return 0
     except KeyboardInterrupt as exc:
         from headless.lifecycle import Interrupted

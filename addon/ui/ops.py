@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
-from bpy.props import IntProperty, StringProperty
+from bpy.props import FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from ..core.errors import ScannerError
@@ -391,6 +391,9 @@ class SCANNER_OT_adaptive(bpy.types.Operator):
                            description="Scan config (its [[path]] is ignored; empty: the panel's choice)")
     max_profiles: IntProperty(name="Profile Budget", default=0, min=0, max=100_000,
                               description="Profiles the planner may take (0: the config's [adaptive] budget)")
+    target_coverage: FloatProperty(name="Target Coverage", default=0.0, min=0.0, max=1.0, subtype="FACTOR",
+                                   description="Stop once the planner's own coverage estimate reaches this share "
+                                               "(0: the config's [adaptive] target, else none)")
     output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
                                description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
 
@@ -406,7 +409,7 @@ class SCANNER_OT_adaptive(bpy.types.Operator):
             wm.progress_begin(0, budget)
             with kept_render_settings(context.scene):
                 scanner = Scanner(config=cfg, scene=context.scene)
-                steps = scanner.adaptive(max_profiles=budget,
+                steps = scanner.adaptive(max_profiles=budget, target_coverage=self.target_coverage or None,
                                          progress=lambda stage, done, total: wm.progress_update(done))
                 folder = models.output_dir(self.output_dir or s.output_dir, f"{cfg.name} adaptive")
                 result = scanner.result(folder) if steps else None

@@ -81,7 +81,8 @@ def run_planner(config, budget: int) -> dict:
     r = scanner.result().report
     return dict(curve=curve, sweeps=len(curve), profiles=taken, path_mm=_path_length(scanner),
                 plan_max=max(plan_s) if plan_s else 0.0, plan_median=float(np.median(plan_s)) if plan_s else 0.0,
-                setup=setup, rms=r["error_um"]["rms_um"], coverage=r["coverage"], measurable=r["coverage_measurable"])
+                setup=setup, rms=r["error_um"]["rms_um"], coverage=r["coverage"], measurable=r["coverage_measurable"],
+                estimate=planner.coverage_estimate())
 
 
 def run_fixed(config, passes) -> dict:
@@ -148,16 +149,18 @@ def reached_with(planner_curve, target: float) -> float | None:
 
 def table(rows: list[dict]) -> str:
     lines = ["| part | method | profiles | sweeps / passes | coverage, whole | coverage, measurable | "
-             "probe path | planning per decision (max / median; the set-up before the first) | RMS µm | "
-             "planner reaches this with |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "planner's own estimate | probe path | planning per decision (max / median; the set-up before the "
+             "first) | RMS µm | planner reaches this with |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         reach = r.get("reach")
         reach = "" if reach is None else (f"{reach[0]} profiles ({reach[1] * 100:.0f} %)" if reach[0] else "never")
         plan = (f"{r['plan_max']:.2f} / {r['plan_median']:.2f} s (set-up {r['setup']:.2f} s)"
                 if r["method"] == "planner" else "")
+        estimate = f"{r['estimate'] * 100:.1f} %" if "estimate" in r else ""
         lines.append(f"| {r['part']} | {r['method']} | {r['profiles']} | {r['sweeps']} | {r['coverage'] * 100:.1f} % | "
-                     f"{r['measurable'] * 100:.1f} % | {r['path_mm'] / 1000:.2f} m | {plan} | {r['rms']:.1f} | {reach} |")
+                     f"{r['measurable'] * 100:.1f} % | {estimate} | {r['path_mm'] / 1000:.2f} m | {plan} | "
+                     f"{r['rms']:.1f} | {reach} |")
     return "\n".join(lines)
 
 
@@ -205,7 +208,8 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"error: no part's name holds {args.only!r}")
     body = (f"Adaptive scanning against fixed paths (`python -m headless bench adaptive --budget {args.budget}`, "
             f"2-core CPU, Cycles): coverage of the whole part (against its mesh, after the scan), of the "
-            f"surface the method's own path can measure, the probe's path length and the planner's time per "
+            f"surface the method's own path can measure, the planner's own coverage estimate from its model "
+            f"(what `--target-coverage` stops at), the probe's path length and the planner's time per "
             f"decision; the last column: the profiles the planner needed to reach that baseline's final "
             f"coverage, and their share of the baseline's.\n\n" + table(rows))
     print("\n" + body)

@@ -92,3 +92,34 @@ def test_bad_boxes_and_non_finite_points():
     assert space.add_points([5, 5, 50], [[np.nan, 5, 5]]) == 0
     assert space.counts()["unknown"] == 1000
 
+
+
+def sphere_seen_from(directions, cap: float) -> KnownSpace:
+    """A sphere of radius 10 mm at the origin scanned from 200 mm along each direction, the
+    points on the cap that faces it (directions · normal > cap)."""
+    space = KnownSpace([-30, -30, -30], [30, 30, 30], 1.0)
+    rng = np.random.default_rng(0)
+    for axis in np.asarray(directions, dtype=float):
+        axis = axis / np.linalg.norm(axis)
+        d = rng.normal(size=(20000, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        space.add_points(200.0 * axis, 10.0 * d[d @ axis > cap])
+    return space
+
+
+def test_the_coverage_estimate_grows_as_the_views_close_in_around_the_part():
+    import itertools
+
+    box = ([-13.0] * 3, [13.0] * 3)
+    assert KnownSpace([-30] * 3, [30] * 3, 1.0).coverage_estimate(*box) == 0.0
+    one = sphere_seen_from([[0, 0, 1]], 0.3).coverage_estimate(*box)
+    six = sphere_seen_from(np.vstack([np.eye(3), -np.eye(3)]), 0.3).coverage_estimate(*box)
+    around = [v for v in itertools.product([-1, 0, 1], repeat=3) if any(v)]
+    all_round = sphere_seen_from(around, 0.0).coverage_estimate(*box)
+    # From one side, 35 % of the sphere is seen: the rim of the rays' cone is its whole frontier.
+    assert 0.2 < one < 0.75
+    # Seen whole from six sides, the box's corners that no ray crossed still count as unseen;
+    # from 26 directions nothing unknown borders free space inside the box.
+    assert one < six < all_round and all_round >= 0.95
+    # Only the box counts: outside it the unknown space around the scan is not the part's.
+    assert sphere_seen_from([[0, 0, 1]], 0.3).coverage_estimate([-30.0] * 3, [30.0] * 3) < one

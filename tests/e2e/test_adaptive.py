@@ -12,12 +12,16 @@ from headless.cli import main
 
 def test_the_planner_covers_the_sphere_from_a_box_alone(tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["adaptive", "demo", "--out", str(out), "--max-profiles", "225"]) == 0
+    assert main(["adaptive", "demo", "--out", str(out), "--max-profiles", "450", "--target-coverage", "0.7"]) == 0
     log = capsys.readouterr().out
     assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "preview.png", "report.json"]
     report = json.loads((out / "report.json").read_text())
     sweeps = report["adaptive"]["sweeps"]
-    assert sweeps and report["frames"] == sum(s["profiles"] for s in sweeps) <= 225
+    assert sweeps and report["frames"] == sum(s["profiles"] for s in sweeps) < 450
+    # It stopped at the target: the model's estimate reached 70 % with the last sweep, not before.
+    estimates = [s["coverage_estimate"] for s in sweeps]
+    assert estimates[-1] >= 0.7 and all(e < 0.7 for e in estimates[:-1]) and estimates == sorted(estimates)
+    assert "reached the target" in log and report["adaptive"]["target_coverage"] == 0.7
     assert all(s["new_cells"] > 0 for s in sweeps) and sweeps[0]["new_cells"] >= sweeps[-1]["new_cells"]
     assert len({s["sweep"].split(",")[0] + str(s["tilt_deg"]) for s in sweeps}) == len(sweeps)  # never twice
     assert max(s["planning_s"] for s in sweeps) < 5.0

@@ -303,6 +303,9 @@ CASES = [
     ("config: adaptive budget zero", demo_plus("[adaptive]\nmax_profiles = 0"), 2, "max_profiles"),
     ("option: adaptive --max-profiles zero", lambda t: ["adaptive", "demo", "--max-profiles", "0", "--out",
                                                         str(t / "out")], 2, "--max-profiles"),
+    ("config: adaptive target coverage over 1", demo_plus("[adaptive]\ntarget_coverage = 1.5"), 2, "target_coverage"),
+    ("option: adaptive --target-coverage NaN", lambda t: ["adaptive", "demo", "--target-coverage", "nan", "--out",
+                                                          str(t / "out")], 2, "target coverage"),
     ("config: controller IK without host", demo_with('rig = "adept_viper_s650"',
                                                    'rig = "adept_viper_s650"\nik = "controller"'), 2, "controller"),
     # probe rigs

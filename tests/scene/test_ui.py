@@ -389,12 +389,14 @@ def test_the_adaptive_operator_scans_from_the_box_and_brings_the_cloud_in(panel,
     # a budget no sweep fits: told so, nothing written
     assert bpy.ops.scanner.adaptive(config="demo", max_profiles=2, output_dir=str(tmp_path)) == {"CANCELLED"}
     assert not any(tmp_path.iterdir())
-    assert bpy.ops.scanner.adaptive(config="demo", max_profiles=120, output_dir=str(tmp_path)) == {"FINISHED"}
+    assert bpy.ops.scanner.adaptive(config="demo", max_profiles=120, target_coverage=0.05,
+                                    output_dir=str(tmp_path)) == {"FINISHED"}
     import json
 
     (folder,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     report = json.loads((folder / "report.json").read_text())
     assert 0 < report["frames"] <= 120 and report["adaptive"]["sweeps"]
+    assert report["adaptive"]["target_coverage"] == pytest.approx(0.05)
     assert report["points"] > 0
     from addon.ui import models
 

@@ -36,7 +36,8 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
                  (see addon.core.sensor)
     [adaptive]   what the adaptive planner is told: box_min_mm, box_max_mm (the part's bounding box,
                  table frame) or radius_mm, height_mm (a cylinder on the table's axis), max_profiles
-                 (600), min_gain (30 cells), voxel_mm (2); see addon.adaptive
+                 (600), min_gain (30 cells), target_coverage (a share, 0..1: stop once the planner's
+                 own coverage estimate reaches it; none by default), voxel_mm (2); see addon.adaptive
     [safety]     check (true), min_clearance_mm (2): the least distance between the robot or the
                  probe and the table, the workpiece or a fixture (see addon.core.safety)
     [[fixture]]  name, file (+ scale), [fixture.pose] xyz_mm, yzz_deg, on = "table" (turns with
@@ -115,12 +116,15 @@ class AdaptiveSettings:
     bounding volume (lo, hi) in the table frame, mm, from box_min_mm / box_max_mm or a
     cylinder on the table's axis (radius_mm, height_mm); None: the workpiece's box grown by
     10 % (a cell would be told roughly that much). max_profiles: the budget; min_gain: the
-    new cells a sweep must promise; voxel_mm: the model's cell size."""
+    new cells a sweep must promise; target_coverage: stop once the planner's coverage
+    estimate reaches this share (None: at the budget or when nothing promises min_gain);
+    voxel_mm: the model's cell size."""
 
     box: tuple | None = None
     max_profiles: int = 600
     min_gain: int = 30
     voxel_mm: float = 2.0
+    target_coverage: float | None = None
 
 
 @dataclass(frozen=True)
@@ -363,9 +367,10 @@ def _adaptive(t: Table) -> AdaptiveSettings:
         r = t.number("radius_mm", lo=0.0, hi=1e4, lo_open=True)
         h = t.number("height_mm", lo=0.0, hi=1e4, lo_open=True)
         box = (np.array([-r, -r, 0.0]), np.array([r, r, h]))
+    target = t.number("target_coverage", default=None, lo=0.0, hi=1.0, lo_open=True)
     out = AdaptiveSettings(box, t.integer("max_profiles", default=600, lo=1, hi=100_000),
                            t.integer("min_gain", default=30, lo=1, hi=10**9),
-                           t.number("voxel_mm", default=2.0, lo=0.1, hi=100.0))
+                           t.number("voxel_mm", default=2.0, lo=0.1, hi=100.0), target)
     t.finish()
     return out
 

@@ -12,6 +12,8 @@ the table), in the table frame, mm.
 runs through free cells until the first cell that is not free, which is unknown (that
 view would learn something there) or surface (seen before); rays that leave the grid hit
 nothing. ``frontier`` lists the unknown cells next to free ones, where the unknown begins.
+``coverage_estimate`` weighs the surface found against that frontier: the planner's own
+guess of how much of the part it has seen, from the model alone.
 
 Rays are walked in steps of half a cell (cheap and vectorised; a cell only clipped at a
 corner by a ray can be missed, which the next profile's rays fill in).
@@ -152,7 +154,38 @@ class KnownSpace:
 
     def frontier(self) -> np.ndarray:
         """Indices (m, 3) of unknown cells with a free cell among their six neighbours."""
-        return np.argwhere(_beside(self.state == FREE) & (self.state == UNKNOWN))
+        return np.argwhere(self._frontier_mask())
+
+    def _frontier_mask(self) -> np.ndarray:
+        return _beside(self.state == FREE) & (self.state == UNKNOWN)
+
+    def coverage_estimate(self, lo, hi) -> float:
+        """The share of the part's surface seen so far, as the model alone can tell it: surface
+        cells against surface plus frontier cells, counting the cells whose centres lie in the
+        part's box [lo, hi] above its bottom layer (the table top, where the part stands).
+
+        A guide, not a measurement: the frontier only marks where the unknown begins. A
+        large hidden region seen through a small opening counts as small (a sphere seen
+        from one side, 35 % of it, reads about 0.54), and the edge of space no ray has
+        crossed counts as unseen surface (the same sphere seen whole from six sides reads
+        about 0.60; from 26 directions, 1). Pockets no laser ray enters (the part's
+        underside on the table) have no frontier and do not count. ``bench adaptive``
+        shows it beside the true coverage.
+        0 before anything is known."""
+        lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+        bottom = lo.copy()
+        bottom[2] += self.voxel
+        keep = tuple(slice(*_cell_range(self.lo[a], self.voxel, self.shape[a], bottom[a], hi[a])) for a in range(3))
+        surface = int(np.count_nonzero(self.state[keep] == SURFACE))
+        frontier = int(np.count_nonzero(self._frontier_mask()[keep]))
+        return surface / (surface + frontier) if surface else 0.0
+
+
+def _cell_range(grid_lo: float, voxel: float, n: int, lo: float, hi: float) -> tuple[int, int]:
+    """(first, end) indices of the cells along one axis whose centres lie in [lo, hi]."""
+    first = int(np.ceil((lo - grid_lo) / voxel - 0.5))
+    end = int(np.floor((hi - grid_lo) / voxel - 0.5)) + 1
+    return min(max(first, 0), n), min(max(end, 0), n)
 
 
 def _beside(mask: np.ndarray) -> np.ndarray:
