@@ -12,7 +12,8 @@ Scanner over a part that only its bounding box reveals.
   ``time_cost``; a sweep the robot cannot do (unreachable, colliding) scans nothing and
   costs ``refusal_cost``.
 - the episode ends when the profile budget is spent (terminated) or after ``max_steps``
-  steps (truncated).
+  steps (truncated); ``info`` gives the profiles so far, the cells learnt, the surface cells
+  and the model's own coverage estimate (``KnownSpace.coverage_estimate``).
 
 Scans are deterministic, so equal seeds and actions give equal episodes. Each step renders a
 whole sweep (seconds on a CPU): this is a test bench, not a fast simulator of views.
@@ -62,7 +63,7 @@ class ScanPlanningEnv(gym.Env):
         self.planner = NextBestView(self.scanner, lo, hi)
         self._by_key = {c.key: c for c in self.planner.pool}
         self.profiles, self.steps = 0, 0
-        return self._observation(), {"profiles": 0, "surface_cells": 0}
+        return self._observation(), {"profiles": 0, "surface_cells": 0, "coverage_estimate": 0.0}
 
     def step(self, action):
         table_step, view, kind = (int(a) for a in np.asarray(action).reshape(3))
@@ -81,7 +82,8 @@ class ScanPlanningEnv(gym.Env):
             self.profiles += len(profiles)
             reward = learnt / 1000.0 - self.time_cost * seconds
         info.update(profiles=self.profiles, learnt=learnt,
-                    surface_cells=int((self.planner.space.state == SURFACE).sum()))
+                    surface_cells=int((self.planner.space.state == SURFACE).sum()),
+                    coverage_estimate=self.planner.coverage_estimate())
         terminated = self.profiles + min(c.frames for c in self.planner.pool) > self.max_profiles
         truncated = self.steps >= self.max_steps
         return self._observation(), float(reward), bool(terminated), bool(truncated), info

@@ -21,14 +21,22 @@ import argparse
 import math
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
+
+
+GROWTH_PNG = Path(__file__).resolve().parents[1] / "gallery" / "adaptive_growth.png"
+GROWTH_PANELS = 5   # at most; the views between are left out, the last one always in
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--budget", type=int, default=450, help="profiles per method and part (default 450)")
     parser.add_argument("--only", default="", help="only the parts whose name holds this text (comma-separated)")
     parser.add_argument("--readme", action="store_true", help="put the table and the plot into docs/adaptive.md")
+    parser.add_argument("--growth", action="store_true",
+                        help="draw the planner's scan of the first part growing, view by view, into "
+                             "headless/gallery/adaptive_growth.png")
     parser.set_defaults(run=run)
 
 
@@ -68,7 +76,7 @@ def run_planner(config, budget: int) -> dict:
     t = time.perf_counter()
     planner = NextBestView(scanner, lo, hi)  # the one-off set-up (model, candidates, collision model)
     setup = time.perf_counter() - t
-    curve, plan_s, taken = [], [], 0
+    curve, plan_s, taken, views = [], [], 0, []
     while taken < budget:
         t = time.perf_counter()
         c = planner.choose(scanner, budget - taken)
@@ -78,8 +86,12 @@ def run_planner(config, budget: int) -> dict:
         profiles, _ = planner.scan(scanner, c)
         taken += len(profiles)
         curve.append((taken, scanner.result().report["coverage"]))
-    r = scanner.result().report
-    return dict(curve=curve, sweeps=len(curve), profiles=taken, path_mm=_path_length(scanner),
+        views.append(f"{'turn' if c.kind == 'turn' else 'sweep'}, tilt {c.tilt_deg:.0f} deg")
+    result = scanner.result()
+    r = result.report
+    part = result.cloud.select(result.on_part)
+    return dict(curve=curve, sweeps=len(curve), profiles=taken, path_mm=_path_length(scanner), views=views,
+                part_points=part.points, part_frames=part.frame,
                 plan_max=max(plan_s) if plan_s else 0.0, plan_median=float(np.median(plan_s)) if plan_s else 0.0,
                 setup=setup, rms=r["error_um"]["rms_um"], coverage=r["coverage"], measurable=r["coverage_measurable"],
                 estimate=planner.coverage_estimate())
@@ -164,6 +176,23 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def growth_picture(mesh, planner: dict, path) -> None:
+    """The planner's cloud of one part growing, a panel per view (at most GROWTH_PANELS)."""
+    import cv2
+
+    from addon.core.scan.preview import growth_strip
+
+    ends = np.array([p for p, _ in planner["curve"]])
+    view = np.searchsorted(ends, planner["part_frames"], side="right")  # frame -> the view that took it
+    shown = sorted(set(np.linspace(0, len(ends) - 1, min(GROWTH_PANELS, len(ends))).round().astype(int)))
+    # Views left out of the strip join the next panel shown.
+    panel_of_view = np.searchsorted(shown, np.arange(len(ends)))
+    titles = [f"{ends[k]} profiles: {planner['views'][k]}, {planner['curve'][k][1] * 100:.0f} % of the part"
+              for k in shown]
+    picture = growth_strip(mesh, planner["part_points"], panel_of_view[view], titles)
+    cv2.imwrite(str(path), picture)
+
+
 def plot(results: dict, path) -> None:
     import matplotlib
 
@@ -196,6 +225,9 @@ def run(args: argparse.Namespace) -> int:
                    "turns": run_fixed(config, turns(config, args.budget)),
                    "raster": run_fixed(config, raster(config, args.budget))}
         results[name] = methods
+        if args.growth and len(results) == 1 and methods["planner"]["curve"]:
+            growth_picture(mesh, methods["planner"], GROWTH_PNG)
+            print(f"{name}: the planner's scan growing, view by view: {GROWTH_PNG}", flush=True)
         for method, r in methods.items():
             row = dict(part=name, method=method, **{k: v for k, v in r.items() if k != "curve"})
             if method != "planner":

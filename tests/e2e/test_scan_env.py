@@ -22,11 +22,12 @@ def test_equal_seeds_and_actions_give_equal_episodes():
         obs, _ = env.reset(seed=3)
         out = [obs["grid"].sum()]
         for action in ([1, 2, 0], [5, 0, 0]):
-            obs, reward, *_ = env.step(np.array(action))
-            out += [obs["grid"].sum(), round(reward, 9)]
+            obs, reward, _, _, info = env.step(np.array(action))
+            out += [obs["grid"].sum(), round(reward, 9), info["coverage_estimate"]]
         runs.append(out)
     assert runs[0] == runs[1]
     assert runs[0][1] > runs[0][0]  # the first sweep taught the model something
+    assert 0.0 < runs[0][3] <= runs[0][6] <= 1.0  # and the model's own coverage estimate grew
 
 
 def test_the_reference_planner_beats_random_sweeps_on_the_same_budget():

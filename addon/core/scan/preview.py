@@ -1,4 +1,5 @@
-"""The scan's picture: the cloud over the workpiece, each point coloured by its error.
+"""The scan's picture: the cloud over the workpiece, each point coloured by its error; and a
+strip of pictures of a scan growing view by view (``growth_strip``, for adaptive scans).
 
 An orthographic view from above and in front; the workpiece mesh is drawn in grey
 (faces shaded by their angle to the view, back to front), then the points that the
@@ -23,18 +24,12 @@ def _view_basis(view: np.ndarray) -> np.ndarray:
     return np.stack([right, up, back])  # rows: screen x, screen y, towards the viewer
 
 
-def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: np.ndarray | None,
-                   on_part: np.ndarray, title: str, size=(900, 640), scale_um: float | None = None) -> np.ndarray:
-    """BGR uint8 image. points (n, 3) mm table frame; error_um (n,) or None; on_part (n,) bool."""
-    W, H = size
-    bar_w = 90
+def _canvas(mesh, pts: np.ndarray, W: int, H: int, bar_w: int):
+    """(white image with the mesh drawn, shaded, back to front; screen coordinates and depth of
+    points (n, 3); visible (n,): inside the picture and not behind the mesh's front faces)."""
     img = np.full((H, W, 3), 255, np.uint8)
     B = _view_basis(VIEW)
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     ref = np.asarray(mesh.vertices) if mesh is not None and len(mesh.vertices) else pts
-    if len(ref) == 0:
-        cv2.putText(img, title + " (no points)", (12, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
-        return img
     lo, hi = ref.min(axis=0), ref.max(axis=0)
     centre = (lo + hi) / 2
     span = np.linalg.norm(hi - lo) * 1.15 + 1e-9
@@ -65,6 +60,20 @@ def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: n
     visible = inside.copy()
     # Points hidden behind the part's front faces are not drawn (2 mm slack).
     visible[inside] = pz[inside] >= depth_map[ij[inside, 1], ij[inside, 0]] - 2.0
+    return img, ij, pz, visible
+
+
+def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: np.ndarray | None,
+                   on_part: np.ndarray, title: str, size=(900, 640), scale_um: float | None = None) -> np.ndarray:
+    """BGR uint8 image. points (n, 3) mm table frame; error_um (n,) or None; on_part (n,) bool."""
+    W, H = size
+    bar_w = 90
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if (mesh is None or not len(mesh.vertices)) and len(pts) == 0:
+        img = np.full((H, W, 3), 255, np.uint8)
+        cv2.putText(img, title + " (no points)", (12, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
+        return img
+    img, ij, pz, visible = _canvas(mesh, pts, W, H, bar_w)
     # The colour scale ends at the 95th percentile: a few edge outliers saturate at the
     # top instead of washing every other point out.
     top = scale_um if scale_um else (float(np.percentile(error_um[on_part], 95)) if error_um is not None
@@ -83,6 +92,30 @@ def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: n
     _colour_bar(img, W - bar_w + 10, 60, 22, H - 120, top)
     cv2.putText(img, title, (12, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (20, 20, 20), 1, cv2.LINE_AA)
     return img
+
+
+NEW_BGR, EARLIER_BGR = (20, 90, 240), (190, 120, 40)  # the latest view's points orange, earlier ones blue
+
+
+def growth_strip(mesh: trimesh.Trimesh | None, points: np.ndarray, view: np.ndarray, titles: list[str],
+                 size=(420, 330)) -> np.ndarray:
+    """BGR uint8 picture strip of a scan growing view by view: panel k shows the points
+    (n, 3) mm, table frame, whose ``view`` (n,) index is ≤ k over the mesh, those of view k
+    in orange and the earlier ones in blue, under ``titles[k]``."""
+    W, H = size
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    view = np.asarray(view)
+    panels = []
+    for k, title in enumerate(titles):
+        img, ij, pz, visible = _canvas(mesh, pts if len(pts) else np.zeros((1, 3)), W, H, 0)
+        if len(pts):
+            for i in np.argsort(pz):
+                if visible[i] and view[i] <= k:
+                    cv2.circle(img, (int(ij[i, 0]), int(ij[i, 1])), 1, NEW_BGR if view[i] == k else EARLIER_BGR, -1)
+        cv2.putText(img, title, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (20, 20, 20), 1, cv2.LINE_AA)
+        cv2.rectangle(img, (0, 0), (W - 1, H - 1), (200, 200, 200), 1)
+        panels.append(img)
+    return cv2.hconcat(panels) if panels else np.full((H, W, 3), 255, np.uint8)
 
 
 _LUT = cv2.applyColorMap(np.arange(256, dtype=np.uint8).reshape(-1, 1), cv2.COLORMAP_TURBO).reshape(256, 3)

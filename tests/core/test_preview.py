@@ -1,0 +1,32 @@
+"""The pictures drawn without Blender: the growth strip of an adaptive scan."""
+
+import numpy as np
+import trimesh
+
+from addon.core.scan.preview import EARLIER_BGR, NEW_BGR, growth_strip
+
+
+def _count(panel, colour):
+    return int(np.all(panel == np.array(colour, np.uint8), axis=2).sum())
+
+
+def test_the_growth_strip_shows_each_view_new_in_its_panel_and_earlier_after():
+    box = trimesh.creation.box([40.0, 40.0, 20.0])
+    box.apply_translation([0.0, 0.0, 10.0])
+    g = np.linspace(-15.0, 15.0, 30)
+    x, y = np.meshgrid(g, g)
+    top = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, 20.0)])
+    left, right = top[top[:, 0] < -1.0], top[top[:, 0] > 1.0]  # two views' points on the top face
+    points = np.vstack([left, right])
+    view = np.r_[np.zeros(len(left), int), np.ones(len(right), int)]
+    strip = growth_strip(box, points, view, ["view 1", "view 2"], size=(300, 240))
+    assert strip.shape == (240, 600, 3) and strip.dtype == np.uint8
+    first, second = strip[:, :300], strip[:, 300:]
+    # Panel 1: only the first view's points, as new; panel 2: the first as earlier, the second as new.
+    assert _count(first, NEW_BGR) > 100 and _count(first, EARLIER_BGR) == 0
+    assert _count(second, EARLIER_BGR) > 100 and _count(second, NEW_BGR) > 100
+    assert abs(_count(second, EARLIER_BGR) - _count(first, NEW_BGR)) <= 0.1 * _count(first, NEW_BGR)
+    # Points hidden under the part (its bottom face) are not drawn (a few at its outline may be).
+    seen = growth_strip(box, top, np.zeros(len(top), int), ["top"], size=(300, 240))
+    hidden = growth_strip(box, top * [1, 1, 0], np.zeros(len(top), int), ["under"], size=(300, 240))
+    assert _count(hidden, NEW_BGR) < 0.05 * _count(seen, NEW_BGR)
