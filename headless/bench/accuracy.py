@@ -59,6 +59,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=run)
 
 
+def _filter_label() -> str:
+    from addon.core.config.scan import DEFAULT_FILTER as f
+
+    return f"on ({f.max_incidence_deg:g} deg, {f.edge_px} px, σ ≤ {f.max_sigma_mm * 1e3:g} µm)"
+
+
 def factors():
     """{factor: [(setting, changes)]}; ``changes`` are applied by :func:`variant`."""
     from headless.bench.realism import ALL
@@ -77,7 +83,7 @@ def factors():
                      ("steger", dict(detect="steger"))],
         "triangulation": [("paper (Eq. 6)", dict(triangulate="paper")), ("exact", dict())],
         "line width": [(f"{w:g} mm", dict(line_mm=w)) for w in (0.6, 1.2, 2.4, 4.8)],
-        "profile filter": [("off", dict(profile_filter=False)), ("on (65 deg, 2 px)", dict())],
+        "profile filter": [("off", dict(profile_filter=False)), (_filter_label(), dict())],
         "laser / engine": [("Cycles, gobo", dict()), ("Cycles, slit", dict(laser="slit")),
                            ("Eevee, slit", dict(engine="eevee"))],
         "sensor": [("ideal", dict()), ("realistic (all effects)", dict(sensor=ALL))],
@@ -182,6 +188,8 @@ def run(args: argparse.Namespace) -> int:
     for scene, factor, setting, changes, key, note in jobs:
         rep = reports[key]
         e = rep["error_um"]
+        if not math.isfinite(e["rms_um"]):
+            note = "; ".join(filter(None, [note, _none_kept(rep)]))
         rows.append(Row(scene, factor, setting, statistics.median(times[key]), e["rms_um"], e["p95_um"],
                         e["max_um"], e["bias_um"], rep["coverage"], e["n"], rep["frames"],
                         baseline=key in base_keys, note=note))
@@ -191,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
     from addon.core.files import write_bytes_atomic
 
     write_bytes_atomic(out / "accuracy.csv", to_csv(rows).encode())
-    md = to_markdown(rows, args)
+    md = to_markdown(rows, args)  # beside accuracy.png in the output folder
     write_bytes_atomic(out / "accuracy.md", md.encode())
     plot(rows, out / "accuracy.png")
     print()
@@ -200,7 +208,8 @@ def run(args: argparse.Namespace) -> int:
     if args.readme:
         from headless.bench import readme
 
-        readme.update("accuracy", md, {"accuracy.png": out / "accuracy.png"})
+        readme.update("accuracy", to_markdown(rows, args, readme.picture_link("accuracy", "accuracy.png")),
+                      {"accuracy.png": out / "accuracy.png"})
     return 0
 
 
@@ -228,11 +237,22 @@ def to_csv(rows: list[Row]) -> str:
     return buf.getvalue()
 
 
+def _none_kept(report: dict) -> str:
+    """Why a setting kept no point on the part: the reason most of its detected points were
+    dropped for (columns without a line aside)."""
+    dropped = {k: v for k, v in report.get("points_dropped", {}).items() if k != "no_detection" and v}
+    if not dropped:
+        return "no line detected"
+    reason = max(dropped, key=dropped.get)
+    return f"no point kept; most dropped as {reason.replace('_', ' ')}"
+
+
 def _num(x: float, digits: int = 1) -> str:
     return "n/a" if not math.isfinite(x) else f"{x:.{digits}f}"
 
 
-def to_markdown(rows: list[Row], args) -> str:
+def to_markdown(rows: list[Row], args, picture: str = "accuracy.png") -> str:
+    """The section's text; ``picture``: the link to the plot from the page it goes into."""
     scenes = list(dict.fromkeys(r.scene for r in rows))
     lines = [
         f"Measured with `python -m headless bench accuracy --frames {args.frames} --repeats {args.repeats}` "
@@ -240,7 +260,7 @@ def to_markdown(rows: list[Row], args) -> str:
         "the repeats; error on the part against its exact shape). **Bold**: the scene's own settings; "
         "★: on the Pareto front (nothing else is both faster and more accurate).",
         "",
-        "![Error against time per profile, one panel per scene](headless/gallery/accuracy.png)",
+        f"![Error against time per profile, one panel per scene]({picture})",
         "",
         "Best setting within a time budget (lowest RMS among the settings measured):",
         "",
@@ -267,6 +287,9 @@ def to_markdown(rows: list[Row], args) -> str:
             is_base = is_base or r.baseline
             star = " ★" if r.pareto else ""
             note = f" ({r.note})" if r.note else ""
+            if not math.isfinite(r.rms):
+                cells.append(f"{_num(r.ms)} ms{note}")
+                continue
             cells.append(f"{_num(r.ms)} ms, {_num(r.rms)} / {_num(r.p95)} / {_num(r.max, 0)}{star}{note}")
         label = f"**{setting}**" if is_base else setting
         lines.append(f"| {factor} | {label} | " + " | ".join(cells) + " |")

@@ -68,5 +68,10 @@ def update_with_picture(name: str, body: str, draw, alt: str) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         png = Path(tmp) / f"{name}.png"
         draw(png)
-        where = "headless" if page_with(name) == README else "../headless"
-        update(name, body + f"\n\n![{alt}]({where}/gallery/{name}.png)", {f"{name}.png": png})
+        update(name, body + f"\n\n![{alt}]({picture_link(name, name + '.png')})", {f"{name}.png": png})
+
+
+def picture_link(section: str, picture: str) -> str:
+    """The link to gallery picture ``picture`` from the page that holds bench section ``section``."""
+    where = "headless" if page_with(section) == README else "../headless"
+    return f"{where}/gallery/{picture}"
