@@ -449,14 +449,13 @@ class Scanner:
         settings = self.config.adaptive
         lo, hi = part_box(self.config) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
         budget = settings.max_profiles if max_profiles is None else max_profiles
+        target = settings.target_coverage if target_coverage is None else target_coverage
         steps = adaptive_scan(self, lo, hi, max_profiles=budget,
                               min_gain=settings.min_gain if min_gain is None else min_gain,
-                              target_coverage=settings.target_coverage if target_coverage is None else target_coverage,
-                              voxel_mm=settings.voxel_mm, progress=progress, log=log)
+                              target_coverage=target, voxel_mm=settings.voxel_mm, progress=progress, log=log)
         done = self._extra.get("adaptive", {}).get("sweeps", [])
         self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": budget,
-                                   "target_coverage": (settings.target_coverage if target_coverage is None
-                                                       else target_coverage),
+                                   "target_coverage": target,
                                    "sweeps": done + [s.as_dict() for s in steps]}
         return steps
 

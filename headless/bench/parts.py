@@ -83,12 +83,13 @@ def measure_part(name: str, mesh, frames: int = 60, probe: str = "default") -> d
     part = result.cloud.select(result.on_part)
     d, _ = distances(part.points, mesh)
     probe2table = cfg.cell.probe2table(*_joints_and_table(scanner))
-    floor_pts = line_width_floor(cfg.probe, probe2table, part.points, part.frame, part.camera, cell_surfaces(cfg))
+    surfaces = cell_surfaces(cfg)  # the part and the table, for the floor and the ceiling
+    floor_pts = line_width_floor(cfg.probe, probe2table, part.points, part.frame, part.camera, surfaces)
     has_floor = np.isfinite(floor_pts).all(axis=1)
     floor = np.zeros(len(part))
     if has_floor.any():
         floor[has_floor] = distances(floor_pts[has_floor], mesh)[0]
-    ceiling = coverage_ceiling(cfg.probe, probe2table, cell_surfaces(cfg), mesh, cfg.profile_filter.max_incidence_deg,
+    ceiling = coverage_ceiling(cfg.probe, probe2table, surfaces, mesh, cfg.profile_filter.max_incidence_deg,
                                cfg.profile_filter.max_sigma_mm, cfg.coverage_tolerance_mm)
     e = r["error_um"]
     return dict(name=name, faces=len(mesh.faces), points=len(part), rms=e["rms_um"], p95=e["p95_um"], max=e["max_um"],
