@@ -19,6 +19,8 @@ from .units import CV_TO_BLENDER_CAMERA, from_blender, to_blender
 SENSOR_WIDTH_MM = 36.0
 CAMERA_BASENAME = "ProbeCam"
 SUFFIXES = ("_L", "_R")  # camera 0, camera 1
+CLIP_START_M = 0.001  # 1 mm: the range starts 70 mm out, Blender's 0.1 m default would hide it
+EEVEE_CLIP_START_M = 0.01  # Eevee's depth buffer needs it further out (see render.configure)
 
 
 def camera_name(camera: int) -> str:
@@ -32,7 +34,7 @@ def add_probe_cameras(collection, probe: Probe, parent: bpy.types.Object) -> lis
         data.sensor_fit = "HORIZONTAL"
         data.sensor_width = SENSOR_WIDTH_MM
         data.lens = probe.f_px * SENSOR_WIDTH_MM / probe.cols_px
-        data.clip_start = 0.001  # 1 mm: the range starts 70 mm out, Blender's 0.1 m default would hide it
+        data.clip_start = CLIP_START_M
         data.clip_end = 10.0
         obj = bpy.data.objects.new(camera_name(camera), data)
         collection.objects.link(obj)
@@ -41,6 +43,15 @@ def add_probe_cameras(collection, probe: Probe, parent: bpy.types.Object) -> lis
         obj.matrix_basis = to_blender(probe.cam2probe(camera) @ CV_TO_BLENDER_CAMERA)
         cams.append(obj)
     return cams
+
+
+def probe_cameras(camera_left: bpy.types.Object) -> list[bpy.types.Object]:
+    """Camera 0 and, found by the multiview suffix, camera 1 (none if ``camera_left`` is no probe camera)."""
+    if not camera_left.name.startswith(camera_name(0)):
+        return []
+    base, _, tail = camera_left.name.partition(SUFFIXES[0])
+    right = bpy.data.objects.get(base + SUFFIXES[1] + tail)
+    return [camera_left] + ([right] if right is not None and right.type == "CAMERA" else [])
 
 
 def camera_to_world_cv(obj: bpy.types.Object) -> np.ndarray:

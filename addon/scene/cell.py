@@ -81,9 +81,10 @@ class SceneCell:
         if robot_col is None or any(k not in objs for k in need):
             return None
         wp = next((o for n, o in objs.items() if n.startswith("Workpiece ") and "twin" not in n), None)
-        laser = [objs["Laser"]] + ([objs["Laser slit"]] if "Laser slit" in objs else [])
+        model = objs["Laser"].get("laser_model", "slit" if "Laser slit" in objs else "gobo")
+        laser = [objs["Laser"]] + [objs[n] for n in sorted(objs) if n.startswith("Laser ")]
         cell = replace(cell, robot=cell.robot.with_tool(probe.mount))
-        return cls(scene, cell, probe, workpiece, "slit" if "Laser slit" in objs else "gobo", root, robot_col,
+        return cls(scene, cell, probe, workpiece, model, root, robot_col,
                    objs["Robot"], objs["Probe frame"], [objs["ProbeCam_L"], objs["ProbeCam_R"]], laser,
                    objs["Turntable"], wp)
 
@@ -143,7 +144,7 @@ class SceneCell:
         settings = settings or RenderOptions()
         if settings.engine == "eevee" and self.laser_model == "gobo":
             raise InputError("Eevee ignores light node trees, so the gobo laser renders as a plain spot; "
-                             "build the cell with laser='slit' to render with Eevee")
+                             "build the cell with laser='spot' (or 'slit') to render with Eevee")
         self.device_used = configure(self.scene, self.probe, settings, self.cameras[0])
         with self._only_the_cell():
             if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else

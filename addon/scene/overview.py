@@ -65,15 +65,17 @@ def render_overview(sc: SceneCell, path: str | Path, width: int = 720, height: i
     sun.data.energy = 2.5
     sun.rotation_euler = (math.radians(40), math.radians(10), math.radians(30))
     scene.collection.objects.link(sun)
-    laser = sc.laser[0].data
-    power = laser.energy
+    lights = [o.data for o in sc.laser if o.type == "LIGHT"]
+    powers = [light.energy for light in lights]
     try:
         configure(scene, sc.probe, RenderOptions(samples=samples, filter_width_px=1.5,
                                                   pixel_filter="BLACKMAN_HARRIS", ambient=0.35), cam)
-        laser.energy = power * 8.0
+        for light, power in zip(lights, powers):
+            light.energy = power * 8.0
         outside = render_still(scene, cam, width, height)
     finally:
-        laser.energy = power
+        for light, power in zip(lights, powers):
+            light.energy = power
         bpy.data.objects.remove(cam, do_unlink=True)
         bpy.data.objects.remove(sun, do_unlink=True)
 

@@ -28,6 +28,7 @@ from ..core.config.render import RenderOptions
 from ..core.errors import InputError
 from ..core.exr import read_exr
 from ..core.optics.probe import Probe
+from .cameras import CLIP_START_M, EEVEE_CLIP_START_M, probe_cameras
 from .compat import ensure_node_tree, new_world
 from .session import BLENDER_ENGINES, use_device
 
@@ -75,6 +76,13 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, cam
     else:
         scene.eevee.taa_render_samples = settings.samples
         r.filter_size = max(settings.filter_width_px, 0.01)
+    # Eevee shades each pixel at the point its depth buffer gives, and the buffer's
+    # precision at the part scales with 1 / clip start: at 1 mm the laser line (whose
+    # intensity changes fast across the view ray) moved by 0.004 px (tests/scene/test_optics.py).
+    # Cycles traces rays and keeps 1 mm, so that nothing near a lens goes unseen.
+    near = EEVEE_CLIP_START_M if settings.engine == "eevee" else CLIP_START_M
+    for camera in probe_cameras(camera_left):
+        camera.data.clip_start = near
     view = scene.view_settings
     view.view_transform = "Standard"
     view.look = "None"

@@ -62,6 +62,9 @@ class ScannerSettings(bpy.types.PropertyGroup):
     roughness: FloatProperty(name="Roughness", default=0.2, min=0.0, max=1.0,
                              description="Glossy surface roughness (0: mirror-like)")
     laser: EnumProperty(name="Laser", items=[("gobo", "Gobo (Cycles)", "Spot light with a Gaussian slit gobo"),
+                                             ("spot", "Spots (Eevee)",
+                                              "The gobo's Gaussian line from five squeezed spot lights, for Eevee "
+                                              "(Cycles samples one light per path: it needs many samples)"),
                                              ("slit", "Slit (Cycles, Eevee)", "Point light behind a slit, as in the paper")],
                         default="gobo")
     # -- Cartesian target ------------------------------------------------------------

@@ -53,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=int, default=3, help="runs per setting; the median time counts (default 3)")
     parser.add_argument("--scenes", default=",".join(SCENES), help=f"comma-separated, of: {', '.join(SCENES)}")
     parser.add_argument("--factors", default="", help="comma-separated factor names to run (default all)")
-    parser.add_argument("--eevee-frames", type=int, default=4, help="frames for the Eevee row (slow on a CPU)")
+    parser.add_argument("--eevee-frames", type=int, default=4, help="frames for the Eevee rows (slow on a CPU)")
     parser.add_argument("--out", default="out/accuracy", help="folder for accuracy.csv, .md and .png")
     parser.add_argument("--readme", action="store_true", help="also put the table and plot into README.md")
     parser.set_defaults(run=run)
@@ -85,7 +85,8 @@ def factors():
         "line width": [(f"{w:g} mm", dict(line_mm=w)) for w in (0.6, 1.2, 2.4, 4.8)],
         "profile filter": [("off", dict(profile_filter=False)), (_filter_label(), dict())],
         "laser / engine": [("Cycles, gobo", dict()), ("Cycles, slit", dict(laser="slit")),
-                           ("Eevee, slit", dict(engine="eevee"))],
+                           ("Eevee, spot", dict(engine="eevee")),
+                           ("Eevee, slit", dict(engine="eevee", laser="slit"))],
         "sensor": [("ideal", dict()), ("realistic (all effects)", dict(sensor=ALL))],
     }
 

@@ -73,3 +73,18 @@ def test_frames_are_parsed_or_refused_by_name():
                          ("1:2:3:4", "expected A:B"), ("x", "expected A:B")):
         with pytest.raises(InputError, match=message):
             parse_frames(bad, "--frames")
+
+
+def test_eevee_gets_the_spot_laser_unless_a_config_chooses(tmp_path):
+    # Eevee ignores the gobo's node tree; its default laser is the spots' Gaussian line.
+    def with_render(lines: str):
+        return config(tmp_path, "[render]\n" + lines)
+
+    assert with_render("").render.laser == "gobo"
+    assert with_render('engine = "eevee"\n').render.laser == "spot"
+    assert with_render('engine = "eevee"\nlaser = "slit"\n').render.laser == "slit"
+    with pytest.raises(ConfigError, match="spot"):
+        with_render('engine = "eevee"\nlaser = "gobo"\n')
+    # --engine eevee on the command line: the gobo becomes the spots, a chosen slit stays.
+    assert config(tmp_path).with_overrides(engine="eevee").render.laser == "spot"
+    assert with_render('laser = "slit"\n').with_overrides(engine="eevee").render.laser == "slit"

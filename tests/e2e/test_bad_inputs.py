@@ -282,6 +282,7 @@ CASES = [
     ("config: filter width negative", demo_with("filter_width_px = 0.01", "filter_width_px = -1.0"), 2,
      "filter_width_px"),
     ("config: unknown laser", demo_with('laser = "gobo"', 'laser = "torch"'), 2, "torch"),
+    ("config: gobo laser in eevee", demo_with('engine = "cycles"', 'engine = "eevee"'), 2, "spot"),
     ("config: unknown detect method", demo_with('method = "gauss"', 'method = "magic"'), 2, "magic"),
     ("config: unknown triangulate method", demo_with('method = "exact"', 'method = "guess"'), 2, "guess"),
     ("config: fuse a number", demo_with("fuse = true", "fuse = 3"), 2, "fuse"),

@@ -80,7 +80,7 @@ def test_only_requested_cameras_render(scene):
     assert left is None and right.shape == (160, 160, 3)
 
 
-def test_eevee_needs_the_slit_laser(scene):
+def test_eevee_refuses_the_gobo_laser(scene):
     sc = build_cell(scene, Cell(load_robot("ur5")), load_probe("default"))
     with pytest.raises(InputError, match="slit"):
         sc.render(1, 1, RenderOptions(engine="eevee"))

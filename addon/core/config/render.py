@@ -16,7 +16,10 @@ GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
 # "GPU": the first backend the machine has, in GPU_BACKENDS' order; a backend by name: that one only.
 DEVICES = ("CPU", "GPU") + GPU_BACKENDS
 PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
-LASERS = ("gobo", "slit")
+LASERS = ("gobo", "spot", "slit")
+# Each engine's laser unless one is chosen: Eevee ignores the gobo's node tree, and the
+# spot model gives it the same Gaussian line (addon/core/optics/laser_profile.py).
+DEFAULT_LASER = {"cycles": "gobo", "eevee": "spot"}
 
 
 @dataclass(frozen=True)
@@ -24,7 +27,8 @@ class RenderOptions:
     """engine: cycles | eevee; device: CPU, GPU or a GPU backend by name; samples per pixel;
     pixel filter and its width (px; 0.01 point-samples each pixel's centre); bounces (0 for
     diffuse scenes); ambient: world light strength (0 = dark); laser: gobo (Cycles' smooth
-    Gaussian line) or slit (the paper's point light behind an aperture); laser_peak: the
+    Gaussian line), spot (the same line from squeezed spot lights, for Eevee) or slit (the
+    paper's point light behind an aperture); laser_peak: the
     line's peak as a fraction of full scale; resolution: (W, H) override of the probe's
     sensor; persistent_data: keep Cycles' scene between frames; motion_blur_shutter:
     fraction of a frame the shutter is open (0: none); threads: render threads (None: all)."""

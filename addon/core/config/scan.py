@@ -18,7 +18,7 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
     [[path]]     kind = "sweep": frames, from_mm, to_mm, beam, line, table_deg
                  kind = "turntable": frames, probe_mm, beam, line, start_deg, turn_deg
     [render]     engine, device, samples, pixel_filter, filter_width_px, bounces, ambient,
-                 laser (gobo|slit), laser_peak, resolution = [W, H] (the probe's optics on
+                 laser (gobo|spot|slit; default gobo, spot for eevee), laser_peak, resolution = [W, H] (the probe's optics on
                  another sensor: W columns along the line, H rows along the triangulation)
     [detect]     method (threshold|cog|gauss|steger), min_peak, second_peak_ratio, max_width_px,
                  max_width_ratio (1.6: wider than that × the median width is rejected),
@@ -64,7 +64,7 @@ from ..errors import ConfigError, InputError
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
 from ..optics.probe import Probe
-from .render import DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions
+from .render import DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions
 from .rigs import load_probe
 from ..optics.sensor import SensorModel
 from ..optics.profile_filter import ProfileFilter
@@ -205,7 +205,10 @@ class ScanConfig:
         if engine is not None:
             if engine not in ENGINES:
                 raise InputError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
-            render = replace(render, engine=engine, laser="slit" if engine == "eevee" else render.laser)
+            laser = render.laser
+            if laser == "gobo" and engine == "eevee":  # Eevee ignores the gobo's node tree
+                laser = DEFAULT_LASER["eevee"]
+            render = replace(render, engine=engine, laser=laser)
         if samples is not None:
             if not 1 <= samples <= 65536:
                 raise InputError(f"--samples must be in [1, 65536], got {samples}")
@@ -346,7 +349,7 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     top.finish()
     if render.engine == "eevee" and render.laser == "gobo":
         raise ConfigError(f"{path}: render.laser: 'gobo' does not render in Eevee (it ignores light node trees); "
-                          "use laser = \"slit\" with engine = \"eevee\"")
+                          "use laser = \"spot\" (the same Gaussian line) or \"slit\" with engine = \"eevee\"")
     cfg = ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
                      detect, tri_method, fuse, leave_out, cov, description, profile_filter=profile_filter,
                      safety=safety, fixtures=fixtures, adaptive=adaptive)
@@ -442,15 +445,16 @@ def _paths(top: Table, table: Turntable) -> scanpath.Waypoints:
 
 
 def _render(t: Table) -> tuple[RenderOptions, tuple[int, int] | None]:
+    engine = t.string("engine", default="cycles", choices=ENGINES)
     opts = RenderOptions(
-        engine=t.string("engine", default="cycles", choices=ENGINES),
+        engine=engine,
         device=t.string("device", default="CPU", choices=DEVICES),
         samples=t.integer("samples", default=1, lo=1, hi=65536),
         pixel_filter=t.string("pixel_filter", default="BOX", choices=PIXEL_FILTERS),
         filter_width_px=t.number("filter_width_px", default=0.01, lo=0.01, hi=10.0),
         bounces=t.integer("bounces", default=0, lo=0, hi=64),
         ambient=t.number("ambient", default=0.0, lo=0.0, hi=100.0),
-        laser=t.string("laser", default="gobo", choices=LASERS),
+        laser=t.string("laser", default=DEFAULT_LASER[engine], choices=LASERS),
         laser_peak=t.number("laser_peak", default=0.5, lo=0.0, hi=1e3, lo_open=True),
     )
     resolution = None
