@@ -145,6 +145,9 @@ class SceneCell:
         if settings.engine == "eevee" and self.laser_model == "gobo":
             raise InputError("Eevee ignores light node trees, so the gobo laser renders as a plain spot; "
                              "build the cell with laser='spot' (or 'slit') to render with Eevee")
+        if settings.engine == "cycles" and self.laser_model == "spot":
+            raise InputError("the spot laser is Eevee's: Cycles samples one of its five lights per path, so its "
+                             "line renders as noise; build the cell with laser='gobo' to render with Cycles")
         self.device_used = configure(self.scene, self.probe, settings, self.cameras[0])
         with self._only_the_cell():
             if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else

@@ -139,7 +139,8 @@ class SCANNER_OT_render_views(bpy.types.Operator):
             self.report({"ERROR"}, f"Sensor realism: {exc}")
             return {"CANCELLED"}
         frame = context.scene.frame_current
-        settings = with_sensor(RenderOptions(ambient=s.ambient, samples=4, filter_width_px=1.0), sensor)
+        engine = "eevee" if sc.laser_model == "spot" else "cycles"  # the spots are Eevee's line
+        settings = with_sensor(RenderOptions(engine=engine, ambient=s.ambient, samples=4, filter_width_px=1.0), sensor)
         with kept_render_settings(context.scene):  # the scene's own render settings come back
             images = sc.render(frame, frame, settings)[0]
         if sensor.changes_images:

@@ -64,7 +64,7 @@ class ScannerSettings(bpy.types.PropertyGroup):
     laser: EnumProperty(name="Laser", items=[("gobo", "Gobo (Cycles)", "Spot light with a Gaussian slit gobo"),
                                              ("spot", "Spots (Eevee)",
                                               "The gobo's Gaussian line from five squeezed spot lights, for Eevee "
-                                              "(Cycles samples one light per path: it needs many samples)"),
+                                              "(Cycles renders it as noise: it samples one light per path)"),
                                              ("slit", "Slit (Cycles, Eevee)", "Point light behind a slit, as in the paper")],
                         default="gobo")
     # -- Cartesian target ------------------------------------------------------------

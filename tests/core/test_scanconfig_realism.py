@@ -88,3 +88,8 @@ def test_eevee_gets_the_spot_laser_unless_a_config_chooses(tmp_path):
     # --engine eevee on the command line: the gobo becomes the spots, a chosen slit stays.
     assert config(tmp_path).with_overrides(engine="eevee").render.laser == "spot"
     assert with_render('laser = "slit"\n').with_overrides(engine="eevee").render.laser == "slit"
+    # Cycles samples one of the spots per path: their line is Eevee's, the gobo is Cycles'.
+    with pytest.raises(ConfigError, match="gobo"):
+        with_render('laser = "spot"\n')
+    eevee = with_render('engine = "eevee"\n')
+    assert eevee.with_overrides(engine="cycles").render.laser == "gobo"

@@ -80,10 +80,13 @@ def test_only_requested_cameras_render(scene):
     assert left is None and right.shape == (160, 160, 3)
 
 
-def test_eevee_refuses_the_gobo_laser(scene):
+def test_each_engine_refuses_the_other_engines_gaussian_laser(scene):
     sc = build_cell(scene, Cell(load_robot("ur5")), load_probe("default"))
-    with pytest.raises(InputError, match="slit"):
+    with pytest.raises(InputError, match="spot"):
         sc.render(1, 1, RenderOptions(engine="eevee"))
+    sc = build_cell(scene, Cell(load_robot("ur5")), load_probe("default"), laser="spot")
+    with pytest.raises(InputError, match="gobo"):
+        sc.render(1, 1, RenderOptions(engine="cycles"))
 
 
 def test_rebuilding_replaces_the_cell(scene):

@@ -18,7 +18,7 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
     [[path]]     kind = "sweep": frames, from_mm, to_mm, beam, line, table_deg
                  kind = "turntable": frames, probe_mm, beam, line, start_deg, turn_deg
     [render]     engine, device, samples, pixel_filter, filter_width_px, bounces, ambient,
-                 laser (gobo|spot|slit; default gobo, spot for eevee), laser_peak, resolution = [W, H] (the probe's optics on
+                 laser (gobo|spot|slit; gobo is Cycles' line, spot Eevee's), laser_peak, resolution = [W, H] (the probe's optics on
                  another sensor: W columns along the line, H rows along the triangulation)
     [detect]     method (threshold|cog|gauss|steger), min_peak, second_peak_ratio, max_width_px,
                  max_width_ratio (1.6: wider than that × the median width is rejected),
@@ -206,8 +206,8 @@ class ScanConfig:
             if engine not in ENGINES:
                 raise InputError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
             laser = render.laser
-            if laser == "gobo" and engine == "eevee":  # Eevee ignores the gobo's node tree
-                laser = DEFAULT_LASER["eevee"]
+            if (laser, engine) in (("gobo", "eevee"), ("spot", "cycles")):  # each engine's own Gaussian line
+                laser = DEFAULT_LASER[engine]
             render = replace(render, engine=engine, laser=laser)
         if samples is not None:
             if not 1 <= samples <= 65536:
@@ -350,6 +350,9 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     if render.engine == "eevee" and render.laser == "gobo":
         raise ConfigError(f"{path}: render.laser: 'gobo' does not render in Eevee (it ignores light node trees); "
                           "use laser = \"spot\" (the same Gaussian line) or \"slit\" with engine = \"eevee\"")
+    if render.engine == "cycles" and render.laser == "spot":
+        raise ConfigError(f"{path}: render.laser: 'spot' is Eevee's line; Cycles samples one of its five lights "
+                          "per path, so it renders as noise: use laser = \"gobo\" (the same line) with Cycles")
     cfg = ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
                      detect, tri_method, fuse, leave_out, cov, description, profile_filter=profile_filter,
                      safety=safety, fixtures=fixtures, adaptive=adaptive)
