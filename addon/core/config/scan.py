@@ -18,8 +18,9 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
     [[path]]     kind = "sweep": frames, from_mm, to_mm, beam, line, table_deg
                  kind = "turntable": frames, probe_mm, beam, line, start_deg, turn_deg
     [render]     engine, device, samples, pixel_filter, filter_width_px, bounces, ambient,
-                 laser (gobo|spot|slit; gobo is Cycles' line, spot Eevee's), laser_peak, resolution = [W, H] (the probe's optics on
-                 another sensor: W columns along the line, H rows along the triangulation)
+                 laser (gobo|spot|slit; gobo is Cycles' Gaussian line, spot Eevee's), laser_peak,
+                 resolution = [W, H] (the probe's optics on another sensor: W columns along
+                 the line, H rows along the triangulation)
     [detect]     method (threshold|cog|gauss|steger), min_peak, second_peak_ratio, max_width_px,
                  max_width_ratio (1.6: wider than that × the median width is rejected),
                  smoothing_px (default: none on noise-free images of the gobo line; otherwise matched
