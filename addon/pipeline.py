@@ -188,6 +188,11 @@ class ScanRun:
         chunk = self.config.leave_out.chunk_frames
         if self.done:
             per_frame = self.t_render / self.done
+        elif self.config.render.engine == "eevee":
+            # Eevee's first call compiles its shaders (21 s on a GPU) and, without one, renders
+            # through software OpenGL at seconds a frame, and it gives Python no chance to stop
+            # it meanwhile: one frame first, then the rate measured on it.
+            return 1
         else:
             rows = self.band.rows(0, chunk) if self.config.leave_out.render_band else None
             height = self.config.probe.rows_px if rows is None else rows[1] - rows[0]

@@ -130,3 +130,14 @@ def test_the_scenes_own_objects_stay_out_of_probe_renders():
     cluttered = run_scan(cfg, None, scene, write_outputs=False).cloud
     np.testing.assert_array_equal(cluttered.points, clean.points)
     assert not lamp.hide_render and not prop.hide_render  # given back as they were
+
+
+def test_eevees_first_render_call_is_one_frame(scene):
+    # Eevee compiles its shaders on the first call and gives Python no chance to stop it
+    # meanwhile: a Ctrl-C must not wait for a chunk sized by Cycles' speed.
+    from addon.core.config.scan import load_scan_config
+    from addon.pipeline import ScanRun
+
+    cfg = load_scan_config("demo")
+    assert ScanRun(cfg, scene)._chunk_size() > 1
+    assert ScanRun(cfg.with_overrides(engine="eevee"), scene)._chunk_size() == 1
