@@ -7,6 +7,7 @@ Everything else in ``addon.scene`` calls these and stays free of version checks.
   deprecated (removed in 6.0), so it is set only where it is still needed.
 - F-curves: ``Action.fcurve_ensure_for_datablock`` (4.4 and later, slotted actions);
   the plain ``Action.fcurves`` API before.
+- Eevee's engine name: ``BLENDER_EEVEE_NEXT`` in 4.2–4.5, ``BLENDER_EEVEE`` from 5.0.
 - Reading rendered EXR files is not done through ``bpy.data.images`` at all: 4.5 loads
   multiview files (``*_L.exr``/``*_R.exr``) as 0 × 0 images. See ``render.read_image``.
 """
@@ -17,6 +18,8 @@ import bpy
 
 VERSION: tuple[int, int, int] = tuple(bpy.app.version)
 NODES_ALWAYS_ON = VERSION >= (5, 0, 0)
+# The scene's render engine per engine of RenderOptions.
+BLENDER_ENGINES = {"cycles": "CYCLES", "eevee": "BLENDER_EEVEE" if VERSION >= (5, 0, 0) else "BLENDER_EEVEE_NEXT"}
 
 
 def ensure_node_tree(id_block) -> bpy.types.NodeTree:

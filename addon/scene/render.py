@@ -30,7 +30,8 @@ from ..core.exr import read_exr
 from ..core.optics.probe import Probe
 from .cameras import CLIP_START_M, EEVEE_CLIP_START_M, probe_cameras
 from .compat import ensure_node_tree, new_world
-from .session import BLENDER_ENGINES, use_device
+from .compat import BLENDER_ENGINES
+from .session import use_device
 
 VIEWS = (("left", "_L"), ("right", "_R"))
 

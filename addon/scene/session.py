@@ -8,10 +8,9 @@ import addon_utils  # noqa: E402
 
 from ..core.config.render import DEVICES, ENGINES, GPU_BACKENDS
 from ..core.errors import InputError
+from .compat import BLENDER_ENGINES
 
-# Blender's name of each engine the render options allow.
-BLENDER_ENGINES = {"cycles": "CYCLES", "eevee": "BLENDER_EEVEE"}
-assert set(BLENDER_ENGINES) == set(ENGINES)
+assert set(BLENDER_ENGINES) == set(ENGINES)  # Blender's name for each engine the render options allow
 
 
 def new_scene(device: str = "CPU") -> bpy.types.Scene:

@@ -72,6 +72,17 @@ try:
         img.pixels.foreach_get(px)
         views.append({"size": list(img.size), "max": max(px[0::4])})
     out["views"] = views
+    out["step"] = "render probe views with Eevee's spot laser"
+    bpy.context.scene.scanner.laser = "spot"
+    check(bpy.ops.scanner.build_cell() == {"FINISHED"}, "scanner.build_cell (spot laser) did not finish")
+    check(bpy.ops.scanner.render_views() == {"FINISHED"}, "scanner.render_views (Eevee) did not finish")
+    out["eevee_views"] = []
+    for name in ("Probe camera 0", "Probe camera 1"):
+        img = bpy.data.images[name]
+        px = [0.0] * (img.size[0] * img.size[1] * 4)
+        img.pixels.foreach_get(px)
+        out["eevee_views"].append({"size": list(img.size), "max": max(px[0::4])})
+    bpy.context.scene.scanner.laser = "gobo"
     out["step"] = "scan"
     s = bpy.context.scene.scanner
     s.scan_config = "demo"
@@ -145,6 +156,9 @@ def test_install_enable_scan_disable_uninstall(release, linux_zip, tmp_path):
     assert out["yourdfpy_from_zip"] and out["urdf_prismatic"] == [True] * 3 + [False] * 3, where
     for view in out["views"]:
         assert view["size"] == [160, 160] and view["max"] > 0.05, f"{where}: probe view {view}"
+    # Eevee (4.5's Eevee Next and 5.x's) renders the spots' line as bright as Cycles the gobo's.
+    for view, eevee in zip(out["views"], out["eevee_views"]):
+        assert eevee["size"] == [160, 160] and 0.8 < eevee["max"] / view["max"] < 1.25, f"{where}: {eevee} {view}"
     assert out["cloud_object_points"] > 500, where
     # ChArUco boards rendered and found inside each Blender: corners to a fraction of a pixel
     assert max(out["calibration_px"]) < 0.3 and out["calibration_field_um"] < 500, f"{where}: {out}"
@@ -163,7 +177,8 @@ def test_install_enable_scan_disable_uninstall(release, linux_zip, tmp_path):
     on_table = points[points[:, 2] <= 1.0]
     assert len(on_table) > 300 and np.abs(on_table[:, 2]).max() < 0.1, where
     print(f"\nBlender {out['blender']} (CPython {out['python']}, numpy {out['numpy']}): enabled, cell built, "
-          f"probe views {out['views'][0]['size'][0]}x{out['views'][0]['size'][1]}, scan of 10 demo frames "
+          f"probe views {out['views'][0]['size'][0]}x{out['views'][0]['size'][1]} (line peak "
+          f"{out['views'][0]['max']:.3f} Cycles gobo, {out['eevee_views'][0]['max']:.3f} Eevee spots), scan of 10 demo frames "
           f"{len(points)} points, sphere RMS {np.sqrt(np.mean(error_um ** 2)):.1f} um "
           f"(max {np.abs(error_um).max():.1f} um), table |z| max {np.abs(on_table[:, 2]).max() * 1000:.1f} um; "
           f"calibration from 6 poses {out['calibration_px'][0]:.3f}/{out['calibration_px'][1]:.3f} px, "
