@@ -15,8 +15,10 @@ stretched along it (s_y = :data:`SPOT_STRETCH`, so that the mask hardly changes 
 ±17° of the line the default probe's cameras see, nor over its 60° fan), one spot gives a
 line with a smooth, symmetric profile across it. But smoothstep has no slope at
 its top, so the profile is flat to fourth order at its centre, and the three-point
-Gaussian fit of the detector reads it up to 0.04 px off at the default probe's
-0.55 px line, against 0 for the Gaussian.
+Gaussian fit of the detector misreads it by an amount that depends on the line's width
+in pixels: for a 70° cone and a profile as wide as the Gaussian, 0.011 px RMS over the
+sub-pixel phases at σ = 0.55 px (the default probe) and 0.045 px at 1.1 px, against 0
+for the Gaussian.
 
 So the line is a sum of :data:`SPOT_COMPONENTS`: five coaxial spots, each with its own
 cone angle, squeezed to its own width and given its share of the power. Widths, angles
