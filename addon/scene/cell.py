@@ -28,7 +28,7 @@ from .cameras import add_probe_cameras, camera_to_world_cv
 from .laser import add_laser
 from .materials import diffuse
 from .meshes import mesh_object
-from ..core.config.render import RenderOptions
+from ..core.config.render import RenderOptions, laser_engine_mismatch
 from .render import configure, render_animation
 from .turntable import add_turntable, add_workpiece, set_table_angle
 from .units import from_blender
@@ -142,12 +142,9 @@ class SceneCell:
         world pose and the rig is not evaluated at all.
         """
         settings = settings or RenderOptions()
-        if settings.engine == "eevee" and self.laser_model == "gobo":
-            raise InputError("Eevee ignores light node trees, so the gobo laser renders as a plain spot; "
-                             "build the cell with laser='spot' (or 'slit') to render with Eevee")
-        if settings.engine == "cycles" and self.laser_model == "spot":
-            raise InputError("the spot laser is Eevee's: Cycles samples one of its five lights per path, so its "
-                             "line renders as noise; build the cell with laser='gobo' to render with Cycles")
+        mismatch = laser_engine_mismatch(settings.engine, self.laser_model)
+        if mismatch:
+            raise InputError(f"this cell's laser: {mismatch}")
         self.device_used = configure(self.scene, self.probe, settings, self.cameras[0])
         with self._only_the_cell():
             if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else

@@ -65,23 +65,20 @@ try:
     check(bpy.ops.scanner.build_cell() == {"FINISHED"}, "scanner.build_cell did not finish")
     out["step"] = "render probe views"
     check(bpy.ops.scanner.render_views() == {"FINISHED"}, "scanner.render_views did not finish")
-    views = []
-    for name in ("Probe camera 0", "Probe camera 1"):
-        img = bpy.data.images[name]
-        px = [0.0] * (img.size[0] * img.size[1] * 4)
-        img.pixels.foreach_get(px)
-        views.append({"size": list(img.size), "max": max(px[0::4])})
-    out["views"] = views
+    def views():
+        found = []
+        for name in ("Probe camera 0", "Probe camera 1"):
+            img = bpy.data.images[name]
+            px = [0.0] * (img.size[0] * img.size[1] * 4)
+            img.pixels.foreach_get(px)
+            found.append({"size": list(img.size), "max": max(px[0::4])})
+        return found
+    out["views"] = views()
     out["step"] = "render probe views with Eevee's spot laser"
     bpy.context.scene.scanner.laser = "spot"
     check(bpy.ops.scanner.build_cell() == {"FINISHED"}, "scanner.build_cell (spot laser) did not finish")
     check(bpy.ops.scanner.render_views() == {"FINISHED"}, "scanner.render_views (Eevee) did not finish")
-    out["eevee_views"] = []
-    for name in ("Probe camera 0", "Probe camera 1"):
-        img = bpy.data.images[name]
-        px = [0.0] * (img.size[0] * img.size[1] * 4)
-        img.pixels.foreach_get(px)
-        out["eevee_views"].append({"size": list(img.size), "max": max(px[0::4])})
+    out["eevee_views"] = views()
     bpy.context.scene.scanner.laser = "gobo"
     out["step"] = "scan"
     s = bpy.context.scene.scanner

@@ -22,6 +22,17 @@ LASERS = ("gobo", "spot", "slit")
 DEFAULT_LASER = {"cycles": "gobo", "eevee": "spot"}
 
 
+def laser_engine_mismatch(engine: str, laser: str) -> str | None:
+    """Why ``laser`` cannot render in ``engine`` (one sentence naming the laser to use), or None."""
+    if engine == "eevee" and laser == "gobo":
+        return "the gobo laser does not render in Eevee (it ignores light node trees); use the spot laser " \
+               "(the same Gaussian line) or the slit with Eevee"
+    if engine == "cycles" and laser == "spot":
+        return "the spot laser is Eevee's line: Cycles samples one of its five lights per path, so it renders " \
+               "as noise; use the gobo laser (the same line) with Cycles"
+    return None
+
+
 @dataclass(frozen=True)
 class RenderOptions:
     """engine: cycles | eevee; device: CPU, GPU or a GPU backend by name; samples per pixel;

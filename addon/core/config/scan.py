@@ -65,7 +65,7 @@ from ..errors import ConfigError, InputError
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
 from ..optics.probe import Probe
-from .render import DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions
+from .render import DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions, laser_engine_mismatch
 from .rigs import load_probe
 from ..optics.sensor import SensorModel
 from ..optics.profile_filter import ProfileFilter
@@ -348,12 +348,9 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     cov = truth.number("coverage_tolerance_mm", default=1.0, lo=0.0, hi=1e3, lo_open=True)
     truth.finish()
     top.finish()
-    if render.engine == "eevee" and render.laser == "gobo":
-        raise ConfigError(f"{path}: render.laser: 'gobo' does not render in Eevee (it ignores light node trees); "
-                          "use laser = \"spot\" (the same Gaussian line) or \"slit\" with engine = \"eevee\"")
-    if render.engine == "cycles" and render.laser == "spot":
-        raise ConfigError(f"{path}: render.laser: 'spot' is Eevee's line; Cycles samples one of its five lights "
-                          "per path, so it renders as noise: use laser = \"gobo\" (the same line) with Cycles")
+    mismatch = laser_engine_mismatch(render.engine, render.laser)
+    if mismatch:
+        raise ConfigError(f"{path}: render.laser: {mismatch}")
     cfg = ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
                      detect, tri_method, fuse, leave_out, cov, description, profile_filter=profile_filter,
                      safety=safety, fixtures=fixtures, adaptive=adaptive)
