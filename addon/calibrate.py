@@ -150,7 +150,7 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
     from .core.scan.frames import detect_all
     from .pipeline import render_settings
     from .scene.cell import build_cell
-    from .scene.laser import laser_power_w
+    from .core.optics.laser_profile import laser_power_w
     from .scene.session import new_scene
     from .scene.target import add_board, show_print
 

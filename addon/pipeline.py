@@ -27,12 +27,13 @@ from .core.scan.frames import add_counts, detect_all, frame_profile, merge_stats
 from .core.scan.outputs import ScanResult, assemble
 from .core.scan.plan import Plan, cell_surfaces, frame_ranges, plan_frames, plan_scan
 
-__all__ = ["Plan", "ScanResult", "ScanRun", "assemble", "build_scan_cell", "cell_surfaces", "frame_ranges", "merge_stats", "new_stats",
+__all__ = ["Plan", "ScanResult", "ScanRun", "assemble", "build_raycaster", "build_scan_cell", "cell_surfaces", "frame_ranges", "merge_stats", "new_stats",
            "plan_frames", "plan_scan", "render_settings", "run_scan"]
 
 Progress = Callable[[str, int, int], None]
 
 CHUNK_SECONDS = 1.0  # a render call lasts about this long at most (see ScanRun._chunk_size)
+RAYCAST_DEVICE = "CPU (Embree ray casting)"
 PIXELS_PER_SECOND = 4e5  # Cycles at one sample on two CPU cores, before the first call has been timed
 
 
@@ -51,10 +52,25 @@ def run_scan(config: ScanConfig, out_dir: str | Path | None, scene=None, progres
     return scanner.result(out_dir if write_outputs else None)
 
 
+def build_raycaster(config: ScanConfig, threads: int | None = None):
+    """The raycast engine's renderer for a config: its part and table in one Embree scene;
+    ``threads``: cores that cast rays (None: all). ``leave_out.render_band`` off casts every
+    pixel instead of the windows around the line."""
+    from .core.optics.raycast import RaycastRenderer, cell_raycast_scene
+
+    why = config.raycast_refusal()
+    if why:
+        raise InputError(f"engine raycast: {why}")
+    wp = config.workpiece
+    return RaycastRenderer(config.probe, cell_raycast_scene(None if wp is None else wp.mesh, config.material,
+                                                            threads), config.render.laser_peak,
+                           windows=config.leave_out.render_band)
+
+
 def build_scan_cell(config: ScanConfig, scene=None):
     """The Blender cell a config scans in: in ``scene``, or in a new empty scene (headless)."""
     from .scene.cell import build_cell
-    from .scene.laser import laser_power_w
+    from .core.optics.laser_profile import laser_power_w
     from .scene.session import new_scene
 
     if scene is None:
@@ -72,12 +88,14 @@ class ScanRun:
 
     def __init__(self, config: ScanConfig, scene=None, progress: Progress | None = None, keep_images: bool = False,
                  *, plan: Plan | None = None, frames: range | None = None, scene_cell=None,
-                 threads: int | None = None):
+                 threads: int | None = None, raycaster=None):
         """``plan``: the whole path's plan when it was made already (a farm's coordinator
         plans once for all shards); ``frames``: the part of the path to scan (path
         indices; the cloud keeps those indices); ``scene_cell``: a cell built earlier for
         this config, reused (a farm worker builds once for all its shards); ``threads``:
-        render threads (None: all cores)."""
+        render threads (None: all cores); ``raycaster``: with engine raycast, the renderer
+        built earlier for this config (``build_raycaster``), reused. The raycast engine needs
+        no Blender: ``scene_cell`` is then only kept for the caller."""
         self.config = config
         # keep_images: {frame index in the path: the two cameras' sensor images (band or full)}, for pictures
         self.images: dict[int, list] | None = {} if keep_images else None
@@ -97,12 +115,18 @@ class ScanRun:
 
         t = time.perf_counter()
         probe = config.probe
-        self.sc = scene_cell if scene_cell is not None else build_scan_cell(config, scene)
-        # The frames either side are keyframed too, so that motion during the exposure
-        # (linear between keys) is the same whatever part of the path is scanned.
-        lo, hi = max(0, a - 1), min(total, b + 1)
-        keyed = self.sc.keyframe(self.plan.q[lo:hi], self.plan.table_rad[lo:hi])
-        self.frames = range(keyed.start + a - lo, keyed.start + b - lo)
+        self.raycaster = None
+        if config.render.engine == "raycast":
+            self.raycaster = raycaster if raycaster is not None else build_raycaster(config, threads)
+            self.sc = scene_cell
+            self.frames = range(a, b)
+        else:
+            self.sc = scene_cell if scene_cell is not None else build_scan_cell(config, scene)
+            # The frames either side are keyframed too, so that motion during the exposure
+            # (linear between keys) is the same whatever part of the path is scanned.
+            lo, hi = max(0, a - 1), min(total, b + 1)
+            keyed = self.sc.keyframe(self.plan.q[lo:hi], self.plan.table_rad[lo:hi])
+            self.frames = range(keyed.start + a - lo, keyed.start + b - lo)
         self.settings = replace(render_settings(config), threads=threads)
         self.timing["scene"] = time.perf_counter() - t
         self.n = b - a
@@ -124,10 +148,38 @@ class ScanRun:
         """Render, detect and triangulate the next chunk of frames; True when all are done."""
         if self.done >= self.n:
             return True
+        size = 1 if self.done == 0 and not np.isfinite(self.plan.predicted_rows[self.first]).all() else \
+            min(self._chunk_size(), self.n - self.done)
+        if self.raycaster is not None:
+            images, lines, rows = self._raycast(size)
+        else:
+            images, lines, rows = self._render(size)
+        index = self.first + self.done  # path index of the chunk's first frame
+        if self.images is not None:
+            self.images.update({index + i: images[i] for i in range(size)})
+        self._accumulate(size, lines, rows)
+        self.progress("scan", self.done, self.n)
+        return self.done >= self.n
+
+    def _raycast(self, size: int):
+        """The chunk's images from the raycast engine (each frame's band of rows its own), their lines."""
+        config, done = self.config, self.done
+        index = self.first + done
+        t = time.perf_counter()
+        frames = self.raycaster.render_frames(self.probe2table[done:done + size], self.plan.cameras)
+        self.t_render += time.perf_counter() - t
+        t = time.perf_counter()
+        images = [self._sense(pair, band, index + i) for i, (pair, band) in enumerate(frames)]
+        rows = [band for _, band in frames]
+        lines = [detect_all(pair, band, config) for pair, band in zip(images, rows)]
+        self.t_detect += time.perf_counter() - t
+        return images, lines, rows
+
+    def _render(self, size: int):
+        """The chunk's images from Blender (one render call, one band of rows for all frames;
+        frames whose line the band may have cut rendered again at full height), their lines."""
         config, probe, plan, sc = self.config, self.config.probe, self.plan, self.sc
         done = self.done
-        size = 1 if done == 0 and not np.isfinite(plan.predicted_rows[self.first]).all() else \
-            min(self._chunk_size(), self.n - done)
         first = self.frames.start + done
         rows = self.band.rows(done, size) if config.leave_out.render_band else None
         hide = config.leave_out.hide_robot
@@ -139,12 +191,14 @@ class ScanRun:
         images = [self._sense(pair, rows, index + i) for i, pair in enumerate(images)]
         lines = [detect_all(img, rows, config) for img in images]
         self.t_detect += time.perf_counter() - t
+        frame_rows = [rows] * size
         # Frames whose line the band may have cut are rendered again at full height, in one call.
         redo = []
+        previous = self.previous_rows
         for i in range(size):
-            if needs_full_frame(lines[i], rows, self.previous_rows, probe.rows_px, config.leave_out.band_margin_px):
+            if needs_full_frame(lines[i], rows, previous, probe.rows_px, config.leave_out.band_margin_px):
                 redo.append(i)
-            self.previous_rows = [None if ln is None else ln.row for ln in lines[i]]
+            previous = [None if ln is None else ln.row for ln in lines[i]]
         if redo:
             t = time.perf_counter()
             full = sc.render(first + redo[0], first + redo[-1], self.settings, plan.cameras, leave_out_robot=hide)
@@ -154,10 +208,14 @@ class ScanRun:
             for i in redo:
                 images[i] = self._sense(full[i - redo[0]], None, index + i)
                 lines[i] = detect_all(images[i], None, config)
+                frame_rows[i] = None
             self.t_detect += time.perf_counter() - t
-        if self.images is not None:
-            self.images.update({index + i: images[i] for i in range(size)})
-        stats = self.stats
+        return images, lines, frame_rows
+
+    def _accumulate(self, size: int, lines, rows) -> None:
+        """Triangulate the chunk's lines into the cloud and count what was found."""
+        probe, config, stats, done = self.config.probe, self.config, self.stats, self.done
+        index = self.first + done
         for i in range(size):
             t = time.perf_counter()
             profile = frame_profile(probe, lines[i], config)
@@ -173,12 +231,10 @@ class ScanRun:
                         stats["codes"][name] = stats["codes"].get(name, 0) + count
                         codes[name] = codes.get(name, 0) + count
             self.frame_codes[index + i] = codes
-            stats["band_rows"].append(probe.rows_px if rows is None or i in redo else rows[1] - rows[0])
+            stats["band_rows"].append(probe.rows_px if rows[i] is None else rows[i][1] - rows[i][0])
             self.band.update(line_extent(lines[i]))
         self.previous_rows = [None if ln is None else ln.row for ln in lines[size - 1]]
         self.done += size
-        self.progress("scan", self.done, self.n)
-        return self.done >= self.n
 
     def _chunk_size(self) -> int:
         """Frames in the next render call: the config's chunk, fewer where that would take
@@ -211,8 +267,9 @@ class ScanRun:
     def finish(self, out_dir: str | Path | None) -> ScanResult:
         """Measure against the truth, build the report and (with ``out_dir``) write the files."""
         self.timing.update(render=self.t_render, detect=self.t_detect, triangulate=self.t_tri)
+        device = RAYCAST_DEVICE if self.raycaster is not None else getattr(self.sc, "device_used", None)
         return assemble(self.config, self.plan, self.acc.cloud(), self.stats, self.timing, out_dir, self.t_all,
-                        {"render_device": getattr(self.sc, "device_used", None)})
+                        {"render_device": device})
 
 
 def render_settings(config: ScanConfig) -> RenderOptions:

@@ -113,6 +113,7 @@ class Scanner:
         self.config = config
         self._scene = scene
         self._sc = None  # the Blender cell, built at the first measurement
+        self._raycaster = None  # with engine raycast: its renderer, built at the first measurement
         self._surfaces = None  # the part and table for ray casts, built at the first measurement
         self._q = self._start_joints()
         self._table_rad = float(config.waypoints.table_rad[0]) if len(config.waypoints) else 0.0
@@ -385,6 +386,20 @@ class Scanner:
             self._timing["scene"] += time.perf_counter() - t
         return self._sc
 
+    def _renderers(self) -> dict:
+        """What renders the frames, built once: the Blender cell, or with engine raycast the
+        ray-cast renderer (and the Blender cell only where a scene was given, for the panel,
+        which shows the cell and imports the cloud into it)."""
+        if self.config.render.engine != "raycast":
+            return {"scene_cell": self._scene_cell()}
+        if self._raycaster is None:
+            from .pipeline import build_raycaster
+
+            t = time.perf_counter()
+            self._raycaster = build_raycaster(self.config)
+            self._timing["scene"] += time.perf_counter() - t
+        return {"scene_cell": None if self._scene is None else self._scene_cell(), "raycaster": self._raycaster}
+
     def _scan_frames(self, q: np.ndarray, table_rad: np.ndarray) -> list[Profile]:
         """Render, detect and triangulate the frames at joints q (n, 6) and table angles (n,);
         their points join the cloud under the next frame numbers."""
@@ -416,7 +431,7 @@ class Scanner:
                            math.degrees(table_rad[i]), {}, first + i) for i in range(n)]
             return out
         run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, np.zeros(n, int))), None, progress,
-                      plan=plan, scene_cell=self._scene_cell())
+                      plan=plan, **self._renderers())
         while not run.step():
             yield run.done, run.n
         yield run.done, run.n
@@ -465,7 +480,7 @@ class Scanner:
         report's dict, per-point error and part/table split, files), and with ``out_dir``
         written there; ``extra`` joins the report (an adaptive scan's sweeps). Kept until the
         next measurement, so report() after save() is free."""
-        from .pipeline import Plan, assemble, merge_stats
+        from .pipeline import RAYCAST_DEVICE, Plan, assemble, merge_stats
 
         import json
 
@@ -480,7 +495,8 @@ class Scanner:
         plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings),
                     PathClearance.merge(self._clearances) if self._clearances else None)
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
-                          {"render_device": getattr(self._sc, "device_used", None), **extra})
+                          {"render_device": RAYCAST_DEVICE if self._raycaster is not None
+                           else getattr(self._sc, "device_used", None), **extra})
         self._cached = (key, result)
         return result
 

@@ -60,10 +60,11 @@ def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, th
     from addon.pipeline import ScanRun
 
     t = time.perf_counter()
-    cell = _WORKER_CELL.get(fingerprint)
-    run = ScanRun(config, plan=plan, frames=shard.frames, scene_cell=cell, threads=threads)
+    cell = _WORKER_CELL.get(fingerprint)  # (Blender cell, raycast renderer) built for an earlier shard
+    run = ScanRun(config, plan=plan, frames=shard.frames, threads=threads,
+                  scene_cell=None if cell is None else cell[0], raycaster=None if cell is None else cell[1])
     _WORKER_CELL.clear()
-    _WORKER_CELL[fingerprint] = run.scene_cell
+    _WORKER_CELL[fingerprint] = (run.scene_cell, run.raycaster)
     while not run.step():
         pass
     run.timing.update(render=run.t_render, detect=run.t_detect, triangulate=run.t_tri)

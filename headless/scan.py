@@ -26,7 +26,10 @@ def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
         parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
     parser.add_argument("--out", help="output folder (default: out/<config name>)")
     parser.add_argument("--frames", help="part of the path, as A:B (Python slice, e.g. 0:40 or ::2)")
-    parser.add_argument("--engine", choices=("cycles", "eevee"), help="render engine (eevee renders the spot laser unless the config chooses the slit)")
+    parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"),
+                        help="render engine: cycles; eevee (renders the spot laser unless the config chooses the "
+                             "slit); raycast (what Cycles renders under ideal conditions, by Embree ray casting, "
+                             "without Blender)")
     parser.add_argument("--samples", type=int, help="samples per pixel")
     parser.add_argument("--device", type=str.upper, choices=("CPU", "GPU", "OPTIX", "CUDA", "HIP", "ONEAPI", "METAL"),
                         help="Cycles render device: CPU, GPU (the first backend found) or a backend by name")

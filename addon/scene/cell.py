@@ -142,6 +142,8 @@ class SceneCell:
         world pose and the rig is not evaluated at all.
         """
         settings = settings or RenderOptions()
+        if settings.engine == "raycast":  # the raycast engine computes Cycles' image: in Blender, that is Cycles
+            settings = replace(settings, engine="cycles")
         mismatch = laser_engine_mismatch(settings.engine, self.laser_model)
         if mismatch:
             raise InputError(f"this cell's laser: {mismatch}")

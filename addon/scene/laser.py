@@ -18,10 +18,7 @@ Gaussian within 0.11 % over ±2.5σ (``addon/core/optics/laser_profile.py``).
 (Fig. 2), a point light behind an opaque plate with a slit of L × W at distance D
 in front of it; the line has a sharp, flat-topped profile of width W·z/D.
 
-Power: a Lambertian surface of albedo ρ at distance r lit head-on by a point light
-of power P has radiance ρ·P / (4π·π·r²) (Cycles' spot lights are rated like point
-lights). :func:`laser_power_w` inverts that to put the line's peak at a chosen
-level of the film at mid-range.
+Power: see ``addon/core/optics/laser_profile.py`` (:func:`laser_power_w`).
 """
 
 from __future__ import annotations
@@ -33,38 +30,20 @@ import numpy as np
 import trimesh
 
 from ..core.errors import InputError
-from ..core.optics.laser_profile import SPOT_COMPONENTS, SPOT_STRETCH, spot_squeezes
+from ..core.optics.laser_profile import (LASER_RGB, SPOT_COMPONENTS, SPOT_STRETCH, angular_sigma_rad, laser_power_w,
+                                         mid_range_mm, spot_squeezes)
 from ..core.optics.probe import Probe
 from .compat import ensure_node_tree
-from .materials import WORKPIECE_GREY, diffuse
+from .materials import diffuse
 from .meshes import mesh_object
 from .units import to_blender
 
 LASER_MODELS = ("gobo", "spot", "slit")
 SLIT_DISTANCE_MM = 10.0
-LASER_COLOR = (1.0, 0.0, 0.0)
 SPOT_REACH_M = 100.0  # Eevee's light cut-off for the spot model's lights: far beyond any cell
 # Light frame -> probe frame: the light shines along its local −Z, which must be the
 # probe's +Z (the beam); its local X stays the probe's X (across the laser plane).
 LIGHT_IN_PROBE = np.diag([1.0, -1.0, -1.0, 1.0])
-
-
-def mid_range_mm(probe: Probe) -> float:
-    z0, z1 = probe.z_range_mm
-    return 0.5 * (z0 + z1)
-
-
-def laser_power_w(probe: Probe, peak: float = 0.5, albedo: float = WORKPIECE_GREY,
-                  distance_mm: float | None = None) -> float:
-    """Light power (W) that puts the line peak at ``peak`` (linear film units) on a
-    head-on Lambertian surface of ``albedo`` at ``distance_mm`` (default mid-range)."""
-    r = (distance_mm or mid_range_mm(probe)) * 1e-3
-    return float(peak * math.pi * r * r * 4.0 * math.pi / albedo)
-
-
-def angular_sigma_rad(probe: Probe) -> float:
-    """Gaussian σ of the line across the laser plane, as an angle: (1/e² width / 4) / mid-range."""
-    return probe.line_width_mm / 4.0 / mid_range_mm(probe)
 
 
 def add_laser(collection, probe: Probe, parent: bpy.types.Object, model: str = "gobo",
@@ -95,7 +74,7 @@ def add_laser(collection, probe: Probe, parent: bpy.types.Object, model: str = "
 
 def _light_object(collection, name: str, light, power: float, parent, scale=(1.0, 1.0)) -> bpy.types.Object:
     light.energy = power
-    light.color = LASER_COLOR
+    light.color = LASER_RGB
     light.shadow_soft_size = 0.0
     obj = bpy.data.objects.new(name, light)
     collection.objects.link(obj)

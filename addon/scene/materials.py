@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import bpy
 
+from ..core.optics.albedo import DIFFUSE_SURFACES, WORKPIECE_GREY
 from .compat import new_material
-
-WORKPIECE_GREY = 0.6  # diffuse albedo of the "grey workpiece"
 
 
 def bare_material(name: str) -> tuple[bpy.types.Material, bpy.types.Node]:
@@ -55,7 +54,7 @@ def surface(kind: str = "grey", roughness: float = 0.2) -> bpy.types.Material:
     if kind == "grey":
         return diffuse("Grey workpiece")
     if kind == "dark":
-        return diffuse("Dark workpiece", (0.06, 0.06, 0.06))
+        return diffuse("Dark workpiece", DIFFUSE_SURFACES["dark"])
     name = f"{kind.title()} workpiece r{roughness:.2f}"
     mat = bpy.data.materials.get(name)
     if mat is not None:

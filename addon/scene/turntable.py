@@ -7,6 +7,7 @@ import numpy as np
 
 from ..core.kinematics.turntable import Turntable, table_top_mesh
 from ..core.geometry.workpiece import Workpiece
+from ..core.optics.albedo import TABLE_TOP
 from .materials import diffuse, surface
 from .meshes import mesh_object
 from .units import to_blender
@@ -14,7 +15,7 @@ from .units import to_blender
 
 def add_turntable(collection, table: Turntable) -> bpy.types.Object:
     """A disc whose top face is the table frame's z = 0, placed at T_R^0(0); θ_R is its Z rotation."""
-    obj = mesh_object("Turntable", table_top_mesh(), collection, diffuse("Table top", (0.35, 0.35, 0.37)))
+    obj = mesh_object("Turntable", table_top_mesh(), collection, diffuse("Table top", TABLE_TOP))
     obj.rotation_mode = "XYZ"
     obj.matrix_world = to_blender(table.table2base(0.0))
     return obj

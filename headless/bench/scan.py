@@ -6,6 +6,10 @@ the line detected, triangulated, fused and moved into the table frame. Rate =
 frames / (render + detect + triangulate time); planning, scene building and
 writing files are reported by the scan itself but not counted here.
 
+Each scenario is scanned by Cycles and by the raycast engine (Cycles' image under the
+paper's ideal conditions, by Embree ray casting: ``addon/core/optics/raycast.py``), and the
+two clouds are compared; one ``Scanner.measure()`` is timed with each.
+
 Scenarios: the demo (sphere; a table turn and a sweep), the step block (two
 sweeps), a short sweep along the step block's riser where the riser hides the
 line from one camera (so skipping a blind camera has something to skip), and the
@@ -51,59 +55,151 @@ def scenarios(args):
 
 
 def measure(cfg, repeats):
+    """Median profiles/s of ``repeats`` runs of the scan, and the last run's result."""
     from addon.pipeline import run_scan
 
-    rates, report = [], None
+    rates, result = [], None
     for _ in range(repeats):
-        report = run_scan(cfg, None, write_outputs=False).report
-        rates.append(report["profiles_per_s"])
-    return statistics.median(rates), report
+        result = run_scan(cfg, None, write_outputs=False)
+        rates.append(result.report["profiles_per_s"])
+    return statistics.median(rates), result
+
+
+def cloud_difference_um(a, b) -> float:
+    """RMS distance (µm) from each point of cloud ``b`` to the nearest of cloud ``a``, both ways."""
+    from scipy.spatial import cKDTree
+
+    if not len(a.points) or not len(b.points):
+        return float("nan")
+    d1, _ = cKDTree(a.points).query(b.points)
+    d2, _ = cKDTree(b.points).query(a.points)
+    return 1e3 * float(np.sqrt(np.mean(np.concatenate([d1, d2]) ** 2)))
+
+
+ENGINES = ("cycles", "raycast")
+LEAVE_OUTS = {"band": "render_band", "robot": "hide_robot", "cameras": "skip_blind_cameras"}
 
 
 def run(args: argparse.Namespace) -> int:
     rows = []
     for name, cfg in scenarios(args):
-        lo = cfg.leave_out
-        base_rate, rep = measure(cfg, args.repeats)
-        ratios = {}
-        for label, off in (("band", replace(lo, render_band=False)), ("robot", replace(lo, hide_robot=False)),
-                           ("cameras", replace(lo, skip_blind_cameras=False))):
-            rate, _ = measure(replace(cfg, leave_out=off), args.repeats)
-            ratios[label] = base_rate / rate
-        e = rep["error_um"]
-        rows.append((name, rep, base_rate, ratios, e))
-        print(f"  {name}: {base_rate:.1f} profiles/s", flush=True)
+        reference = None
+        for engine in ENGINES:
+            c = cfg.with_overrides(engine=engine)
+            base_rate, result = measure(c, args.repeats)
+            ratios = {}
+            for label, field in LEAVE_OUTS.items():
+                if engine == "raycast" and field == "hide_robot":
+                    continue  # the raycast engine never draws the robot: nothing to compare
+                rate, _ = measure(replace(c, leave_out=replace(c.leave_out, **{field: False})), args.repeats)
+                ratios[label] = base_rate / rate
+            if reference is None:
+                reference = (base_rate, result)
+            speedup = base_rate / reference[0]
+            delta = cloud_difference_um(reference[1].cloud, result.cloud)
+            rows.append((name, engine, result.report, base_rate, ratios, speedup, delta))
+            print(f"  {name}, {engine}: {base_rate:.1f} profiles/s", flush=True)
+    measures = measure_calls(args)
     print()
-    print("Scans end to end (render + detect + triangulate), medians; ratio = time with the leave-out switched "
-          "off / time with it on")
-    hdr = (f"{'scenario':<28}{'sensor':>10}{'frames':>7}{'profiles/s':>11}{'RMS um':>8}{'p95 um':>8}"
-           f"{'rows':>6}{'cams':>5}{'band':>7}{'robot':>7}{'camera skip':>12}")
+    print("Scans end to end (render + detect + triangulate), medians; leave-out ratio = time with it switched "
+          "off / time with it on; 'x Cycles' = profiles/s / Cycles' on the same scan; 'cloud diff' = RMS "
+          "distance between the cloud and Cycles' (um)")
+    hdr = (f"{'scenario':<28}{'engine':>9}{'sensor':>10}{'frames':>7}{'profiles/s':>11}{'x Cycles':>9}{'RMS um':>8}"
+           f"{'p95 um':>8}{'cloud diff':>11}{'rows':>6}{'cams':>5}{'band':>7}{'robot':>7}{'camera skip':>12}")
     print(hdr + "\n" + "-" * len(hdr))
-    for name, rep, rate, ratios, e in rows:
+    for name, engine, rep, rate, ratios, speedup, delta in rows:
         W, H = rep["config"]["sensor_px"]
-        print(f"{name:<28}{f'{W}x{H}':>10}{rep['frames']:>7}{rate:>11.1f}{e['rms_um']:>8.1f}{e['p95_um']:>8.1f}"
-              f"{rep['mean_rows_rendered']:>6.0f}{len(rep['cameras_rendered']):>5}"
-              f"{ratios['band']:>6.2f}x{ratios['robot']:>6.2f}x{ratios['cameras']:>11.2f}x")
+        e = rep["error_um"]
+        print(f"{name:<28}{engine:>9}{f'{W}x{H}':>10}{rep['frames']:>7}{rate:>11.1f}{speedup:>8.2f}x{e['rms_um']:>8.1f}"
+              f"{e['p95_um']:>8.1f}{delta:>11.3f}{rep['mean_rows_rendered']:>6.0f}{len(rep['cameras_rendered']):>5}"
+              f"{_ratio(ratios, 'band'):>7}{_ratio(ratios, 'robot'):>7}{_ratio(ratios, 'cameras'):>12}")
     print()
-    print("Goal: >= 100 profiles/s at 160x160 on this 2-core machine. 'rows': mean sensor rows rendered per frame; "
-          "'cams': cameras rendered.")
+    for engine, ms in measures.items():
+        print(f"Scanner.measure() with {engine}: {ms:.1f} ms (median of {MEASURE_POSES} poses of the demo's path)")
+    print(f"Goals: >= {GOAL_160} profiles/s at 160x160 on the demo and the step block, >= {GOAL_HIRES} at 1280x1024, "
+          f"one measure() in <= {GOAL_MEASURE_MS} ms; the clouds within 1 um RMS of Cycles'.")
+    for line in goals(rows, measures):
+        print("  " + line)
     if args.readme:
         from headless.bench import readme
 
-        readme.update("scan", to_markdown(rows, args))
+        readme.update("scan", to_markdown(rows, measures, args))
     return 0
 
 
-def to_markdown(rows, args) -> str:
-    lines = [f"Measured with `python -m headless bench scan --repeats {args.repeats}`"
-             + (" --quick" if args.quick else "") + " (Cycles on the CPU of this 2-core machine; profiles per "
-             "second = frames / (render + detect + triangulate); ratio = time with that leave-out switched off ÷ "
-             "time with it on, side by side in one run):", "",
-             "| scenario | sensor | frames | profiles/s | RMS µm | p95 µm | rows rendered | cameras | band | robot "
-             "| camera skip |", "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for name, rep, rate, ratios, e in rows:
+GOAL_160, GOAL_HIRES, GOAL_MEASURE_MS = 150, 10, 15
+MEASURE_POSES = 30
+
+
+def _ratio(ratios: dict, key: str) -> str:
+    return f"{ratios[key]:.2f}x" if key in ratios else "-"
+
+
+def measure_calls(args) -> dict[str, float]:
+    """Median time (ms) of one ``Scanner.measure()`` per engine, at poses along the demo's path
+    (each after the scanner has measured once: its cell or ray-cast scene is built)."""
+    import math
+    import time
+
+    from addon import Scanner
+    from addon.core.scan.plan import plan_scan
+
+    out = {}
+    for engine in ENGINES:
+        scanner = Scanner.from_config("demo", engine=engine)
+        plan = plan_scan(scanner.config)
+        picks = np.linspace(20, len(plan.q) - 20, MEASURE_POSES).astype(int)
+        scanner.move_joints(plan.q[picks[0]])
+        scanner.measure()
+        times = []
+        for k in picks:
+            scanner.move_joints(plan.q[k])
+            scanner.turn_table(math.degrees(plan.table_rad[k]))
+            t = time.perf_counter()
+            scanner.measure()
+            times.append(time.perf_counter() - t)
+        out[engine] = 1e3 * statistics.median(times)
+    return out
+
+
+def goals(rows, measures) -> list[str]:
+    """One line per goal: met or not, with the figure."""
+    out = []
+    for name, engine, rep, rate, _, _, delta in rows:
+        if engine != "raycast":
+            continue
         W, H = rep["config"]["sensor_px"]
-        lines.append(f"| {name} | {W}×{H} | {rep['frames']} | {rate:.1f} | {e['rms_um']:.1f} | {e['p95_um']:.1f} | "
-                     f"{rep['mean_rows_rendered']:.0f} of {H} | {len(rep['cameras_rendered'])} | "
-                     f"×{ratios['band']:.2f} | ×{ratios['robot']:.2f} | ×{ratios['cameras']:.2f} |")
+        goal = GOAL_HIRES if H >= 1024 else GOAL_160 if name in ("demo (sphere)", "step block") else None
+        if goal is not None:
+            out.append(f"{'met' if rate >= goal else 'MISSED'}: {name} {rate:.1f} profiles/s (goal {goal})")
+        out.append(f"{'met' if delta <= 1.0 else 'MISSED'}: {name} cloud {delta:.3f} um RMS from Cycles' (goal 1)")
+    ms = measures.get("raycast")
+    if ms is not None:
+        out.append(f"{'met' if ms <= GOAL_MEASURE_MS else 'MISSED'}: measure() {ms:.1f} ms (goal {GOAL_MEASURE_MS})")
+    return out
+
+
+def to_markdown(rows, measures, args) -> str:
+    lines = [f"Measured with `python -m headless bench scan --repeats {args.repeats}`"
+             + (" --quick" if args.quick else "") + " (the CPU of this 2-core machine; profiles per second = frames "
+             "/ (render + detect + triangulate); × Cycles = profiles per second ÷ Cycles' on the same scan; cloud Δ = "
+             "RMS distance between the cloud and Cycles' cloud; leave-out ratio = time with it switched off ÷ time "
+             "with it on, side by side in one run; the raycast engine never draws the robot, so it has no robot "
+             "ratio):", "",
+             "| scenario | engine | sensor | frames | profiles/s | × Cycles | RMS µm | p95 µm | cloud Δ µm | rows rendered "
+             "| cameras | band | robot | camera skip |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for name, engine, rep, rate, ratios, speedup, delta in rows:
+        W, H = rep["config"]["sensor_px"]
+        e = rep["error_um"]
+        md = {k: f"×{v:.2f}" for k, v in ratios.items()}
+        lines.append(f"| {name} | {engine} | {W}×{H} | {rep['frames']} | {rate:.1f} | ×{speedup:.2f} | {e['rms_um']:.1f} | "
+                     f"{e['p95_um']:.1f} | {delta:.3f} | {rep['mean_rows_rendered']:.0f} of {H} | "
+                     f"{len(rep['cameras_rendered'])} | {md.get('band', '—')} | {md.get('robot', '—')} | "
+                     f"{md.get('cameras', '—')} |")
+    lines.append("")
+    lines.append("One `Scanner.measure()` (median of %d poses along the demo's path): %s." % (
+        MEASURE_POSES, ", ".join(f"{engine} {ms:.1f} ms" for engine, ms in measures.items())))
+    lines.append("")
+    lines.append("Goals (issue 19): " + "; ".join(goals(rows, measures)) + ".")
     return "\n".join(lines) + "\n"

@@ -17,7 +17,7 @@ from addon.core.optics.detect import DetectParams, detect_line
 from addon.core.config.rigs import load_probe
 from addon.scene.animation import keyframe_values
 from addon.scene.cell import add_probe
-from addon.scene.laser import angular_sigma_rad
+from addon.core.optics.laser_profile import angular_sigma_rad
 from addon.scene.materials import diffuse, emission
 from addon.scene.meshes import mesh_object
 from addon.scene.render import configure, render_animation

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 from ..errors import InputError, check_whole
 
-ENGINES = ("cycles", "eevee")
+ENGINES = ("cycles", "eevee", "raycast")
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
 # "GPU": the first backend the machine has, in GPU_BACKENDS' order; a backend by name: that one only.
 DEVICES = ("CPU", "GPU") + GPU_BACKENDS
@@ -19,7 +19,7 @@ PIXEL_FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
 LASERS = ("gobo", "spot", "slit")
 # Each engine's laser unless one is chosen: Eevee ignores the gobo's node tree, and the
 # spot model gives it the same Gaussian line (addon/core/optics/laser_profile.py).
-DEFAULT_LASER = {"cycles": "gobo", "eevee": "spot"}
+DEFAULT_LASER = {"cycles": "gobo", "eevee": "spot", "raycast": "gobo"}
 
 
 def laser_engine_mismatch(engine: str, laser: str) -> str | None:
@@ -27,6 +27,8 @@ def laser_engine_mismatch(engine: str, laser: str) -> str | None:
     if engine == "eevee" and laser == "gobo":
         return "the gobo laser does not render in Eevee (it ignores light node trees); use the spot laser " \
                "(the same Gaussian line) or the slit with Eevee"
+    if engine == "raycast" and laser != "gobo":
+        return f"the raycast engine computes the gobo laser's line; the {laser} laser needs Cycles or Eevee"
     if engine == "cycles" and laser == "spot":
         return "the spot laser is Eevee's line: Cycles samples one of its five lights per path, so it renders " \
                "as noise; use the gobo laser (the same line) with Cycles"
@@ -35,7 +37,8 @@ def laser_engine_mismatch(engine: str, laser: str) -> str | None:
 
 @dataclass(frozen=True)
 class RenderOptions:
-    """engine: cycles | eevee; device: CPU, GPU or a GPU backend by name; samples per pixel;
+    """engine: cycles | eevee | raycast (Cycles' image under ideal conditions, by Embree ray
+    casting: see addon/core/optics/raycast.py and :func:`raycast_mismatch`); device: CPU, GPU or a GPU backend by name; samples per pixel;
     pixel filter and its width (px; 0.01 point-samples each pixel's centre); bounces (0 for
     diffuse scenes); ambient: world light strength (0 = dark); laser: gobo (Cycles' smooth
     Gaussian line), spot (the same line from squeezed spot lights, for Eevee) or slit (the
@@ -79,6 +82,32 @@ class RenderOptions:
             w, h = self.resolution
             check_whole(w, "image width", 2, 100_000)
             check_whole(h, "image height", 2, 100_000)
+
+
+def raycast_mismatch(settings: RenderOptions, material: str, hide_robot: bool = True) -> str | None:
+    """Why the raycast engine would not give what Cycles gives for these settings (one sentence
+    naming what to change), or None. It computes Cycles' image under the paper's ideal
+    conditions only: the gobo laser the only light, diffuse surfaces, no bounces, one point
+    sample per pixel, no motion blur, the robot left out."""
+    from ..optics.albedo import DIFFUSE_SURFACES
+
+    why = laser_engine_mismatch("raycast", settings.laser)
+    if why:
+        return why
+    if settings.bounces > 0:
+        return f"{settings.bounces} light bounces need light transport: set bounces = 0 or use engine cycles"
+    if settings.ambient > 0:
+        return f"ambient light {settings.ambient:g} needs light transport: set ambient = 0 or use engine cycles"
+    if settings.samples != 1 or settings.filter_width_px > 0.01:
+        return (f"it samples each pixel once at its centre; {settings.samples} samples with a "
+                f"{settings.filter_width_px:g} px filter (a sensor that integrates its pixels) need engine cycles")
+    if settings.motion_blur_shutter > 0:
+        return "motion during the exposure needs engine cycles"
+    if material not in DIFFUSE_SURFACES:
+        return f"the {material} surface is not diffuse ({', '.join(DIFFUSE_SURFACES)} are): use engine cycles"
+    if not hide_robot:
+        return "it leaves the robot out of the probe images: set leave_out.hide_robot = true or use engine cycles"
+    return None
 
 
 def with_sensor(settings, sensor):

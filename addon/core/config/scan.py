@@ -65,7 +65,8 @@ from ..errors import ConfigError, InputError
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
 from ..optics.probe import Probe
-from .render import DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions, laser_engine_mismatch
+from .render import (DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions, laser_engine_mismatch,
+                     raycast_mismatch, with_sensor)
 from .rigs import load_probe
 from ..optics.sensor import SensorModel
 from ..optics.profile_filter import ProfileFilter
@@ -175,8 +176,12 @@ class ScanConfig:
 
     @property
     def cell(self) -> Cell:
-        """The robot carrying this probe (its mount as the tool) and the table."""
-        return Cell(self.robot.with_tool(self.probe.mount), self.table)
+        """The robot carrying this probe (its mount as the tool) and the table (built once per
+        config: a step-by-step scanner asks for it at every measurement)."""
+        cell = self.__dict__.get("_cell")
+        if cell is None:
+            cell = self.__dict__["_cell"] = Cell(self.robot.with_tool(self.probe.mount), self.table)
+        return cell
 
     def with_realism(self, sensor: SensorModel, material: str | None = None, roughness: float | None = None,
                      ambient: float | None = None) -> "ScanConfig":
@@ -194,6 +199,13 @@ class ScanConfig:
                        material=self.material if material is None else material,
                        roughness=self.roughness if roughness is None else float(roughness))
 
+    def raycast_refusal(self) -> str | None:
+        """With engine raycast: why this scan needs Cycles instead (see
+        :func:`~addon.core.config.render.raycast_mismatch`), else None."""
+        if self.render.engine != "raycast":
+            return None
+        return raycast_mismatch(with_sensor(self.render, self.sensor), self.material, self.leave_out.hide_robot)
+
     def with_overrides(self, *, engine=None, samples=None, resolution=None, detect=None, frames=None,
                        device=None) -> "ScanConfig":
         """A copy with command-line overrides applied; ``frames`` is a slice of the path."""
@@ -207,9 +219,12 @@ class ScanConfig:
             if engine not in ENGINES:
                 raise InputError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
             laser = render.laser
-            if (laser, engine) in (("gobo", "eevee"), ("spot", "cycles")):  # each engine's own Gaussian line
+            if laser_engine_mismatch(engine, laser) and laser != "slit":  # each engine's own Gaussian line
                 laser = DEFAULT_LASER[engine]
             render = replace(render, engine=engine, laser=laser)
+            why = replace(cfg, render=render).raycast_refusal()
+            if why:
+                raise InputError(f"--engine raycast: {why}")
         if samples is not None:
             if not 1 <= samples <= 65536:
                 raise InputError(f"--samples must be in [1, 65536], got {samples}")
@@ -354,7 +369,11 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     cfg = ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
                      detect, tri_method, fuse, leave_out, cov, description, profile_filter=profile_filter,
                      safety=safety, fixtures=fixtures, adaptive=adaptive)
-    return cfg.with_realism(sensor, material, roughness)
+    cfg = cfg.with_realism(sensor, material, roughness)
+    why = cfg.raycast_refusal()
+    if why:
+        raise ConfigError(f"{path}: render.engine raycast: {why}")
+    return cfg
 
 
 def _adaptive(t: Table) -> AdaptiveSettings:

@@ -150,6 +150,27 @@ class LineDetection:
         return {c.name: int(np.sum(self.code == c)) for c in LineCode if np.any(self.code == c)}
 
 
+CUT_SHARE = 1e-5
+
+
+# -- small helpers (numpy's clip and median cost more in their argument checks than in their work
+# on a line's few hundred columns, and detection calls them dozens of times a frame) ------------
+
+def _clamp(x, lo, hi):
+    """np.clip(x, lo, hi) for numbers and arrays of numbers."""
+    return np.minimum(np.maximum(x, lo), hi)
+
+
+def _median(a: np.ndarray) -> float:
+    """np.median of a non-empty 1-D array of finite numbers."""
+    n = a.size
+    k = n // 2
+    if n % 2:
+        return float(np.partition(a, k)[k])
+    part = np.partition(a, (k - 1, k))
+    return float(0.5 * (part[k - 1] + part[k]))
+
+
 # -- input ------------------------------------------------------------------------------
 
 def _prepare(image) -> tuple[np.ndarray, np.ndarray | None, float]:
@@ -232,17 +253,21 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
     code[(code == 0) & _wider_than_the_line(width, code, p)] = LineCode.TOO_WIDE
     shape = width / 2.355 if p.flat_top else _profile_sigma(S, r, cols)
     shape_ok = (code == 0) & np.isfinite(shape)
-    shape_median = float(np.median(shape[shape_ok])) if shape_ok.sum() >= 8 else np.nan
+    shape_median = _median(shape[shape_ok]) if shape_ok.sum() >= 8 else np.nan
     if p.min_width_ratio is not None and np.isfinite(shape_median):
         code[(code == 0) & ~(shape >= p.min_width_ratio * shape_median)] = LineCode.EDGE
     code[(code == 0) & _saturated(C if rgb is None else rgb, r, p)] = LineCode.SATURATED
     code[(code == 0) & _second_peak(S, r, peak if S is C else S[r, cols], width, p)] = LineCode.AMBIGUOUS
 
-    rr = np.clip(r, 1, H - 2)
+    rr = _clamp(r, 1, H - 2)
     if method == "gauss":
-        # A neighbour with no light at all: the line is cut there (a depth edge), and
-        # the three-point fit has nothing to fit on that side.
-        cut = (S[rr - 1, cols] <= 0) | (S[rr + 1, cols] <= 0)
+        # A neighbour with no light to speak of: the line is cut there (a depth edge), and the
+        # three-point fit has nothing to fit on that side. "None to speak of" is below
+        # CUT_SHARE of the peak, not 0: a renderer's tail of the Gaussian far beyond the edge
+        # (1e-45 in Cycles) is no light either; a whole line's neighbour, a pixel from its peak,
+        # is at least that bright down to a line σ of 0.2 px.
+        floor = CUT_SHARE * S[rr, cols]
+        cut = (S[rr - 1, cols] <= floor) | (S[rr + 1, cols] <= floor)
         code[(code == 0) & cut] = LineCode.EDGE
     ok = code == 0
     row = np.full(W, np.nan)
@@ -266,7 +291,7 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
 def _window(C: np.ndarray, r: np.ndarray, half: int) -> np.ndarray:
     """(2·half + 1, W) samples of each column around row r (edge rows repeated)."""
     H, W = C.shape
-    rows = np.clip(r[None, :] + np.arange(-half, half + 1)[:, None], 0, H - 1)
+    rows = _clamp(r[None, :] + np.arange(-half, half + 1)[:, None], 0, H - 1)
     return C[rows, np.arange(W)[None, :]]
 
 
@@ -295,7 +320,7 @@ def _saturated(img, r, p: DetectParams) -> np.ndarray:
     cols = np.arange(W)
     hit = np.zeros(W, dtype=bool)
     for k in (-1, 0, 1):
-        rows = np.clip(r + k, 0, H - 1)
+        rows = _clamp(r + k, 0, H - 1)
         v = img[rows, cols]
         hit |= (v.max(axis=-1) if v.ndim == 2 else v) >= level * (1 - 1e-6)
     return hit
@@ -362,7 +387,7 @@ THRESHOLD_SIGMA_PX = 0.5 / np.sqrt(3.0)  # the mean of two ends each uniform ove
 def _profile_sigma(S: np.ndarray, r: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """σ₃ (W,) px: the width of a Gaussian through the peak sample and its two neighbours
     (NaN where the three do not make a peak)."""
-    lm, l0, lp = _log_samples(S, np.clip(r, 1, S.shape[0] - 2), cols)
+    lm, l0, lp = _log_samples(S, _clamp(r, 1, S.shape[0] - 2), cols)
     den = (lm - l0) + (lp - l0)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(den < 0, np.sqrt(-1.0 / den), np.nan)
@@ -375,7 +400,7 @@ def _image_noise(C: np.ndarray, p: DetectParams) -> float:
     if dark.size < 16:
         return 0.0
     dark = dark[:: max(1, dark.size // 20000)]
-    return float(1.4826 * np.median(np.abs(dark - np.median(dark))))
+    return 1.4826 * _median(np.abs(dark - _median(dark)))
 
 
 def _local_median(values: np.ndarray, ok: np.ndarray, n: int) -> np.ndarray:
@@ -407,7 +432,7 @@ def _skew_shift(S: np.ndarray, r: np.ndarray, cols: np.ndarray, line_sigma_px: f
     H = S.shape[0]
     half = max(2, int(np.ceil(SKEW_WINDOW_SIGMAS * line_sigma_px)))
     offsets = np.arange(-half, half + 1, dtype=np.float64)[:, None]
-    rows = np.clip(r[None, :] + np.arange(-half, half + 1)[:, None], 0, H - 1)
+    rows = _clamp(r[None, :] + np.arange(-half, half + 1)[:, None], 0, H - 1)
     # Within `half` rows of the image's first or last row the sensor cuts a tail off, which
     # would read as asymmetry (and a shrunken window misreads a whole Gaussian by up to 0.1 px):
     # there the asymmetry is not measured (0).
@@ -429,16 +454,17 @@ def _centre_sigma(C, S, r, cols, shape, shape_median, p: DetectParams) -> np.nda
     asymmetry shows (:func:`_skew_shift`: the strip bent across the line), the image noise
     through the three-point fit, and a floor, added in quadrature."""
     H = S.shape[0]
-    rr = np.clip(r, 1, H - 2)
+    rr = _clamp(r, 1, H - 2)
     reference = _local_median(shape, np.isfinite(shape), LOCAL_WIDTH_COLUMNS)
     line_sigma = shape_median if np.isfinite(shape_median) else 1.0
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         flanks = 0.5 * np.abs(reference ** 2 / shape ** 2 - 1.0)
         noise = _image_noise(C, p)
         fit = 0.5 * line_sigma ** 2 * noise * np.hypot(1.0 / S[rr - 1, cols], 1.0 / S[rr + 1, cols])
-    flanks = np.minimum(np.nan_to_num(flanks, nan=0.5, posinf=0.5), 0.5)
-    fit = np.minimum(np.nan_to_num(fit, nan=0.5, posinf=0.5), 0.5)
-    skew = np.minimum(np.nan_to_num(_skew_shift(S, r, cols, line_sigma), nan=0.5, posinf=0.5), 0.5)
+    # each at most 0.5 px, NaN (no measure) counting as 0.5: fmin keeps the number where one is NaN
+    flanks = np.fmin(flanks, 0.5)
+    fit = np.fmin(fit, 0.5)
+    skew = np.fmin(_skew_shift(S, r, cols, line_sigma), 0.5)
     return np.minimum(np.sqrt(CENTRE_FLOOR_PX ** 2 + flanks ** 2 + skew ** 2 + fit ** 2), 0.5)
 
 
@@ -446,7 +472,7 @@ def _wider_than_the_line(width: np.ndarray, code: np.ndarray, p: DetectParams) -
     ok = (code == 0) & np.isfinite(width)
     if p.max_width_ratio is None or ok.sum() < 8:
         return np.zeros(len(width), bool)
-    return width > p.max_width_ratio * float(np.median(width[ok]))
+    return width > p.max_width_ratio * _median(width[ok])
 
 
 def _smoothing(C: np.ndarray, p: DetectParams) -> float:
@@ -471,7 +497,7 @@ def _smoothing(C: np.ndarray, p: DetectParams) -> float:
     w = w[np.isfinite(w)]
     if not w.size:
         return 0.8
-    sigma_line = float(np.median(w)) / 2.355
+    sigma_line = _median(w) / 2.355
     if p.flat_top:
         return max(0.8, sigma_line)
     return sigma_line if sigma_line >= NARROW_LINE_SIGMA_PX else 0.0
@@ -489,7 +515,7 @@ def _steger(C, S, r, sig: float) -> np.ndarray:
     peak, then Newton on the smoothed profile."""
     H, W = C.shape
     cols = np.arange(W)
-    cl, cr = np.clip(cols - 1, 0, W - 1), np.clip(cols + 1, 0, W - 1)
+    cl, cr = _clamp(cols - 1, 0, W - 1), _clamp(cols + 1, 0, W - 1)
     s = lambda dr, cc: S[r + dr, cc].astype(np.float64)  # noqa: E731
     syy = s(1, cols) - 2 * s(0, cols) + s(-1, cols)
     sxx = s(0, cr) - 2 * s(0, cols) + s(0, cl)
@@ -515,7 +541,7 @@ def _steger(C, S, r, sig: float) -> np.ndarray:
         d2 = np.sum(win * ((x * x - 1.0) / sig ** 2) * g, axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
             step = np.where(d2 < 0, -d1 / d2, 0.0)
-        v = v + np.clip(step, -0.5, 0.5)
+        v = v + _clamp(step, -0.5, 0.5)
     ok = ridge & (np.abs(v) <= 1.0)
     return np.where(ok, v, np.nan)  # from the peak row
 

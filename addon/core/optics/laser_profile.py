@@ -1,4 +1,11 @@
-"""The laser line's profile across the line, built from spot lights (for Eevee).
+"""The laser line: its power, its Gaussian profile across the line, and that profile built
+from spot lights (for Eevee).
+
+Power: a Lambertian surface of albedo ρ at distance r lit head-on by a point light
+of power P has radiance ρ·P / (4π·π·r²) (Cycles rates its spot lights like point
+lights). :func:`laser_power_w` inverts that to put the line's peak at a chosen
+level of the film at mid-range; Blender's lights (``addon/scene/laser.py``) and the
+ray-cast engine (``addon/core/optics/raycast.py``) both take their power from it.
 
 The probe's line is a Gaussian across its width: intensity exp(−v²/2) at v line σ
 from the laser plane. Cycles renders that exactly with a gobo (a node tree on the
@@ -41,6 +48,36 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from .albedo import WORKPIECE_GREY
+
+LASER_RGB = (1.0, 0.0, 0.0)  # the laser's colour in the render (the detector reads red against green and blue)
+
+
+def mid_range_mm(probe) -> float:
+    """The middle of the probe's measuring range (mm from the laser, along the beam)."""
+    z0, z1 = probe.z_range_mm
+    return 0.5 * (z0 + z1)
+
+
+def laser_power_w(probe, peak: float = 0.5, albedo: float = WORKPIECE_GREY, distance_mm: float | None = None) -> float:
+    """Light power (W) that puts the line peak at ``peak`` (linear film units) on a
+    head-on Lambertian surface of ``albedo`` (default: the grey workpiece's) at
+    ``distance_mm`` (default mid-range)."""
+    r = (distance_mm or mid_range_mm(probe)) * 1e-3
+    return float(peak * math.pi * r * r * 4.0 * math.pi / albedo)
+
+
+def angular_sigma_rad(probe) -> float:
+    """Gaussian σ of the line across the laser plane, as an angle: (1/e² width / 4) / mid-range."""
+    return probe.line_width_mm / 4.0 / mid_range_mm(probe)
+
+
+def gobo_strength(n_x, sigma_rad: float) -> np.ndarray:
+    """The gobo laser's strength for emission directions whose unit vector has ``n_x`` across
+    the laser plane (light frame): exp(−n_x² / 2σ²), 1 on the plane."""
+    n_x = np.asarray(n_x, dtype=np.float64)
+    return np.exp(-(n_x * n_x) / (2.0 * sigma_rad * sigma_rad))
 
 SPOT_STRETCH = 10.0  # the lights' scale along the line (s_y)
 # (share of the peak, edge of the squeezed cone in line σ, half the spot's cone angle in

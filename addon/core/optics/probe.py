@@ -137,8 +137,16 @@ class Probe:
         return math.atan((self.cols_px / 2.0) / self.f_px)
 
     def cam2probe(self, camera: int) -> np.ndarray:
-        """(4, 4) pose of camera 0 or 1 (OpenCV camera frame) in the probe frame."""
+        """(4, 4) pose of camera 0 or 1 (OpenCV camera frame) in the probe frame (read-only)."""
         _check_camera(camera)
+        cache = self.__dict__.setdefault("_cam2probe_cache", {})  # the probe is immutable: computed once
+        if camera not in cache:
+            pose = self._cam2probe(camera)
+            pose.setflags(write=False)
+            cache[camera] = pose
+        return cache[camera]
+
+    def _cam2probe(self, camera: int) -> np.ndarray:
         s, c = math.sin(self.phi_rad), math.cos(self.phi_rad)
         side = 1.0 if camera == 0 else -1.0
         z = np.array([-side * s, 0.0, c])          # optical axis, towards the laser plane

@@ -73,14 +73,14 @@ def incidence_deg(points: np.ndarray, col: np.ndarray, jump_deg: float = JUMP_DE
     y, z = points[:, 1], points[:, 2]
     dy, dz = np.diff(y), np.diff(z)
     rays = np.stack([y, z], axis=1)
-    rays /= np.maximum(np.linalg.norm(rays, axis=1), 1e-300)[:, None]
+    rays /= np.maximum(np.sqrt(np.einsum("ij,ij->i", rays, rays)), 1e-300)[:, None]
 
     def angle_to_rays(ty, tz, r):
         t = np.stack([ty, tz], axis=1)
-        t /= np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
+        t /= np.maximum(np.sqrt(np.einsum("ij,ij->i", t, t)), 1e-300)[:, None]
         # The surface normal is perpendicular to the tangent t; incidence = 90° − angle(t, ray).
         cos_t_ray = np.abs(np.sum(t * r, axis=1))
-        return np.degrees(np.arcsin(np.clip(cos_t_ray, 0.0, 1.0)))
+        return np.degrees(np.arcsin(np.minimum(np.maximum(cos_t_ray, 0.0), 1.0)))
 
     step_angle = angle_to_rays(dy, dz, 0.5 * (rays[1:] + rays[:-1]))
     jump = (np.diff(col) > 1.5) | (step_angle >= jump_deg)
