@@ -34,6 +34,7 @@ Progress = Callable[[str, int, int], None]
 
 CHUNK_SECONDS = 1.0  # a render call lasts about this long at most (see ScanRun._chunk_size)
 RAYCAST_DEVICE = "CPU (Embree ray casting)"
+RAYCAST_CHUNK_FRAMES = 32  # frames the raycast engine casts together (about 0.1 s of work)
 PIXELS_PER_SECOND = 4e5  # Cycles at one sample on two CPU cores, before the first call has been timed
 
 
@@ -167,6 +168,11 @@ class ScanRun:
         index = self.first + done
         t = time.perf_counter()
         frames = self.raycaster.render_frames(self.probe2table[done:done + size], self.plan.cameras)
+        if config.sensor.changes_images:
+            # The sensor's noise lands on dark rows too, and the detector reads the noise off
+            # rows away from the line: give it as many around the line as a Cycles band has.
+            pad = config.detect_params.window_px + config.leave_out.band_margin_px
+            frames = [_padded(pair, band, pad, config.probe.rows_px) for pair, band in frames]
         self.t_render += time.perf_counter() - t
         t = time.perf_counter()
         images = [self._sense(pair, band, index + i) for i, (pair, band) in enumerate(frames)]
@@ -242,6 +248,10 @@ class ScanRun:
         first call from the pixels it would render), so that a stop (Ctrl-C, the panel's Esc)
         takes effect within about that time."""
         chunk = self.config.leave_out.chunk_frames
+        if self.raycaster is not None:
+            # The config's chunk is a render call's (Blender's fixed cost per call); the raycast
+            # engine casts a chunk in one go per step, and a few milliseconds a frame let it take more.
+            chunk = max(chunk, RAYCAST_CHUNK_FRAMES)
         if self.done:
             per_frame = self.t_render / self.done
         elif self.config.render.engine == "eevee":
@@ -270,6 +280,21 @@ class ScanRun:
         device = RAYCAST_DEVICE if self.raycaster is not None else getattr(self.sc, "device_used", None)
         return assemble(self.config, self.plan, self.acc.cloud(), self.stats, self.timing, out_dir, self.t_all,
                         {"render_device": device})
+
+
+def _padded(pair, band: tuple[int, int], pad: int, rows_px: int):
+    """Band images (None where a camera was not rendered) with ``pad`` dark rows added above and
+    below (within the sensor), and their new band."""
+    r0, r1 = max(0, band[0] - pad), min(rows_px, band[1] + pad)
+    out = []
+    for img in pair:
+        if img is None:
+            out.append(None)
+            continue
+        big = np.zeros((r1 - r0,) + img.shape[1:], dtype=img.dtype)
+        big[band[0] - r0:band[1] - r0] = img
+        out.append(big)
+    return out, (r0, r1)
 
 
 def render_settings(config: ScanConfig) -> RenderOptions:

@@ -147,7 +147,8 @@ class LineDetection:
 
     def counts(self) -> dict[str, int]:
         """Number of columns per code, by name."""
-        return {c.name: int(np.sum(self.code == c)) for c in LineCode if np.any(self.code == c)}
+        n = np.bincount(np.asarray(self.code, dtype=np.intp), minlength=len(LineCode))
+        return {c.name: int(n[c]) for c in LineCode if n[c]}
 
 
 CUT_SHARE = 1e-5
@@ -393,10 +394,13 @@ def _profile_sigma(S: np.ndarray, r: np.ndarray, cols: np.ndarray) -> np.ndarray
         return np.where(den < 0, np.sqrt(-1.0 / den), np.nan)
 
 
-def _image_noise(C: np.ndarray, p: DetectParams) -> float:
+def _image_noise(C: np.ndarray, r: np.ndarray, p: DetectParams) -> float:
     """Standard deviation of the contrast where there is no line (robust: from the median
-    absolute deviation of the pixels below half the detection threshold)."""
-    dark = C[C < 0.5 * p.min_peak]
+    absolute deviation of the pixels below half the detection threshold, more than
+    ``window_px`` rows from their column's peak ``r``: the line's own flanks are not noise,
+    and how many of them an image holds depends on how many rows around the line it has)."""
+    far = np.abs(np.arange(C.shape[0])[:, None] - r[None, :]) > p.window_px
+    dark = C[far & (C < 0.5 * p.min_peak)]
     if dark.size < 16:
         return 0.0
     dark = dark[:: max(1, dark.size // 20000)]
@@ -459,7 +463,7 @@ def _centre_sigma(C, S, r, cols, shape, shape_median, p: DetectParams) -> np.nda
     line_sigma = shape_median if np.isfinite(shape_median) else 1.0
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         flanks = 0.5 * np.abs(reference ** 2 / shape ** 2 - 1.0)
-        noise = _image_noise(C, p)
+        noise = _image_noise(C, r, p)
         fit = 0.5 * line_sigma ** 2 * noise * np.hypot(1.0 / S[rr - 1, cols], 1.0 / S[rr + 1, cols])
     # each at most 0.5 px, NaN (no measure) counting as 0.5: fmin keeps the number where one is NaN
     flanks = np.fmin(flanks, 0.5)

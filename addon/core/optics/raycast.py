@@ -147,10 +147,12 @@ class RaycastScene:
         self.face_normals = np.concatenate([np.asarray(m.face_normals, dtype=np.float64) for m in meshes])
         # Per face: a corner and the edges from it (and the same of the corner normals), for
         # blending by barycentrics with few gathers.
-        self._corner0 = self.vertices[:, 0].copy()
-        self._edge1, self._edge2 = self.vertices[:, 1] - self._corner0, self.vertices[:, 2] - self._corner0
-        self._normal0 = self.normals[:, 0].copy()
-        self._normal1, self._normal2 = self.normals[:, 1] - self._normal0, self.normals[:, 2] - self._normal0
+        # (F, 18): corner 0, the edges to corners 1 and 2, and the same of the corner normals, side
+        # by side so that one gather per hit fetches all of them
+        c0, n0 = self.vertices[:, 0], self.normals[:, 0]
+        self._blend_table = np.ascontiguousarray(np.concatenate(
+            [c0, self.vertices[:, 1] - c0, self.vertices[:, 2] - c0, n0, self.normals[:, 1] - n0,
+             self.normals[:, 2] - n0], axis=1))
         self.albedo = np.concatenate([np.tile(np.asarray(rgb, dtype=np.float64), (len(m.faces), 1))
                                       for m, rgb in surfaces])
         whole = trimesh.util.concatenate(meshes)
@@ -234,14 +236,14 @@ class RaycastScene:
         out[near] = -np.einsum("ik,ikj->ij", w * below, nrm) * amount[near, None]
         return out
 
-    def points(self, face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Points (n, 3) mm at barycentrics u, v (of vertices 1 and 2) of faces ``face``."""
-        return _blend(self._corner0, self._edge1, self._edge2, face, u, v)
-
-    def shading_normals(self, face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The smooth shading normals (n, 3) there: the corners' normals blended, made unit."""
-        s = _blend(self._normal0, self._normal1, self._normal2, face, u, v)
-        return s / np.sqrt(np.einsum("ij,ij->i", s, s))[:, None]
+    def points_and_normals(self, face: np.ndarray, u: np.ndarray, v: np.ndarray):
+        """Points (n, 3) mm at barycentrics u, v (of vertices 1 and 2) of faces ``face``, and the
+        smooth shading normals (n, 3) there: the corners' normals blended, made unit."""
+        t = self._blend_table[face]
+        uu, vv = u[:, None], v[:, None]
+        P = t[:, 0:3] + t[:, 3:6] * uu + t[:, 6:9] * vv
+        N = t[:, 9:12] + t[:, 12:15] * uu + t[:, 15:18] * vv
+        return P, N / np.sqrt(np.einsum("ij,ij->i", N, N))[:, None]
 
 
 def visible_fan_half_angle(probe: Probe) -> float:
@@ -477,8 +479,7 @@ class RaycastRenderer:
         if not hit.size:
             return value, albedo
         fc, uu, vv, vw = face[hit], u[hit], v[hit], view[hit]
-        P = self.scene.points(fc, uu, vv)
-        N = self.scene.shading_normals(fc, uu, vv)
+        P, N = self.scene.points_and_normals(fc, uu, vv)
         Ng = self.scene.face_normals[fc].copy()
         back = np.einsum("ij,ij->i", Ng, d[hit]) > 0  # seen from behind: shaded from that side
         N[back] *= -1.0
@@ -506,11 +507,6 @@ class RaycastRenderer:
         value[hit] = light
         albedo[hit] = self.scene.albedo[fc]
         return value, albedo
-
-
-def _blend(base: np.ndarray, du: np.ndarray, dv: np.ndarray, face: np.ndarray, u: np.ndarray, v: np.ndarray):
-    """base + u·du + v·dv of faces ``face`` (n, 3): a value at the corners blended by barycentrics."""
-    return base[face] + du[face] * u[:, None] + dv[face] * v[:, None]
 
 
 def _ramp(counts: np.ndarray) -> np.ndarray:
