@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..core.optics.albedo import DIFFUSE_SURFACES, WORKPIECE_GREY
+from ..core.optics.surfaces import DIFFUSE_SURFACES, WORKPIECE_GREY
 from .compat import new_material
 
 

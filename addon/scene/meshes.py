@@ -8,10 +8,8 @@ import bpy
 import numpy as np
 import trimesh
 
+from ..core.optics.surfaces import SHARP_EDGE_DEG
 from .units import M_PER_MM
-
-# Edges where the faces meet at more than this are sharp (Blender's own "auto smooth" angle).
-SHARP_EDGE_DEG = 30.0
 
 
 def mesh_data(name: str, mesh: trimesh.Trimesh) -> bpy.types.Mesh:

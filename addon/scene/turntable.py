@@ -7,7 +7,7 @@ import numpy as np
 
 from ..core.kinematics.turntable import Turntable, table_top_mesh
 from ..core.geometry.workpiece import Workpiece
-from ..core.optics.albedo import TABLE_TOP
+from ..core.optics.surfaces import TABLE_TOP
 from .materials import diffuse, surface
 from .meshes import mesh_object
 from .units import to_blender

@@ -15,7 +15,7 @@ from addon.core.config.render import RenderOptions, raycast_mismatch
 from addon.core.config.rigs import load_probe
 from addon.core.errors import ConfigError, InputError
 from addon.core.kinematics.transforms import rot_x, rot_y, trans
-from addon.core.optics.albedo import TABLE_TOP, WORKPIECE_GREY
+from addon.core.optics.surfaces import TABLE_TOP, WORKPIECE_GREY
 from addon.core.optics.detect import DetectParams, detect_line
 from addon.core.optics.laser_profile import mid_range_mm
 from addon.core.optics.raycast import (DARK_SHARE, RaycastRenderer, RaycastScene, corner_normals,

@@ -6,7 +6,8 @@ bpy and what bpy itself needs, nothing of the project's, so the zip's own wheels
 what runs). In each, a subprocess with its own Blender user folder installs the zip,
 checks that the extension really is enabled (the installer reports FINISHED even when
 it refuses a package), builds the cell, renders the probe views, scans part of the
-demo through the panel's operator, then disables and removes it. The cloud is checked
+demo through the panel's operator and again with the raycast engine (the zip's Embree),
+then disables and removes it. The cloud is checked
 here against the exact sphere. A failure names the Blender release and the step.
 """
 
@@ -86,6 +87,14 @@ try:
     s.output_dir = scans
     check(bpy.ops.scanner.scan(frames="0:120:12") == {"FINISHED"}, "scanner.scan did not finish")
     out["cloud_object_points"] = len(bpy.data.objects["Scan cloud"].data.vertices)
+    out["step"] = "raycast scan (the zip's embreex in Blender's Python)"
+    api = importlib.import_module(module + ".addon")
+    rc = api.Scanner.from_config("demo", engine="raycast", frames=slice(0, 120, 12))
+    rc.run()
+    rc_result = rc.result()
+    out["raycast"] = {"points": len(rc_result.cloud.points), "rms_um": rc_result.report["error_um"]["rms_um"],
+                      "device": rc_result.report["render_device"]}
+    out["embreex_from_zip"] = Path(importlib.import_module("embreex").__file__).is_relative_to(local)
     out["step"] = "calibrate"
     calibrations = str(Path(scans).parent / "calibrations")
     check(bpy.ops.scanner.calibrate(config="demo", views=6, output_dir=calibrations) == {"FINISHED"},
@@ -157,6 +166,9 @@ def test_install_enable_scan_disable_uninstall(release, linux_zip, tmp_path):
     for view, eevee in zip(out["views"], out["eevee_views"]):
         assert eevee["size"] == [160, 160] and 0.8 < eevee["max"] / view["max"] < 1.25, f"{where}: {eevee} {view}"
     assert out["cloud_object_points"] > 500, where
+    # The raycast engine in Blender's own Python, from the zip's embreex: a cloud as good as Cycles'.
+    assert out["embreex_from_zip"] and out["raycast"]["device"].startswith("CPU (Embree"), f"{where}: {out['raycast']}"
+    assert out["raycast"]["points"] > 500 and out["raycast"]["rms_um"] < 25, f"{where}: {out['raycast']}"
     # ChArUco boards rendered and found inside each Blender: corners to a fraction of a pixel
     assert max(out["calibration_px"]) < 0.3 and out["calibration_field_um"] < 500, f"{where}: {out}"
     assert out["after_disable"] == {"scene_prop": False, "classes": [], "enabled": False}, where
@@ -178,5 +190,6 @@ def test_install_enable_scan_disable_uninstall(release, linux_zip, tmp_path):
           f"{out['views'][0]['max']:.3f} Cycles gobo, {out['eevee_views'][0]['max']:.3f} Eevee spots), scan of 10 demo frames "
           f"{len(points)} points, sphere RMS {np.sqrt(np.mean(error_um ** 2)):.1f} um "
           f"(max {np.abs(error_um).max():.1f} um), table |z| max {np.abs(on_table[:, 2]).max() * 1000:.1f} um; "
+          f"raycast scan {out['raycast']['points']} points, RMS {out['raycast']['rms_um']:.1f} um; "
           f"calibration from 6 poses {out['calibration_px'][0]:.3f}/{out['calibration_px'][1]:.3f} px, "
           f"{out['calibration_field_um']:.0f} um RMS on the laser plane")

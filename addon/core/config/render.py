@@ -89,7 +89,7 @@ def raycast_mismatch(settings: RenderOptions, material: str, hide_robot: bool = 
     naming what to change), or None. It computes Cycles' image under the paper's ideal
     conditions only: the gobo laser the only light, diffuse surfaces, no bounces, one point
     sample per pixel, no motion blur, the robot left out."""
-    from ..optics.albedo import DIFFUSE_SURFACES
+    from ..optics.surfaces import DIFFUSE_SURFACES
 
     why = laser_engine_mismatch("raycast", settings.laser)
     if why:

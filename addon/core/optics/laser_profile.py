@@ -49,7 +49,7 @@ import math
 
 import numpy as np
 
-from .albedo import WORKPIECE_GREY
+from .surfaces import WORKPIECE_GREY
 
 LASER_RGB = (1.0, 0.0, 0.0)  # the laser's colour in the render (the detector reads red against green and blue)
 

@@ -13,17 +13,20 @@ distance (m). This module computes exactly that, as Cycles does it:
 
 - shading normals are Blender's smooth ones: per face corner, the corner-angle weighted
   sum of the face normals around the vertex that are joined to it through smooth edges
-  (the cell's meshes mark edges sharper than 30° sharp, ``addon/scene/meshes.py``),
+  (the cell's meshes keep edges sharper than 30° sharp: ``surfaces.SHARP_EDGE_DEG``),
   blended across the triangle by its barycentric coordinates;
 - a surface seen from behind is shaded from that side (its normals turned round);
 - each pixel is sampled at one point: its centre moved by :data:`SAMPLE_OFFSET_PX`,
   where Cycles puts its one sample at the seed the scans use;
-- a shadow ray runs from the surface to the laser.
+- a shadow ray runs from the surface to the laser, skipping the face it leaves, and on
+  smooth-shaded triangles near the shadow terminator from where Cycles starts it
+  (:meth:`RaycastScene.terminator_offset`).
 
 Only the pixels that can hold light are cast, per column: the laser's fan is cast
-first (five fans across the plane, at −4 … +4 line σ), its hits are joined along each
-fan and projected into the camera, and every column gets the rows its segments cross,
-widened by :data:`WINDOW_MARGIN_ROWS`. A window whose end pixel is not dark (above
+first (three fans across the plane, at −3, 0 and +3 line σ, over the part of the plane
+the cameras can see), its hits are joined along each fan and projected into the camera,
+and every column gets the rows its segments cross, widened by
+:data:`WINDOW_MARGIN_ROWS`. A window whose end pixel is not dark (above
 :data:`DARK_SHARE` of its column's peak) grows until it is, so that the rest of the
 column is dark as in Cycles. The image returned is the band of rows holding all the
 windows; everything outside the windows is 0.
@@ -40,11 +43,10 @@ import numpy as np
 import trimesh
 
 from ..errors import InputError
-from .albedo import DIFFUSE_SURFACES, TABLE_TOP
+from .surfaces import DIFFUSE_SURFACES, SHARP_EDGE_DEG, TABLE_TOP
 from .laser_profile import LASER_RGB, angular_sigma_rad, gobo_strength, laser_power_w
 from .probe import Probe
 
-SHARP_EDGE_DEG = 30.0            # as the cell's Blender meshes (addon/scene/meshes.py)
 # Where Cycles' one sample per pixel falls, at seed 0 with a 0.01 px box filter, from the pixel centre
 # (OpenCV pixels: +u right, +v down); fitted to Cycles' images of a plane.
 SAMPLE_OFFSET_PX = (4.8e-4, -4.8e-4)
@@ -145,10 +147,8 @@ class RaycastScene:
         self.normals = np.concatenate([corner_normals(m) for m in meshes])
         self.vertex_normals = np.concatenate([vertex_normals(m) for m in meshes])
         self.face_normals = np.concatenate([np.asarray(m.face_normals, dtype=np.float64) for m in meshes])
-        # Per face: a corner and the edges from it (and the same of the corner normals), for
-        # blending by barycentrics with few gathers.
         # (F, 18): corner 0, the edges to corners 1 and 2, and the same of the corner normals, side
-        # by side so that one gather per hit fetches all of them
+        # by side, so that one gather per hit fetches what blending by barycentrics needs
         c0, n0 = self.vertices[:, 0], self.normals[:, 0]
         self._blend_table = np.ascontiguousarray(np.concatenate(
             [c0, self.vertices[:, 1] - c0, self.vertices[:, 2] - c0, n0, self.normals[:, 1] - n0,
@@ -219,10 +219,10 @@ class RaycastScene:
         """Where Cycles starts a shadow ray on a smooth-shaded triangle, relative to the hit point
         (n, 3) mm: near the shadow terminator (the light within ~6° of the triangle's plane,
         ``ng_l`` = N_g·L below 0.1) it lifts the point towards the smooth surface the normals
-        describe (the vertices' normals, which know nothing of sharp edges), by Hanika's offset (Ray Tracing Gems II, ch. 4): the point is pushed out of
-        each corner's tangent plane it lies below, and the pushes are blended by the
-        barycentric weights; full below N_g·L = 0.05, fading out by 0.1 (Blender's default
-        shadow terminator geometry offset, 0.1)."""
+        describe (the vertices' normals, which know nothing of sharp edges), by Hanika's offset
+        (Ray Tracing Gems II, ch. 4): the point is pushed out of each corner's tangent plane it
+        lies below, and the pushes are blended by the barycentric weights; full below
+        N_g·L = 0.05, fading out by 0.1 (Blender's default shadow terminator geometry offset)."""
         amount = np.clip(2.0 - 2.0 * ng_l / TERMINATOR_CUTOFF, 0.0, 1.0)
         out = np.zeros((len(face), 3))
         near = np.nonzero(amount > 0)[0]
@@ -243,7 +243,11 @@ class RaycastScene:
         uu, vv = u[:, None], v[:, None]
         P = t[:, 0:3] + t[:, 3:6] * uu + t[:, 6:9] * vv
         N = t[:, 9:12] + t[:, 12:15] * uu + t[:, 15:18] * vv
-        return P, N / np.sqrt(np.einsum("ij,ij->i", N, N))[:, None]
+        length = np.sqrt(np.einsum("ij,ij->i", N, N))
+        flat = length < 1e-12  # corners' normals that cancel (a folded mesh): the face's own normal
+        if flat.any():
+            N[flat], length[flat] = self.face_normals[face[flat]], 1.0
+        return P, N / length[:, None]
 
 
 def visible_fan_half_angle(probe: Probe) -> float:
