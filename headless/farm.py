@@ -57,7 +57,7 @@ def _clean_sys_path() -> None:
 def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, threads: int | None = None) -> dict:
     """On a worker: scan the shard's frames and write its file. Returns a short summary."""
     _clean_sys_path()
-    from addon.pipeline import ScanRun
+    from addon.pipeline import RAYCAST_DEVICE, ScanRun
 
     t = time.perf_counter()
     cell = _WORKER_CELL.get(fingerprint)  # (Blender cell, raycast renderer) built for an earlier shard
@@ -69,7 +69,8 @@ def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, th
         pass
     run.timing.update(render=run.t_render, detect=run.t_detect, triangulate=run.t_tri)
     cloud = run.acc.cloud()
-    shards.write(path, shard, cloud, run.stats, run.timing, fingerprint)
+    device = RAYCAST_DEVICE if run.raycaster is not None else getattr(run.scene_cell, "device_used", None)
+    shards.write(path, shard, cloud, run.stats, run.timing, fingerprint, device)
     return {"shard": shard.index, "points": len(cloud), "seconds": time.perf_counter() - t, "pid": os.getpid(),
             "reused_cell": cell is not None}
 
@@ -214,7 +215,9 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     for r in results:
         for k in ("scene", "render", "detect", "triangulate"):
             timing[k] = timing.get(k, 0.0) + float(r.timing.get(k, 0.0))
-    extra = {"farm": {"workers": None if scheduler else workers, "scheduler": address or scheduler,
+    devices = {r.render_device for r in results if r.render_device}
+    extra = {"render_device": ", ".join(sorted(devices)) if devices else None,
+             "farm": {"workers": None if scheduler else workers, "scheduler": address or scheduler,
                       "worker_addresses": worker_addresses, "shards": len(parts), "shard_frames": size, "computed": len(todo), "reused": reused,
                       "wall_s": round(wall, 4), "profiles_per_s_wall": n / wall if wall > 0 and todo else None}}
     return assemble(config, plan, cloud, stats, timing, out_dir, t_all, extra)

@@ -39,6 +39,17 @@ def test_two_workers_give_the_single_process_cloud_on_loopback_only(config, sing
     assert any("cell reused" in line for line in lines)  # a worker kept its scene between shards
 
 
+def test_the_raycast_engine_on_the_farm_gives_its_single_process_cloud(config, tmp_path):
+    rc = config.with_overrides(engine="raycast")
+    alone = run_scan(rc, None, write_outputs=False)
+    lines = []
+    res = farm.run_farm(rc, tmp_path / "out", workers=2, shard_frames=5, log=lines.append)
+    same_cloud(res.cloud, alone.cloud)
+    assert res.report["points_fused"] == alone.report["points_fused"] > 0  # the shards carry their counters
+    assert res.report["render_device"] == alone.report["render_device"] == "CPU (Embree ray casting)"
+    assert any("cell reused" in line for line in lines)  # a worker kept its ray-cast scene between shards
+
+
 def die_in_shard(index: int, marker: str):
     """A Dask worker plugin (the fault is the test's, not the farm's), defined here so that it
     travels to the workers by value: the worker that starts shard ``index`` dies after the

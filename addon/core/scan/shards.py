@@ -122,15 +122,19 @@ class ShardResult:
     cloud: Cloud
     stats: dict
     timing: dict
+    render_device: str | None = None
 
 
-def write(path: str | Path, shard: Shard, cloud: Cloud, stats: dict, timing: dict, scan_fingerprint: str) -> Path:
+def write(path: str | Path, shard: Shard, cloud: Cloud, stats: dict, timing: dict, scan_fingerprint: str,
+          render_device: str | None = None) -> Path:
     """Write a shard's result atomically, with its checksum."""
     arrays = {"points": cloud.points, "frame": cloud.frame, "camera": cloud.camera, "quality": cloud.quality,
               "band_rows": np.asarray(stats["band_rows"], dtype=np.int64)}
     meta = {"format": FORMAT, "fingerprint": scan_fingerprint, "start": shard.start, "stop": shard.stop,
             "columns": int(stats["columns"]), "valid": int(stats["valid"]), "rerendered": int(stats["rerendered"]),
             "codes": {k: int(v) for k, v in stats["codes"].items()},
+            "points_counts": {k: int(v) for k, v in stats.get("points", {}).items()},  # kept and dropped
+            "render_device": render_device,
             "timing": {k: float(v) for k, v in timing.items()}}
     meta["checksum"] = _checksum(arrays, meta)
     buf = io.BytesIO()
@@ -170,4 +174,6 @@ def read(path: str | Path, shard: Shard, scan_fingerprint: str) -> ShardResult:
     cloud = Cloud(arrays["points"], frames, arrays["camera"], arrays["quality"])
     stats = {"columns": meta["columns"], "valid": meta["valid"], "rerendered": meta["rerendered"],
              "codes": meta["codes"], "band_rows": arrays["band_rows"].tolist()}
-    return ShardResult(shard, cloud, stats, meta["timing"])
+    if meta.get("points_counts"):  # (shards written before this key, or with no points, have none)
+        stats["points"] = meta["points_counts"]
+    return ShardResult(shard, cloud, stats, meta["timing"], meta.get("render_device"))
