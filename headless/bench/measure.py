@@ -15,6 +15,8 @@ import time
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", default="demo", help="scan config (default demo)")
+    parser.add_argument("--engine", choices=("cycles", "raycast"), default="cycles",
+                        help="render engine (default cycles; raycast: Embree, without Blender)")
     parser.add_argument("--measures", type=int, default=30, help="measure() calls per round (default 30)")
     parser.add_argument("--rounds", type=int, default=3, help="rounds; medians count (default 3)")
     parser.set_defaults(run=run)
@@ -25,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
 
     batch, single = [], []
     for _ in range(args.rounds):
-        s = Scanner.from_config(args.config)
+        s = Scanner.from_config(args.config, engine=args.engine)
         report = s.run()
         t = report.time_s
         batch.append((t["render"] + t["detect"] + t["triangulate"]) / report.frames)
@@ -38,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
             times.append(time.perf_counter() - t0)
         single.append(statistics.median(times))
     b, m = statistics.median(batch), statistics.median(single)
-    print(f"Scanner.measure() against a batch frame ({args.config}, medians of {args.rounds} rounds; "
+    print(f"Scanner.measure() against a batch frame ({args.config}, {args.engine}, medians of {args.rounds} rounds; "
           "python -m headless bench measure)\n")
     print("| what | ms | × batch frame |")
     print("|---|---|---|")
