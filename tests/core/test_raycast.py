@@ -179,6 +179,27 @@ def test_windows_hold_all_the_light_a_full_frame_shows(parts, name):
             assert np.all(missed <= DARK_SHARE * peak[None, :] + 1e-12), (name, camera, missed.max())
 
 
+@pytest.mark.parametrize("tilt_deg", [60.0, 80.0, 86.0])
+def test_windows_hold_the_wide_line_on_a_plate_the_laser_grazes(tilt_deg):
+    """Turned about the line (the probe's y axis), the plate spreads the line across it (1/cos
+    of the tilt: ×14 at 86°), and the camera on the side it turns to sees it over dozens of
+    rows (27 at 86°; the other sees it edge on): the windows hold all of it."""
+    pose = trans(0, 0, 150.0) @ rot_y(math.radians(tilt_deg))
+    renderer = RaycastRenderer(PROBE, RaycastScene([(plate(pose), (WORKPIECE_GREY,) * 3)]))
+    (images, (r0, r1)), = renderer.render_frames(np.eye(4)[None], (0, 1))
+    lit_rows = []
+    for camera in (0, 1):
+        full = full_frame(renderer, np.eye(4), camera)
+        band = np.zeros_like(full)
+        band[r0:r1] = images[camera][..., 0]
+        cast = band > 0
+        np.testing.assert_allclose(band[cast], full[cast], rtol=1e-6)
+        column_peak = full.max(axis=0)[None, :]
+        assert np.all(full * ~cast <= DARK_SHARE * column_peak + 1e-12)
+        lit_rows.append(int((full > DARK_SHARE * column_peak).sum(axis=0).max()))
+    assert max(lit_rows) >= 5, lit_rows
+
+
 def test_the_fan_covers_what_the_cameras_see_of_the_laser_plane():
     """The fan's rays reach as far from the beam as the cameras can see: points of the laser
     plane a little inside that angle are on a sensor somewhere in the range, a little outside it

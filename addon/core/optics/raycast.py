@@ -56,7 +56,7 @@ FAN_RAYS_PER_PX = 1.0             # fan rays per pixel of the cameras' angular r
 DARK_SHARE = 1e-3                # a window's end pixel below this share of its column's peak is dark
 SHADOW_START_MM = 1e-3           # a shadow ray that met its own face goes on from this far past it
 TERMINATOR_CUTOFF = 0.1          # Blender's default shadow terminator geometry offset (objects' setting)
-MAX_GROWTH_STEPS = 200
+MAX_GROWTH_STEPS = 64              # windows double each step: far more than a sensor's height needs
 RAYS_PER_THREAD = 1000           # fewer rays than this a core are not worth a thread
 NEGLIGIBLE = 1e-7                # film units: light this faint is 0 (no shadow ray is cast for it)
 
@@ -363,8 +363,11 @@ class RaycastRenderer:
             if not (up.size or down.size):
                 break
             old_lo, old_hi = lo.copy(), hi.copy()
-            lo[up] = np.maximum(lo[up] - WINDOW_MARGIN_ROWS, 0)
-            hi[down] = np.minimum(hi[down] + WINDOW_MARGIN_ROWS, H - 1)
+            # each growth adds as many rows as the window has (a streak along a column, where the
+            # line grazes the surface, is reached in a few steps), at least WINDOW_MARGIN_ROWS
+            grow = np.maximum(hi - lo + 1, WINDOW_MARGIN_ROWS)
+            lo[up] = np.maximum(lo[up] - grow[up], 0)
+            hi[down] = np.minimum(hi[down] + grow[down], H - 1)
             top[up], bottom[down] = 0.0, 0.0
             grown = np.concatenate([up, down])
             first = np.concatenate([lo[up], old_hi[down] + 1])
