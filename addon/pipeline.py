@@ -277,9 +277,19 @@ class ScanRun:
     def finish(self, out_dir: str | Path | None) -> ScanResult:
         """Measure against the truth, build the report and (with ``out_dir``) write the files."""
         self.timing.update(render=self.t_render, detect=self.t_detect, triangulate=self.t_tri)
-        device = RAYCAST_DEVICE if self.raycaster is not None else getattr(self.sc, "device_used", None)
         return assemble(self.config, self.plan, self.acc.cloud(), self.stats, self.timing, out_dir, self.t_all,
-                        {"render_device": device})
+                        {"render_device": self.render_device})
+
+    @property
+    def render_device(self) -> str | None:
+        """What rendered the frames: the raycast engine, or the Blender cell's last render device."""
+        return render_device(self.raycaster, self.sc)
+
+
+def render_device(raycaster, scene_cell) -> str | None:
+    """The report's render device: the raycast engine's, or the Blender cell's last one (None
+    before it rendered)."""
+    return RAYCAST_DEVICE if raycaster is not None else getattr(scene_cell, "device_used", None)
 
 
 def _padded(pair, band: tuple[int, int], pad: int, rows_px: int):

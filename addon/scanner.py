@@ -480,7 +480,7 @@ class Scanner:
         report's dict, per-point error and part/table split, files), and with ``out_dir``
         written there; ``extra`` joins the report (an adaptive scan's sweeps). Kept until the
         next measurement, so report() after save() is free."""
-        from .pipeline import RAYCAST_DEVICE, Plan, assemble, merge_stats
+        from .pipeline import Plan, assemble, merge_stats, render_device
 
         import json
 
@@ -495,8 +495,7 @@ class Scanner:
         plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings),
                     PathClearance.merge(self._clearances) if self._clearances else None)
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
-                          {"render_device": RAYCAST_DEVICE if self._raycaster is not None
-                           else getattr(self._sc, "device_used", None), **extra})
+                          {"render_device": render_device(self._raycaster, self._sc), **extra})
         self._cached = (key, result)
         return result
 

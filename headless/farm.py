@@ -57,7 +57,7 @@ def _clean_sys_path() -> None:
 def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, threads: int | None = None) -> dict:
     """On a worker: scan the shard's frames and write its file. Returns a short summary."""
     _clean_sys_path()
-    from addon.pipeline import RAYCAST_DEVICE, ScanRun
+    from addon.pipeline import ScanRun
 
     t = time.perf_counter()
     cell = _WORKER_CELL.get(fingerprint)  # (Blender cell, raycast renderer) built for an earlier shard
@@ -69,8 +69,7 @@ def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, th
         pass
     run.timing.update(render=run.t_render, detect=run.t_detect, triangulate=run.t_tri)
     cloud = run.acc.cloud()
-    device = RAYCAST_DEVICE if run.raycaster is not None else getattr(run.scene_cell, "device_used", None)
-    shards.write(path, shard, cloud, run.stats, run.timing, fingerprint, device)
+    shards.write(path, shard, cloud, run.stats, run.timing, fingerprint, run.render_device)
     return {"shard": shard.index, "points": len(cloud), "seconds": time.perf_counter() - t, "pid": os.getpid(),
             "reused_cell": cell is not None}
 

@@ -151,7 +151,7 @@ class LineDetection:
         return {c.name: int(n[c]) for c in LineCode if n[c]}
 
 
-CUT_SHARE = 1e-5
+CUT_SHARE = 1e-5  # a peak's neighbour below this share of it is no light: the line is cut (gauss)
 
 
 # -- small helpers (numpy's clip and median cost more in their argument checks than in their work

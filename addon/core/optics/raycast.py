@@ -307,7 +307,7 @@ class RaycastRenderer:
         self.power_w = laser_power_w(probe, peak=laser_peak)
         self.sigma_rad = angular_sigma_rad(probe)
         self.cos_half_fan = math.cos(probe.fan_rad / 2.0)
-        # Along the fan, about two rays per pixel of the cameras' angular resolution (the segments
+        # Along the fan, FAN_RAYS_PER_PX rays per pixel of the cameras' angular resolution (the segments
         # between neighbouring hits cover the columns in between), over the part of the fan the
         # cameras can see: the laser plane inside their views is bounded by where their corner
         # pixels' rays meet it.
@@ -320,11 +320,6 @@ class RaycastRenderer:
                                    cb * np.sin(alpha)[None, :], cb * np.cos(alpha)[None, :]], axis=-1)  # (fans, k, 3)
         cx, cy = probe.principal_point
         self._cxy = (cx - SAMPLE_OFFSET_PX[0], cy - SAMPLE_OFFSET_PX[1])
-        self.rays_cast = 0
-
-    def render(self, probe2table: np.ndarray, cameras=(0, 1)) -> tuple[list[np.ndarray | None], tuple[int, int]]:
-        """One frame: see :meth:`render_frames`."""
-        return self.render_frames(np.asarray(probe2table, dtype=np.float64)[None], cameras)[0]
 
     def render_frames(self, probe2table: np.ndarray, cameras=(0, 1)
                       ) -> list[tuple[list[np.ndarray | None], tuple[int, int]]]:
@@ -417,7 +412,6 @@ class RaycastRenderer:
         d = self._fan_dirs.reshape(-1, 3)
         dirs = np.einsum("nij,kj->nki", R, d).reshape(-1, 3)
         face, _, _, dist = self.scene.first_hits(np.repeat(t, len(d), axis=0), dirs)
-        self.rays_cast += len(dirs)
         pts = np.tile(d, (len(R), 1)) * np.where(face >= 0, dist, np.nan)[:, None]
         return pts.reshape(len(R), *self._fan_dirs.shape)
 
@@ -481,7 +475,6 @@ class RaycastRenderer:
         d = cam2table[view, :3, 0] * x[:, None] + cam2table[view, :3, 1] * y[:, None] + cam2table[view, :3, 2]
         d /= np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
         face, u, v, _ = self.scene.first_hits(cam2table[view, :3, 3], d)
-        self.rays_cast += m
         hit = np.nonzero(face >= 0)[0]
         if not hit.size:
             return value, albedo
@@ -509,7 +502,6 @@ class RaycastRenderer:
             # Cycles' shadow ray skips the surface it leaves, except where the light is below
             # that triangle's plane and the start was lifted off it (then it is meant to hit it).
             blocked = self.scene.blocked(start, L[on], np.linalg.norm(laser[on] - start, axis=1), fc[on], ng_l > 0)
-            self.rays_cast += on.size
             light[on[blocked]] = 0.0
         value[hit] = light
         albedo[hit] = self.scene.albedo[fc]
