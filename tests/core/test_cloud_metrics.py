@@ -205,3 +205,23 @@ def test_coverage_of_the_measurable_surface_counts_only_what_the_laser_reaches()
     assert share == pytest.approx(0.51, abs=0.01)
     assert cov == pytest.approx(26 / 51, abs=0.01)
     assert coverage_of_measurable(cloud, square, np.zeros((0, 3)), 1.0) == (0.0, 0.0)
+
+
+def test_a_point_beside_a_sharp_edge_measures_its_own_face_not_the_one_beyond():
+    import trimesh
+
+    from addon.core.geometry.metrics import coverage, coverage_of_measurable
+
+    box = trimesh.creation.box(extents=(40.0, 40.0, 40.0))  # top at z = 20
+    g = np.arange(-19.9, 19.91, 0.25)
+    X, Y = np.meshgrid(g, g)
+    top = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, 20.0)])  # the laser reaches the top to 0.1 mm from its rim
+    cov, share = coverage_of_measurable(top, box, top, tolerance_mm=1.0, samples=60000)
+    # Only the top is measurable: 1/6 of the box, not the 1 mm bands of the four sides under its rim (+10 %).
+    assert share == pytest.approx(1 / 6, abs=0.006)
+    assert cov == pytest.approx(1.0, abs=1e-9)
+    # The same points cover the top and nothing of the sides.
+    assert coverage(top, box, tolerance_mm=1.0, samples=60000) == pytest.approx(1 / 6, abs=0.006)
+    # A point on a side face, 0.5 mm under the rim, covers that side's band and not the top.
+    side = np.column_stack([g, np.full(g.size, 20.0), np.full(g.size, 19.5)])
+    assert coverage(side, box, tolerance_mm=1.0, samples=60000) == pytest.approx(1.5 / 240, abs=0.002)

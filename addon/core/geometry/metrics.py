@@ -98,29 +98,72 @@ def evaluate(points, truth) -> ErrorStats:
     return error_stats(d, s)
 
 
+SAME_SURFACE_DEG = 30.0  # a point or hit counts for the surface around it only where their faces turn less than this
+
+
+def nearest_faces(points, mesh: trimesh.Trimesh) -> np.ndarray:
+    """Index (n,) of the mesh face closest to each point."""
+    P = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    if len(P) == 0:
+        return np.zeros(0, dtype=np.int64)
+    try:
+        import igl
+    except ImportError:
+        return np.asarray(trimesh.proximity.closest_point(mesh, P)[2], dtype=np.int64)
+    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    return np.asarray(igl.point_mesh_squared_distance(P, V, F)[1], dtype=np.int64).ravel()
+
+
+def _near_on_same_surface(surface, surface_face, points, mesh, tolerance_mm: float) -> np.ndarray:
+    """Per surface sample (m,): is one of ``points`` within ``tolerance_mm`` of it on the same
+    piece of surface (the faces nearest the sample and the point turn less than
+    SAME_SURFACE_DEG)? Across a sharp edge a point measures the face it lies on, not the
+    face beyond the edge: a laser hit on a block's top 0.3 mm from its rim says nothing
+    of the side below that rim."""
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros(len(surface), bool)
+    if len(P) == 0:
+        return out
+    near = cKDTree(P).query_ball_point(surface, r=tolerance_mm, return_sorted=False)
+    counts = np.fromiter((len(a) for a in near), dtype=np.int64, count=len(near))
+    if not counts.sum():
+        return out
+    which = np.repeat(np.arange(len(surface)), counts)
+    point = np.fromiter((i for a in near for i in a), dtype=np.int64, count=int(counts.sum()))
+    normals = mesh.face_normals
+    point_face = nearest_faces(P, mesh)
+    same = np.einsum("ij,ij->i", normals[point_face[point]], normals[surface_face[which]]) \
+        >= np.cos(np.radians(SAME_SURFACE_DEG))
+    out[np.unique(which[same])] = True
+    return out
+
+
 def coverage_of_measurable(points, mesh, reachable, tolerance_mm: float, samples: int = 20000,
                            seed: int = 0) -> tuple[float, float]:
     """(coverage, measurable share): of the mesh's surface within ``tolerance_mm`` of a
-    ``reachable`` point (where the path's laser can measure: see
-    ``footprint.measurable_points``), the fraction within ``tolerance_mm`` of a cloud point;
-    and that surface's share of the whole mesh. Both estimated from the same ``samples``
-    points drawn uniformly over the area (seeded); (0, 0) where nothing is measurable."""
+    ``reachable`` point on the same piece of surface (where the path's laser can measure:
+    see ``footprint.measurable_points``), the fraction within ``tolerance_mm`` of a cloud
+    point on the same piece of surface; and that surface's share of the whole mesh. Both
+    estimated from the same ``samples`` points drawn uniformly over the area (seeded);
+    (0, 0) where nothing is measurable. "The same piece of surface": see
+    :func:`_near_on_same_surface`."""
     mesh = _check_mesh(mesh)
-    surface, _ = trimesh.sample.sample_surface(mesh, samples, seed=seed)
+    surface, face = trimesh.sample.sample_surface(mesh, samples, seed=seed)
     R = np.asarray(reachable, dtype=np.float64).reshape(-1, 3)
     if len(R) == 0:
         return 0.0, 0.0
-    d_reach, _ = cKDTree(R).query(surface, k=1, distance_upper_bound=tolerance_mm)
-    measurable = np.isfinite(d_reach)
+    measurable = _near_on_same_surface(surface, face, R, mesh, tolerance_mm)
     P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if not measurable.any() or len(P) == 0:
         return 0.0, float(np.mean(measurable))
-    d, _ = cKDTree(P).query(surface[measurable], k=1, distance_upper_bound=tolerance_mm)
-    return float(np.mean(np.isfinite(d))), float(np.mean(measurable))
+    covered = _near_on_same_surface(surface[measurable], face[measurable], P, mesh, tolerance_mm)
+    return float(np.mean(covered)), float(np.mean(measurable))
 
 
 def coverage(points, mesh, tolerance_mm: float, samples: int = 20000, seed: int = 0) -> float:
-    """Fraction of the mesh's area that lies within ``tolerance_mm`` of some cloud point.
+    """Fraction of the mesh's area that lies within ``tolerance_mm`` of some cloud point on the
+    same piece of surface (see :func:`_near_on_same_surface`).
 
     Estimated from ``samples`` points drawn uniformly over the area (seeded).
     """
@@ -130,6 +173,5 @@ def coverage(points, mesh, tolerance_mm: float, samples: int = 20000, seed: int 
     P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if len(P) == 0:
         return 0.0
-    surface, _ = trimesh.sample.sample_surface(mesh, samples, seed=seed)
-    d, _ = cKDTree(P).query(surface, k=1, distance_upper_bound=tolerance_mm)
-    return float(np.mean(np.isfinite(d)))
+    surface, face = trimesh.sample.sample_surface(mesh, samples, seed=seed)
+    return float(np.mean(_near_on_same_surface(surface, face, P, mesh, tolerance_mm)))
