@@ -1,8 +1,9 @@
 """Adaptive scanning: the reference next-best-view planner, driving a Scanner step by step.
 
 It starts from what a real cell knows: the table, the robot, the probe and a bounding box of
-the part (never the part's mesh; a config's [[path]] entries are ignored). It then repeats:
-rank candidate sweeps by the new surface they would see per second of scanning, according
+the part (never the part's mesh; a config's [[path]] entries are ignored). It takes an
+overview pass (a table turn with the probe tilted, which sees the top and every side once),
+then repeats: rank candidate sweeps by the new surface they would see per second of scanning, according
 to what every laser ray so far has taught (core.scan.next_view over
 core.geometry.known_space); ask the Scanner whether the robot can do the best one (solved
 and collision-checked without moving: ``Scanner.plan_path``), else the next; scan it; add
@@ -79,21 +80,44 @@ class NextBestView:
         self.pool = next_view.candidates(scanner.config.cell, self.probe, lo, hi)
         self.impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
         self.refused: list[str] = []  # why, for the last decision
+        self.looked = False  # the overview pass has been chosen (or there was none to choose)
         # The cell builds its collision model once, at its first check: here, with the rest of
         # the set-up, rather than inside the first decision (the Scanner reads the part for it,
         # as a real cell's safety system knows its fixtures; the planner does not).
         scanner.prepare_checks()
 
     def choose(self, scanner, budget: int | None = None):
-        """The best candidate the robot can do from where it is now (checked without moving),
-        trying at most TRIES, each promising at least ``min_gain`` cells and fitting ``budget``
-        profiles; None where there is none."""
+        """The next view: first the overview (:meth:`overview`), then the best candidate the
+        robot can do from where it is now (checked without moving), trying at most TRIES, each
+        promising at least ``min_gain`` cells and fitting ``budget`` profiles; None where there
+        is none."""
         probe_now = scanner.pose("table")[:3, 3]
         live = [c for c in self.pool if c.key not in self.impossible]
+        self.refused = []
+        if not self.looked:
+            self.looked = True
+            first = self.overview(scanner, live, probe_now, budget)
+            if first is not None:
+                return first
         ranked = [c for c in next_view.rank(self.space, self.probe, live, scanner.table_deg, probe_now)
                   if c.gain >= self.min_gain and (budget is None or c.frames <= budget)]
-        self.refused = []
         for c in ranked[:TRIES]:
+            if self.feasible(scanner, c):
+                return c
+        return None
+
+    def overview(self, scanner, live, probe_now, budget):
+        """The overview pass, before anything is known: a full table turn with the probe at the
+        steepest tilt the robot can hold (45°, else 30°), which sees the part's top and every
+        side once. The gain cannot choose it: in an empty model every ray meets the unknown
+        where it enters the box, so every view's rays count alike, and a turn from straight
+        above, all of whose rays land on the box's top, outranks the tilted ones while it finds
+        only the faces that look up (on the step block 23 % of the part against 71 %).
+        None where no tilted turn fits the budget or the robot can do none."""
+        turns = [c for c in live if c.kind == "turn" and c.tilt_deg != 0.0
+                 and (budget is None or c.frames <= budget)]
+        ranked = next_view.rank(self.space, self.probe, turns, scanner.table_deg, probe_now)
+        for c in sorted(ranked, key=lambda c: (-abs(c.tilt_deg), -c.tilt_deg)):
             if self.feasible(scanner, c):
                 return c
         return None

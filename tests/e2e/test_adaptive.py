@@ -70,3 +70,32 @@ def test_the_planner_works_without_reading_the_part():
     steps = adaptive_scan(_Blindfolded(scanner), [-36.0, -36.0, 0.0], [36.0, 36.0, 66.0], max_profiles=150)
     assert steps and all(s.new_cells > 0 for s in steps)
     assert len(scanner.cloud) > 3000
+
+
+def test_the_overview_is_a_tilted_table_turn_and_finds_more_than_one_from_above():
+    """Before anything is known every view's rays meet the box alike, so the planner opens with
+    a table turn at its steepest tilt, which sees the step block's top and sides; scored
+    against the truth afterwards, it finds far more than the turn from straight above."""
+    from dataclasses import replace
+
+    from addon import Scanner
+    from addon.adaptive import NextBestView, part_box
+
+    config = load_scan_config("step_block")
+    config = replace(config, render=replace(config.render, engine="raycast"))
+    scanner = Scanner(config=config)
+    lo, hi = part_box(config)
+    planner = NextBestView(scanner, lo, hi)
+    first = planner.choose(scanner, 450)
+    assert first.kind == "turn" and abs(first.tilt_deg) == 45.0
+    above = next(c for c in planner.pool if c.kind == "turn" and c.tilt_deg == 0.0)
+    found = {}
+    for c in (first, above):
+        s = Scanner(config=config)
+        s.scan_path(c.waypoints())
+        found[c.tilt_deg] = s.result().report["coverage"]
+    assert found[first.tilt_deg] > 2.0 * found[0.0], found
+    # A budget too small for a turn: no overview, the gain's best sweep instead.
+    small = Scanner(config=config)
+    c = NextBestView(small, lo, hi).choose(small, 100)
+    assert c is not None and c.kind == "sweep"
