@@ -65,6 +65,13 @@ class SurfaceCaster:
         self.caster = _intersector(self.mesh)
 
 
+# A surface exactly at a range end must count as in range: the probe's pose comes from the
+# robot's joints and reads it 1e-13 mm off (a plate at 70 mm read 69.99999999999989 on one
+# machine and was refused), and Embree's hits are single precision (about 1e-5 mm at this
+# range). The range test allows this much.
+RANGE_SLACK_MM = 1e-3
+
+
 def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.Trimesh] | SurfaceCaster,
                     rays: int = 65) -> Footprint:
     """Cast the laser fan for frames with probe poses ``probe2table`` (n, 4, 4) against ``meshes``
@@ -82,7 +89,7 @@ def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.
     depth = (dist.reshape(n, rays) * np.cos(alpha)[None, :])
     z0, z1 = probe.z_range_mm
     with np.errstate(invalid="ignore"):
-        in_range = (depth >= z0) & (depth <= z1)
+        in_range = (depth >= z0 - RANGE_SLACK_MM) & (depth <= z1 + RANGE_SLACK_MM)
     points = origins + dirs * dist[:, None]  # table frame; NaN where no hit
     seen = np.zeros((n, 2), dtype=int)
     rows = np.full((n, 2, 2), np.nan)
@@ -155,7 +162,8 @@ def measurable_hits(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCast
         frame = ray // rays
         depth = np.einsum("ij,ij->i", pts - origins[ray], R[frame][:, :, 2])  # along the beam (probe z)
         facing = -np.einsum("ij,ij->i", dirs[ray], normals[tri])
-        keep = (tri < part_faces) & (depth >= z0) & (depth <= z1) & (facing >= cos_limit - 1e-12)
+        keep = ((tri < part_faces) & (depth >= z0 - RANGE_SLACK_MM) & (depth <= z1 + RANGE_SLACK_MM)
+                & (facing >= cos_limit - 1e-12))
         pts, frame = pts[keep], frame[keep]
         if not len(pts):
             continue
