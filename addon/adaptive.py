@@ -3,8 +3,8 @@
 It starts from what a real cell knows: the table, the robot, the probe and a bounding box of
 the part (never the part's mesh; a config's [[path]] entries are ignored). It takes an
 overview pass (a table turn with the probe tilted, which sees the top and every side once),
-then repeats: rank candidate sweeps by the new surface they would see per second of scanning, according
-to what every laser ray so far has taught (core.scan.next_view over
+then repeats: rank candidate sweeps by the new surface they would see per second of
+scanning, according to what every laser ray so far has taught (core.scan.next_view over
 core.geometry.known_space); ask the Scanner whether the robot can do the best one (solved
 and collision-checked without moving: ``Scanner.plan_path``), else the next; scan it; add
 its profiles to the model. It stops when no candidate promises ``min_gain`` new cells, when
