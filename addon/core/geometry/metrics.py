@@ -80,17 +80,31 @@ def mesh_distances(points: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarra
     try:
         import igl
     except ImportError:
-        _, dist, _ = trimesh.proximity.closest_point(mesh, P)
-        return np.asarray(dist), None
-    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+        return _closest_faces(P, mesh)[0], None
     if mesh.is_watertight and mesh.is_winding_consistent:
         # A closed, consistently wound mesh: the pseudonormal sign is exact (the fast winding
         # number's distances are approximate, up to 37 µm off on a box).
+        V, F = _igl_mesh(mesh)
         signed = np.asarray(igl.signed_distance(P, V, F, sign_type=igl.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)[0])
         return np.abs(signed), signed
-    d2 = np.asarray(igl.point_mesh_squared_distance(P, V, F)[0])
-    return np.sqrt(np.maximum(d2, 0.0)), None
+    return _closest_faces(P, mesh)[0], None
+
+
+def _igl_mesh(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    return (np.ascontiguousarray(mesh.vertices, dtype=np.float64),
+            np.ascontiguousarray(mesh.faces, dtype=np.int64))
+
+
+def _closest_faces(P: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    """(unsigned distance (n,) mm, index (n,) of the closest face) of points P (n, 3) to a
+    mesh: libigl's AABB tree, or trimesh's proximity query where libigl is missing."""
+    try:
+        import igl
+    except ImportError:
+        _, dist, face = trimesh.proximity.closest_point(mesh, P)
+        return np.asarray(dist), np.asarray(face, dtype=np.int64)
+    d2, face = igl.point_mesh_squared_distance(P, *_igl_mesh(mesh))[:2]
+    return np.sqrt(np.maximum(np.asarray(d2), 0.0)), np.asarray(face, dtype=np.int64).ravel()
 
 
 def evaluate(points, truth) -> ErrorStats:
@@ -106,13 +120,7 @@ def nearest_faces(points, mesh: trimesh.Trimesh) -> np.ndarray:
     P = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
     if len(P) == 0:
         return np.zeros(0, dtype=np.int64)
-    try:
-        import igl
-    except ImportError:
-        return np.asarray(trimesh.proximity.closest_point(mesh, P)[2], dtype=np.int64)
-    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-    return np.asarray(igl.point_mesh_squared_distance(P, V, F)[1], dtype=np.int64).ravel()
+    return _closest_faces(P, mesh)[1]
 
 
 def _near_on_same_surface(surface, surface_face, points, mesh, tolerance_mm: float) -> np.ndarray:
