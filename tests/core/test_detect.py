@@ -264,3 +264,48 @@ def test_a_strip_bent_across_the_line_states_the_shift_its_asymmetry_shows():
         assert np.all(err[at] <= 2.0 * line.sigma_px[at]), (k, err[at], line.sigma_px[at])
         assert mean_shift <= np.median(line.sigma_px[at]) <= 4.0 * mean_shift
     assert np.all(np.diff([np.median(line.sigma_px[c == k]) for k in np.unique(c)]) > 0)
+
+
+def test_a_line_widened_in_a_few_columns_keeps_a_small_sigma_and_one_cut_there_states_its_shift():
+    """Three samples cannot tell a strip that is wider on both sides from one cut on one side;
+    the light can. Where a crease turns the surface for three columns the strip's image is
+    wider there and whole (its light grows with its width): its centre stays on the line and
+    its σ stays small. Where an edge dims one side for three columns, light is lost: the
+    centre moves and the stated σ covers it."""
+    sigma = 0.7
+    centre = smooth_line(seed=5)
+    img = line_image(H, centre, sigma, background=0.0)
+    wide = line_image(H, centre, 1.3 * sigma, background=0.0)
+    spread = np.zeros(W, bool)
+    spread[[50, 51, 52, 120, 121, 122]] = True
+    img[:, spread] = wide[:, spread]
+    cut = np.zeros(W, bool)
+    cut[[80, 81, 82, 150, 151, 152]] = True
+    rows = np.arange(H)[:, None]
+    img[(rows > centre[None, :] + 0.3) & cut[None, :]] *= 0.2
+    line = detect_line(img, "gauss", DetectParams(min_width_ratio=None, smoothing_px=0.0))
+    assert line.valid[spread | cut].all()
+    err = np.abs(line.row - centre)
+    assert err[spread].max() < 0.02 and line.sigma_px[spread].max() < 0.03, (err[spread], line.sigma_px[spread])
+    assert err[cut].min() > 0.05  # the cut moves the fitted centre
+    assert np.all(err[cut] <= 2.0 * line.sigma_px[cut]), (err[cut], line.sigma_px[cut])
+
+
+@pytest.mark.parametrize("sigma", [0.6, 1.0, 2.0])
+def test_a_line_cut_on_one_side_at_any_depth_and_phase_states_a_sigma_that_covers_its_shift(sigma):
+    # Each column's line is cut (dimmed to nothing) beyond its own depth, 0.1 to 3 line σ from
+    # its centre, at its own sub-pixel phase; whole columns between them give the reference.
+    rng = np.random.default_rng(7)
+    centre = H / 2 + rng.uniform(-0.5, 0.5, W)
+    img = line_image(H, centre, sigma, background=0.0)
+    cut = np.zeros(W, bool)
+    cut[5::10] = True
+    depth = np.linspace(0.1, 3.0, cut.sum()) * sigma
+    rows = np.arange(H)[:, None]
+    hidden = (rows > centre[None, cut] + depth[None, :])
+    img[:, cut] = np.where(hidden[..., None], 0.0, img[:, cut])
+    line = detect_line(img, "gauss", DetectParams(min_width_ratio=None, smoothing_px=0.0))
+    at = cut & line.valid
+    assert at.sum() >= 0.4 * cut.sum()  # the shallowest cuts leave a neighbour dark: coded EDGE
+    err = np.abs(line.row - centre)
+    assert np.all(err[at] <= 2.0 * line.sigma_px[at]), (err[at], line.sigma_px[at])
