@@ -38,6 +38,20 @@ RAYCAST_CHUNK_FRAMES = 32  # frames the raycast engine casts together (about 0.1
 PIXELS_PER_SECOND = 4e5  # Cycles at one sample on two CPU cores, before the first call has been timed
 
 
+# Where a scan started without a progress callback reports after each chunk of frames:
+# nowhere, unless the process says otherwise. The command line sets its stop requests
+# (headless.lifecycle.StopRequests.progress) here, so that a benchmark's scans, which pass
+# none, stop at Ctrl-C after the frames being rendered, as a scan does.
+_default_progress: Progress | None = None
+
+
+def set_default_progress(progress: Progress | None) -> None:
+    """Report every scan that has no progress callback of its own to ``progress`` (None: to
+    nothing); a stop request it raises ends that scan after its current chunk."""
+    global _default_progress
+    _default_progress = progress
+
+
 def run_scan(config: ScanConfig, out_dir: str | Path | None, scene=None, progress: Progress | None = None,
              write_outputs: bool = True) -> ScanResult:
     """Scan as configured; write cloud.ply, report.json and preview.png into ``out_dir``.
@@ -102,7 +116,7 @@ class ScanRun:
         self.images: dict[int, list] | None = {} if keep_images else None
         self.timing: dict[str, float] = {}
         self.t_all = time.perf_counter()
-        self.progress = progress or (lambda stage, done, total: None)
+        self.progress = progress or _default_progress or (lambda stage, done, total: None)
 
         t = time.perf_counter()
         self.plan = plan_scan(config) if plan is None else plan  # refusals come before Blender is loaded

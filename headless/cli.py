@@ -138,15 +138,20 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    from addon import pipeline
+
     temp = PrivateTemp()
     args.stops = StopRequests(temp).install()
+    pipeline.set_default_progress(args.stops.progress)  # scans started without one (the benchmarks')
     try:
         return args.run(args)
     except ScannerError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USER_ERROR
     except Interrupted as exc:
-        print(exc.describe(), file=sys.stderr)
+        # A benchmark writes its figures and files once all is measured: none yet.
+        where = " of the scan under way: nothing written" if getattr(args, "bench", None) else ""
+        print(exc.describe() + where, file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
         print("interrupted (Ctrl-C)", file=sys.stderr)
@@ -158,3 +163,4 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         temp.close()  # a second Ctrl-C meanwhile still ends the process cleanly (exit 130)
         args.stops.restore()
+        pipeline.set_default_progress(None)

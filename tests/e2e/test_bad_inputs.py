@@ -542,6 +542,22 @@ def case_ctrl_c_farm(tmp):
     assert _temp_left(tmp) == []
 
 
+def case_ctrl_c_bench(tmp):
+    # A benchmark's scans pass no progress callback of their own; Ctrl-C still stops the one
+    # under way after its current frames, and nothing of the benchmark is written.
+    proc = _start(["bench", "parts", "--only", "hex nut,block with hole", "--frames", "24"], tmp)
+    _wait_for(proc, "block with hole and pocket:", stream="stdout")  # the first part is done
+    t = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=90)
+    assert proc.returncode == 130, stderr[-3000:]
+    last = stderr.strip().splitlines()[-1]
+    assert last.startswith("interrupted (Ctrl-C) after ") and "nothing written" in last, stderr[-3000:]
+    assert "hex nut:" not in stdout and "| part |" not in stdout  # the second part and the table never came
+    assert time.monotonic() - t < 20.0
+    assert "Traceback" not in stderr and _temp_left(tmp) == []
+
+
 def case_file_size_limit(tmp):
     import resource
 
@@ -576,8 +592,8 @@ def case_broken_pipe_free_exit_on_bad_config(tmp):
     assert proc.returncode == 2 and len(stderr.strip().splitlines()) == 1 and _temp_left(tmp) == []
 
 
-PROCESS_CASES = [case_ctrl_c_once, case_ctrl_c_twice, case_sigterm, case_ctrl_c_farm, case_file_size_limit,
-                 case_stale_temp_folders_are_removed, case_broken_pipe_free_exit_on_bad_config]
+PROCESS_CASES = [case_ctrl_c_once, case_ctrl_c_twice, case_sigterm, case_ctrl_c_farm, case_ctrl_c_bench,
+                 case_file_size_limit, case_stale_temp_folders_are_removed, case_broken_pipe_free_exit_on_bad_config]
 
 
 @pytest.mark.parametrize("case", PROCESS_CASES, ids=[c.__name__[5:] for c in PROCESS_CASES])
