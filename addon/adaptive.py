@@ -24,6 +24,7 @@ from .core.geometry.known_space import KnownSpace
 from .core.scan import next_view
 
 VOXEL_MM = 2.0
+OVERVIEW_MAX_TILT_DEG = 45.0  # steeper turns look at the sides and miss the top: not an overview
 MARGIN_MM = 6.0   # the model's box around the part's
 TRIES = 12        # candidates asked for reachability per decision, best first
 
@@ -108,13 +109,14 @@ class NextBestView:
 
     def overview(self, scanner, live, probe_now, budget):
         """The overview pass, before anything is known: a full table turn with the probe at the
-        steepest tilt the robot can hold (45°, else 30°), which sees the part's top and every
-        side once. The gain cannot choose it: in an empty model every ray meets the unknown
-        where it enters the box, so every view's rays count alike, and a turn from straight
-        above, all of whose rays land on the box's top, outranks the tilted ones while it finds
-        only the faces that look up (on the step block 23 % of the part against 71 %).
+        steepest tilt the robot can hold up to OVERVIEW_MAX_TILT_DEG (45°, else 30°), which
+        sees the part's top and every side once. The gain cannot choose it: in an empty model
+        every ray meets the unknown where it enters the box, so every view's rays count alike,
+        and a turn from straight above, all of whose rays land on the box's top, outranks the
+        tilted ones while it finds only the faces that look up (on the step block 23 % of the
+        part against 71 %).
         None where no tilted turn fits the budget or the robot can do none."""
-        turns = [c for c in live if c.kind == "turn" and c.tilt_deg != 0.0
+        turns = [c for c in live if c.kind == "turn" and 0.0 < abs(c.tilt_deg) <= OVERVIEW_MAX_TILT_DEG
                  and (budget is None or c.frames <= budget)]
         ranked = next_view.rank(self.space, self.probe, turns, scanner.table_deg, probe_now)
         for c in sorted(ranked, key=lambda c: (-abs(c.tilt_deg), -c.tilt_deg)):

@@ -4,7 +4,8 @@ Scanner over a part that only its bounding box reveals.
 - **action** ``MultiDiscrete([table angles, views, 2])``: a table angle (one of
   ``next_view.TABLE_STEPS``), a view (straight down, or tilted by one of the tilts from
   either side) and the kind (0 a sweep at that angle, 1 a full table turn from that view):
-  the candidates the reference planner chooses among.
+  the candidates the reference planner chooses among. Sweeps go no steeper than
+  ``next_view.MAX_SWEEP_TILT_DEG``; a steeper one is refused like a sweep the robot cannot do.
 - **observation** ``Dict(grid=Box(0, 2, (G, G, G), uint8), probe=Box((7,), float32))``: the
   known-space model (0 unknown, 1 free, 2 surface) resampled to G³ cells over the part's box,
   and the probe's position (mm, table frame), beam direction and the table angle / 360.
@@ -67,16 +68,20 @@ class ScanPlanningEnv(gym.Env):
 
     def step(self, action):
         table_step, view, kind = (int(a) for a in np.asarray(action).reshape(3))
-        c = self._by_key[self._key(table_step, view, kind)]
+        c = self._by_key.get(self._key(table_step, view, kind))
         self.steps += 1
-        info = {"sweep": c.describe(), "refused": None}
-        if c.frames > self.max_profiles - self.profiles:
+        if c is None:  # a sweep steeper than next_view.MAX_SWEEP_TILT_DEG: only table turns look that low
+            info = {"sweep": f"sweep at table {360.0 * table_step / next_view.TABLE_STEPS:.0f} deg, tilt "
+                             f"{self.tilts[view]:.0f} deg", "refused": "no sweep is that steep (only table turns)"}
             reward, learnt = -self.refusal_cost, 0
-            info["refused"] = "over the profile budget"
+        elif c.frames > self.max_profiles - self.profiles:
+            info = {"sweep": c.describe(), "refused": "over the profile budget"}
+            reward, learnt = -self.refusal_cost, 0
         elif not self.planner.feasible(self.scanner, c):
+            info = {"sweep": c.describe(), "refused": self.planner.refused[-1]}
             reward, learnt = -self.refusal_cost, 0
-            info["refused"] = self.planner.refused[-1]
         else:
+            info = {"sweep": c.describe(), "refused": None}
             seconds = next_view.seconds(c, self.scanner.table_deg, self.scanner.pose("table")[:3, 3])
             profiles, learnt = self.planner.scan(self.scanner, c)
             self.profiles += len(profiles)

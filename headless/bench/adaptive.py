@@ -5,8 +5,8 @@ Parts: the demo's sphere, the step block, and the real parts of ``bench parts`` 
 booleans and real meshes). Methods, each with ``--budget`` profiles:
 
 - **planner**: addon.adaptive (told only the part's box grown by 10 %);
-- **turns**: full table turns at three probe poses (from above, and 45° from either side
-  of the robot's reach), a third of the budget each: what an engineer sets up blind;
+- **turns**: full table turns at three probe heights (from above, 45° down at mid-height,
+  70° down low at the sides), a third of the budget each: what an engineer sets up blind;
 - **raster**: parallel sweeps straight down across the box at two table angles 90° apart.
 
 Coverage is of the whole part (the truth used only to score), after each sweep or pass.
@@ -114,6 +114,9 @@ def run_fixed(config, passes) -> dict:
                 measurable=r["coverage_measurable"])
 
 
+TURN_HEIGHTS = ((45.0, 0.5), (70.0, 0.3))  # (tilt from vertical, aim's share of the part's height)
+
+
 def turns(config, budget: int):
     from addon.core.kinematics import path as scanpath
 
@@ -124,10 +127,13 @@ def turns(config, budget: int):
     top = float(hi[2])
     n = max(1, budget // 3)
     out = [scanpath.turntable(n, [12.0, 0.0, top + STANDOFF_MM], table=config.table, segment=0)]
-    for k, side in enumerate((1.0, -1.0)):
-        a = math.radians(45.0)
-        beam = np.array([0.0, -side * math.sin(a), -math.cos(a)])
-        aim = np.array([0.0, side * 0.5 * radius, 0.5 * top])
+    # Two more heights, not the mirror of one: a turn 45° from one side sees, over its full
+    # circle, what the same turn from the other side sees (a first version spent its third
+    # pass so and added nothing).
+    for k, (tilt_deg, height) in enumerate(TURN_HEIGHTS):
+        a = math.radians(tilt_deg)
+        beam = np.array([0.0, -math.sin(a), -math.cos(a)])
+        aim = np.array([0.0, 0.5 * radius, height * top])
         out.append(scanpath.turntable(n, aim - STANDOFF_MM * beam, beam, (0.0, 0.0, 1.0), table=config.table,
                                       segment=k + 1))
     return out

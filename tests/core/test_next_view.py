@@ -18,8 +18,12 @@ def test_candidates_look_at_the_box_from_the_robots_side_within_the_probes_range
     cfg, lo, hi, _ = setup()
     cands = next_view.candidates(cfg.cell, cfg.probe, lo, hi)
     views = 1 + 2 * (len(next_view.TILTS_DEG) - 1)
-    assert sum(c.kind == "sweep" for c in cands) == next_view.TABLE_STEPS * views
+    swept = 1 + 2 * sum(0 < t <= next_view.MAX_SWEEP_TILT_DEG for t in next_view.TILTS_DEG)
+    assert sum(c.kind == "sweep" for c in cands) == next_view.TABLE_STEPS * swept
     assert sum(c.kind == "turn" for c in cands) == views
+    # A turn near the horizon (the sides, what hangs over them); no sweep that steep.
+    assert max(abs(c.tilt_deg) for c in cands if c.kind == "turn") >= 60
+    assert max(abs(c.tilt_deg) for c in cands if c.kind == "sweep") <= next_view.MAX_SWEEP_TILT_DEG
     z0, z1 = cfg.probe.z_range_mm
     centre = 0.5 * (lo + hi)
     for c in cands:

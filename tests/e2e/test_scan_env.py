@@ -36,3 +36,17 @@ def test_the_reference_planner_beats_random_sweeps_on_the_same_budget():
     rnd = coverage_curve(env, random_policy, seed=0)
     assert ref and ref[-1][1] > 0.4
     assert ref[-1][1] >= (rnd[-1][1] if rnd else 0.0)
+
+
+def test_a_sweep_steeper_than_any_the_planner_sweeps_is_refused_and_scans_nothing():
+    from addon.core.scan import next_view
+
+    env = ScanPlanningEnv("demo", max_profiles=150, max_steps=2)
+    obs, _ = env.reset(seed=0)
+    steep = [v for v, t in enumerate(env.tilts) if abs(t) > next_view.MAX_SWEEP_TILT_DEG]
+    assert steep  # the views reach lower than the sweeps do (table turns only there)
+    obs2, reward, _, _, info = env.step(np.array([0, steep[0], 0]))
+    assert reward == -env.refusal_cost and info["refused"] and info["profiles"] == 0
+    assert np.array_equal(obs2["grid"], obs["grid"])
+    # The same view as a table turn is one of the planner's candidates.
+    assert any(c.kind == "turn" and c.tilt_deg == env.tilts[steep[0]] for c in env.planner.pool)

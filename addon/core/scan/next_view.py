@@ -27,8 +27,9 @@ FRAME_S = 0.05            # one profile (the scanner's rate, about 20 profiles/s
 TABLE_DEG_PER_S = 45.0    # rotary table
 PROBE_MM_PER_S = 250.0    # probe travel between sweeps
 SPACING_MM = 1.5          # profile spacing along a sweep
-TILTS_DEG = (0.0, 30.0, 45.0)
+TILTS_DEG = (0.0, 30.0, 45.0, 70.0)  # 70°: near the horizon, the sides and what hangs over them
 TABLE_STEPS = 8
+MAX_SWEEP_TILT_DEG = 45.0  # steeper views are table turns only
 MAX_TURN_FRAMES = 180   # a table turn's profiles at most
 SAMPLE_FRAMES = 24        # frames of a candidate cast into the model (see rank)
 SAMPLE_RAYS = 17          # rays of the fan per cast frame
@@ -84,11 +85,13 @@ def robot_side(cell, table_deg: float) -> np.ndarray:
 def candidates(cell, probe: Probe, lo, hi) -> list[Candidate]:
     """Views of the box [lo, hi] (table frame, mm), the probe at mid-range:
 
-    - sweeps at TABLE_STEPS table angles × TILTS_DEG: straight down at the box's top
-      (moving across the robot's reach), or tilted from either side of the part as the robot
-      sees it (moving towards the robot, so the arm stays on its side), SPACING_MM apart;
-    - table turns: the probe still at each tilt (and side), the laser plane holding the
-      table's axis, the table turning a full circle in steps of SPACING_MM at the box's rim."""
+    - sweeps at TABLE_STEPS table angles × TILTS_DEG up to MAX_SWEEP_TILT_DEG: straight down
+      at the box's top (moving across the robot's reach), or tilted from either side of the
+      part as the robot sees it (moving towards the robot, so the arm stays on its side),
+      SPACING_MM apart;
+    - table turns: the probe still at each tilt (and side), 70° among them (aimed low: the
+      sides, and what hangs over them), the laser plane holding the table's axis, the table
+      turning a full circle in steps of SPACING_MM at the box's rim."""
     lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
     centre = 0.5 * (lo + hi)
     half = 0.5 * float(np.linalg.norm((hi - lo)[:2])) + 5.0
@@ -107,12 +110,14 @@ def candidates(cell, probe: Probe, lo, hi) -> list[Candidate]:
             for side in ([None] if tilt == 0.0 else [beside, -beside]):
                 beam = -math.cos(t) * up - (0.0 if side is None else math.sin(t)) * (s if side is None else side)
                 aim = centre.copy()
-                aim[2] = hi[2] if tilt == 0.0 else lo[2] + (hi[2] - lo[2]) * (0.7 if tilt < 40 else 0.5)
+                aim[2] = hi[2] if tilt == 0.0 else lo[2] + (hi[2] - lo[2]) * (0.7 if tilt < 40 else 0.5 if tilt < 60 else 0.3)
                 motion = beside if side is None else s
                 signed = tilt if side is None or side @ beside > 0 else -tilt
                 middle = aim - standoff * beam
-                wp = scanpath.sweep(frames, middle - half * motion, middle + half * motion, beam, table_rad=table_rad)
-                out.append(Candidate("sweep", table_deg, signed, wp))
+                if tilt <= MAX_SWEEP_TILT_DEG:
+                    wp = scanpath.sweep(frames, middle - half * motion, middle + half * motion, beam,
+                                        table_rad=table_rad)
+                    out.append(Candidate("sweep", table_deg, signed, wp))
                 if k == 0:  # a full turn looks the same from every start angle
                     # Aimed off the axis towards the probe's side (the near half of the part).
                     off = np.zeros(3) if side is None else 0.5 * half * side
