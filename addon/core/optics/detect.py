@@ -423,11 +423,11 @@ def _local_median(values: np.ndarray, ok: np.ndarray, n: int) -> np.ndarray:
 CUT_BOUND_MIN_SIGMA_PX = 0.5  # below this line σ a sliver of light cut at a flank sample moves the fit without bound
 
 
-def _cut_shift_bound(S: np.ndarray, r: np.ndarray, cols: np.ndarray, line_sigma_px: float,
-                     shape: np.ndarray) -> np.ndarray:
+def _cut_shift_bound(light: np.ndarray, line_sigma_px: float, shape: np.ndarray) -> np.ndarray:
     """(W,) px: the most a cut across the line can have moved each column's three-point
-    centre, from the share ε of light the column lacks against its neighbours (the median
-    over LOCAL_WIDTH_COLUMNS of the light within ±SKEW_WINDOW_SIGMAS line σ of the peak).
+    centre, from the share ε of light the column lacks against its neighbours: ``light``
+    (W,) is each column's light around its peak (:func:`_lit_window`), the reference its
+    median over LOCAL_WIDTH_COLUMNS.
 
     Three samples cannot tell a line cut on one side from one that is wider on both: each
     changes σ₃ and the fit alike, and the flank term states the shift a cut would make.
@@ -440,13 +440,8 @@ def _cut_shift_bound(S: np.ndarray, r: np.ndarray, cols: np.ndarray, line_sigma_
     of 0.5 px reaches 7.3ε against the bound's 6.8ε. A column with as much light as its
     neighbours has no cut to state; narrower lines, and columns whose light cannot be
     compared, keep the flank term whole (inf)."""
-    W = len(cols)
     if not (np.isfinite(line_sigma_px) and line_sigma_px >= CUT_BOUND_MIN_SIGMA_PX):
-        return np.full(W, np.inf)
-    H = S.shape[0]
-    half = max(2, int(np.ceil(SKEW_WINDOW_SIGMAS * line_sigma_px)))
-    rows = _clamp(r[None, :] + np.arange(-half, half + 1)[:, None], 0, H - 1)
-    light = np.maximum(S[rows, cols[None, :]], 0.0).sum(axis=0)
+        return np.full(len(light), np.inf)
     ok = np.isfinite(shape) & (light > 0)
     reference = _local_median(light, ok, LOCAL_WIDTH_COLUMNS)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -458,25 +453,31 @@ def _cut_shift_bound(S: np.ndarray, r: np.ndarray, cols: np.ndarray, line_sigma_
 SKEW_WINDOW_SIGMAS = 3.0  # the profile's moments are taken over ± this many line σ around the peak
 
 
-def _skew_shift(S: np.ndarray, r: np.ndarray, cols: np.ndarray, line_sigma_px: float) -> np.ndarray:
+def _lit_window(S: np.ndarray, r: np.ndarray, line_sigma_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """(row offsets (2h+1, 1), light (2h+1, W)): each column's contrast within
+    ±SKEW_WINDOW_SIGMAS line σ (at least ±2 rows) of its peak row ``r``, negatives as 0: what
+    the profile's moments (:func:`_skew_shift`) and its light (:func:`_cut_shift_bound`) are
+    read from."""
+    half = max(2, int(np.ceil(SKEW_WINDOW_SIGMAS * line_sigma_px)))
+    offsets = np.arange(-half, half + 1, dtype=np.float64)[:, None]
+    return offsets, np.maximum(_window(S, r, half), 0.0)
+
+
+def _skew_shift(offsets: np.ndarray, w: np.ndarray, r: np.ndarray, rows_px: int) -> np.ndarray:
     """(W,) px: how far the lit strip's curvature across the line moves each column's centre,
     read off the profile's asymmetry. The camera maps the strip's width x to rows as
     a·x + c·x² once the surface bends across the line (c from its curvature). For the
     strip's Gaussian of σ in x the image is skewed: its mean moves by c·σ², and its peak,
     which the three-point fit finds (the density φ(x)/|a + 2cx| is largest at
     x ≈ −2cσ²/a), by 2cσ² the other way. To first order in c, μ₃ = 6a²cσ⁴ and
-    var = a²σ², so the peak's shift is μ₃ / (3·var). Moments over ±SKEW_WINDOW_SIGMAS line
-    σ of the contrast around the peak row (wide enough that sampling a whole Gaussian
-    reads under 0.01 px); a symmetric profile gives 0."""
-    H = S.shape[0]
-    half = max(2, int(np.ceil(SKEW_WINDOW_SIGMAS * line_sigma_px)))
-    offsets = np.arange(-half, half + 1, dtype=np.float64)[:, None]
-    rows = _clamp(r[None, :] + np.arange(-half, half + 1)[:, None], 0, H - 1)
+    var = a²σ², so the peak's shift is μ₃ / (3·var). Moments of the window ``w`` around the
+    peak row (:func:`_lit_window`, wide enough that sampling a whole Gaussian reads under
+    0.01 px) of an image ``rows_px`` high; a symmetric profile gives 0."""
+    half = (len(offsets) - 1) // 2
     # Within `half` rows of the image's first or last row the sensor cuts a tail off, which
     # would read as asymmetry (and a shrunken window misreads a whole Gaussian by up to 0.1 px):
     # there the asymmetry is not measured (0).
-    whole = (r >= half) & (r <= H - 1 - half)
-    w = np.maximum(S[rows, cols[None, :]], 0.0)
+    whole = (r >= half) & (r <= rows_px - 1 - half)
     with np.errstate(divide="ignore", invalid="ignore"):
         total = w.sum(axis=0)
         mean = (w * offsets).sum(axis=0) / total
@@ -502,9 +503,10 @@ def _centre_sigma(C, S, r, cols, shape, shape_median, p: DetectParams) -> np.nda
         noise = _image_noise(C, r, p)
         fit = 0.5 * line_sigma ** 2 * noise * np.hypot(1.0 / S[rr - 1, cols], 1.0 / S[rr + 1, cols])
     # each at most 0.5 px, NaN (no measure) counting as 0.5: fmin keeps the number where one is NaN
-    flanks = np.fmin(np.fmin(flanks, _cut_shift_bound(S, r, cols, line_sigma, shape)), 0.5)
+    offsets, lit = _lit_window(S, r, line_sigma)
+    flanks = np.fmin(np.fmin(flanks, _cut_shift_bound(lit.sum(axis=0), line_sigma, shape)), 0.5)
     fit = np.fmin(fit, 0.5)
-    skew = np.fmin(_skew_shift(S, r, cols, line_sigma), 0.5)
+    skew = np.fmin(_skew_shift(offsets, lit, r, H), 0.5)
     return np.minimum(np.sqrt(CENTRE_FLOOR_PX ** 2 + flanks ** 2 + skew ** 2 + fit ** 2), 0.5)
 
 
