@@ -112,6 +112,11 @@ class StopRequests:
         return self
 
     def restore(self) -> None:
+        """Give the signals back to their old handlers, unless a stop was asked for: the process
+        is then on its way out, and a second Ctrl-C before it is gone must still end it as one
+        stop (exit 128 + signal), not as Python's KeyboardInterrupt from wherever it lands."""
+        if self.signum is not None:
+            return
         for s, old in self._old.items():
             signal.signal(s, old)
         self._old.clear()

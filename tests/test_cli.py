@@ -149,3 +149,36 @@ def test_progress_bar_redraws_one_line_on_a_terminal():
     text = stream.getvalue()
     assert text.count("\r") == 11 and text.count("\n") == 1 and text.endswith("\n")
     assert "100/100 frames" in text and "left" in text and "frames/s" in text
+
+
+def test_a_second_ctrl_c_after_the_stop_is_through_still_exits_130():
+    # The race a user can hit: the first Ctrl-C's stop has unwound the command and given the
+    # signals back, and the second press lands before the process is gone. It must stay one
+    # stop (exit 130), not die of Python's KeyboardInterrupt (exit -2).
+    script = (
+        "import os, signal, sys, time\n"
+        "sys.modules.setdefault('bpy', object())  # a Blender process: the first signal only asks\n"
+        "from headless.lifecycle import StopRequests\n"
+        "stops = StopRequests().install()\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.2)\n"
+        "stops.restore()\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.2)\n"
+        "print('survived')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True)
+    assert out.returncode == 130, (out.returncode, out.stderr)
+    assert "survived" not in out.stdout and "Traceback" not in out.stderr
+
+
+def test_signals_are_given_back_when_no_stop_was_asked_for():
+    import signal
+
+    from headless.lifecycle import StopRequests
+
+    before = signal.getsignal(signal.SIGINT)
+    stops = StopRequests().install()
+    assert signal.getsignal(signal.SIGINT) == stops._on_signal
+    stops.restore()
+    assert signal.getsignal(signal.SIGINT) is before

@@ -492,7 +492,6 @@ def _stop(tmp, signals, after: str = "frames/s"):
     t = time.monotonic()
     for s in signals:
         proc.send_signal(s)
-        time.sleep(0.05)
     stdout, stderr = proc.communicate(timeout=60)
     return proc.returncode, stderr, time.monotonic() - t, out
 
@@ -514,8 +513,14 @@ def case_ctrl_c_once(tmp):
 
 
 def case_ctrl_c_twice(tmp):
+    # Two presses in a row: almost always the second lands while the frames under way are
+    # still rendering ("stopped at once"); when the first stop is already through, the second
+    # must not turn it into a KeyboardInterrupt death (exit -2): the stop stays one stop.
     rc, err, took, out = _stop(tmp, [signal.SIGINT, signal.SIGINT])
-    assert rc == 130 and "stopped at once" in err, err
+    last = err.strip().splitlines()[-1]
+    assert rc == 130, err
+    assert last.endswith("stopped at once, nothing written") or (
+        last.startswith("interrupted (Ctrl-C) after ") and "nothing written" in last), err
     assert not out.exists() and _temp_left(tmp) == []
     assert "Traceback" not in err
 
