@@ -136,14 +136,24 @@ def main(argv: list[str] | None = None) -> int:
     (headless.lifecycle); a user's error or a file that cannot be written is one line."""
     from headless.lifecycle import Interrupted, PrivateTemp, StopRequests
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    from addon import pipeline
-
+    # The signals are taken before the heavy imports (see StopRequests.record_only).
+    stops = StopRequests()
+    stops.record_only = True
+    stops.install()
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        from addon import pipeline
+    except BaseException:
+        stops.signum = None  # a stop asked for while the command was refused: nothing to stop
+        stops.restore()
+        raise
     temp = PrivateTemp()
-    args.stops = StopRequests(temp).install()
+    stops.temp, stops.record_only = temp, False
+    args.stops = stops
     pipeline.set_default_progress(args.stops.progress)  # scans started without one (the benchmarks')
     try:
+        stops.check()  # Ctrl-C while the command started
         return args.run(args)
     except ScannerError as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -102,6 +102,11 @@ class StopRequests:
         self.signum: int | None = None
         self.done, self.total, self.unit = 0, 0, "frames"
         self._old: dict = {}
+        # While the command starts (its imports), a signal is only recorded, and ``check()``
+        # raises it once they are done: a library that imports its optional parts under a
+        # catch-all ``except`` (trimesh does) would otherwise swallow the KeyboardInterrupt,
+        # and the command would run on as if nobody had asked.
+        self.record_only = False
 
     def install(self) -> "StopRequests":
         for s in SIGNAL_NAMES:
@@ -140,6 +145,8 @@ class StopRequests:
                 self.temp.close()
             os._exit(128 + int(signum))
         self.signum = signum
+        if self.record_only:
+            return
         if "bpy" not in sys.modules:
             raise self.interrupted()
         print(f"\nstopping when the frames being rendered are done ({SIGNAL_NAMES.get(signum)} again to stop "

@@ -182,3 +182,24 @@ def test_signals_are_given_back_when_no_stop_was_asked_for():
     assert signal.getsignal(signal.SIGINT) == stops._on_signal
     stops.restore()
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_ctrl_c_while_the_command_starts_stops_it_before_the_first_frame(tmp_path):
+    # Ctrl-C during the imports used to be swallowed (trimesh imports its optional parts under
+    # a catch-all except) and the scan ran to the end with exit 0. The signal is sent here at
+    # the start of building the parser, before those imports, deterministically.
+    out = tmp_path / "out"
+    script = (
+        "import os, signal, sys\n"
+        "import headless.cli as cli\n"
+        "build = cli.build_parser\n"
+        "def early():\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    return build()\n"
+        "cli.build_parser = early\n"
+        f"sys.exit(cli.main(['scan', 'demo', '--engine', 'raycast', '--quiet', '--out', {str(out)!r}]))\n"
+    )
+    run = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 130, (run.returncode, run.stderr[-2000:])
+    assert run.stderr.strip().splitlines()[-1] == "interrupted (Ctrl-C) before the first frame", run.stderr
+    assert not out.exists() and "Traceback" not in run.stderr
