@@ -68,6 +68,30 @@ def test_a_sweep_dipping_2_mm_into_a_block_is_refused_at_the_frame_geometry_give
     np.testing.assert_array_equal(scanner.q, q_before)  # nothing moved
 
 
+def test_a_move_down_into_a_block_is_reported_at_its_deepest_not_where_it_first_passes_the_limit():
+    # The probe lowered straight down to 20 mm above the table, its heads 10 mm inside a 30 mm
+    # block: the motion first passes the 2 mm limit at about 2 mm, but ends inside. The message
+    # gives the nearest the motion comes (touching), and so does the record.
+    scanner = Scanner(workpiece=block_part())
+    scanner.move_to(((0.0, 0.0, 60.0), (0.0, 180.0, 0.0)))
+    with pytest.raises(CollisionError) as err:
+        scanner.move_to(((0.0, 0.0, 20.0), (0.0, 180.0, 0.0)))
+    assert "the probe touches the workpiece" in str(err.value), str(err.value)
+    cfg = scanner.config
+    model = CollisionModel(cfg.cell.robot, cfg.probe, cfg.table, cfg.workpiece.mesh)
+    down = [cfg.cell.ik(_beam_down_at(z), scanner.q, relative_to="table", table_angle_rad=0.0).q for z in (60.0, 20.0)]
+    found = model.check(np.array(down), np.zeros(2))
+    (first, _), deepest = found.collisions[0], found.deepest[0]
+    assert 0.0 < first.distance_mm < 2.0 and deepest.distance_mm <= 0.0
+
+
+def _beam_down_at(z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T[:3, 3] = [0.0, 0.0, z]
+    return T
+
+
 def _inside_the_table(points_table: np.ndarray) -> np.ndarray:
     r = np.hypot(points_table[:, 0], points_table[:, 1])
     return (r <= TABLE_RADIUS_MM) & (points_table[:, 2] <= 0.0) & (points_table[:, 2] >= -TABLE_THICKNESS_MM)

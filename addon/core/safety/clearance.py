@@ -66,11 +66,13 @@ class PathClearance:
     """``collisions``: per offending pair, the first and last sample of its first run of samples
     below the allowed clearance; ``nearest``: the smallest clearance to the table, the
     workpiece or a fixture at the waypoints of each path entry (segment number: Contact);
+    ``deepest``: per collision, the sample of its run where the bodies come nearest;
     ``samples``: how many poses were checked; ``exact_queries``: how many exact distances
     that took."""
 
     min_clearance_mm: float
     collisions: list[tuple[Contact, Contact]] = field(default_factory=list)
+    deepest: list[Contact] = field(default_factory=list)  # per collision: its nearest sample
     nearest: dict[int, Contact] = field(default_factory=dict)
     samples: int = 0
     exact_queries: int = 0
@@ -90,14 +92,16 @@ class PathClearance:
         if hit is None:
             return ""
         first, last = hit
+        worst = self.deepest[self.collisions.index(hit)] if len(self.deepest) == len(self.collisions) else first
         if first.position < 0:  # the pose the motion starts from
             on = "" if last.frame <= 0 else f" and on to frame {last.frame}"
             where = f"at the start pose{on}" if first.position <= -1 else f"moving to frame 0{on}"
         else:
             frames = f"frame {first.frame}" if first.frame == last.frame else f"frames {first.frame}-{last.frame}"
             where = f"at {frames}" if float(first.position).is_integer() else f"moving to {frames}"
-        how = ("touches" if first.distance_mm <= 0 else
-               f"comes within {first.distance_mm:.2f} mm of")
+        # The nearest the run comes, not where it starts: a probe that dives into the part
+        # first passes the limit at about the limit.
+        how = ("touches" if worst.distance_mm <= 0 else f"comes within {worst.distance_mm:.2f} mm of")
         allowed = ("they must not touch" if _robot_pair(first) else
                    f"at least {self.min_clearance_mm:g} mm allowed ([safety] min_clearance_mm)")
         return f"{where}: the {first.body_a} {how} the {first.body_b}; {allowed}"
@@ -110,6 +114,7 @@ class PathClearance:
             base = len(out.nearest)
             out.nearest.update({base + i: c for i, (_, c) in enumerate(sorted(p.nearest.items()))})
             out.collisions += p.collisions
+            out.deepest += p.deepest if len(p.deepest) == len(p.collisions) else [c[0] for c in p.collisions]
             out.samples += p.samples
             out.exact_queries += p.exact_queries
             out.bound_queries += p.bound_queries
@@ -314,6 +319,7 @@ class CollisionModel:
                 last = s
             if run:
                 out.collisions.append((run[0], run[-1]))
+                out.deepest.append(min(run, key=lambda c: c.distance_mm))
             if env and nearest:
                 self._nearest(i, j, carriers, bound, pos, seg_of, closest, out)
         out.nearest = closest
