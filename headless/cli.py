@@ -36,6 +36,8 @@ Errors the user can fix (bad rig file, bad value) print one line and exit 2.
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 
 from addon.core.errors import ScannerError
@@ -166,6 +168,13 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted (Ctrl-C)", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # Whoever read the output (``| head``) has gone: that is no failure of the scan, and
+        # files already written (all of a set or none) stay. Exit as a process killed by
+        # SIGPIPE would, and let nothing else try the closed pipe on the way out.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        print("stopped: the program reading the output closed it (broken pipe)", file=sys.stderr)
+        return 128 + signal.SIGPIPE
     except OSError as exc:  # a disk full, a folder that vanished, a permission taken away mid-run
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"error: {where}{exc.strerror or exc} (nothing was written)", file=sys.stderr)

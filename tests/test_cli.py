@@ -203,3 +203,18 @@ def test_ctrl_c_while_the_command_starts_stops_it_before_the_first_frame(tmp_pat
     assert run.returncode == 130, (run.returncode, run.stderr[-2000:])
     assert run.stderr.strip().splitlines()[-1] == "interrupted (Ctrl-C) before the first frame", run.stderr
     assert not out.exists() and "Traceback" not in run.stderr
+
+
+def test_a_reader_that_closes_the_pipe_is_no_scan_failure(tmp_path):
+    # ``... | head -1``: the summary's print fails once the scan's files are written. It used to
+    # say "error: Broken pipe (nothing was written)" beside the written files.
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "headless", "scan", "demo", "--engine", "raycast", "--quiet",
+                             "--out", str(out)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().startswith("scan: ")
+    proc.stdout.close()
+    stderr = proc.stderr.read()
+    assert proc.wait(timeout=300) == 141, stderr
+    assert stderr.strip().splitlines()[-1] == "stopped: the program reading the output closed it (broken pipe)"
+    assert "Traceback" not in stderr and "nothing was written" not in stderr
+    assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "preview.png", "report.json"]
