@@ -27,6 +27,7 @@ import numpy as np
 from gymnasium import spaces
 
 from addon.adaptive import NextBestView, part_box
+from addon.core.errors import InputError, check_whole
 from addon.core.geometry.known_space import SURFACE
 from addon.core.scan import next_view
 
@@ -41,6 +42,12 @@ class ScanPlanningEnv(gym.Env):
                  time_cost: float = 0.01, refusal_cost: float = 0.5):
         from addon.core.config.scan import load_scan_config
 
+        check_whole(max_profiles, "max_profiles (the episode's profile budget)", 1, 10**7)
+        check_whole(grid, "grid (cells per side of the observation)", 2, 256)
+        check_whole(max_steps, "max_steps (sweeps per episode)", 1, 10**5)
+        for value, what in ((time_cost, "time_cost"), (refusal_cost, "refusal_cost")):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < float("inf"):
+                raise InputError(f"{what} must be a finite number ≥ 0, got {value!r}")
         self.config = load_scan_config(config) if isinstance(config, str) else config
         self.max_profiles, self.grid, self.max_steps = int(max_profiles), int(grid), int(max_steps)
         self.time_cost, self.refusal_cost = float(time_cost), float(refusal_cost)
@@ -147,7 +154,7 @@ def reference_policy(env, rng):
 def add_arguments(parser) -> None:
     parser.add_argument("--config", default="demo", help="scan config whose cell and part to use (default demo)")
     parser.add_argument("--max-profiles", type=int, default=300, help="profile budget per episode (default 300)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the random baseline and the environment (default 0)")
     parser.set_defaults(run=run)
 
 

@@ -50,3 +50,12 @@ def test_a_sweep_steeper_than_any_the_planner_sweeps_is_refused_and_scans_nothin
     assert np.array_equal(obs2["grid"], obs["grid"])
     # The same view as a table turn is one of the planner's candidates.
     assert any(c.kind == "turn" and c.tilt_deg == env.tilts[steep[0]] for c in env.planner.pool)
+
+
+@pytest.mark.parametrize("kw", [dict(max_profiles=0), dict(max_profiles=-3), dict(max_profiles=2.5), dict(grid=1),
+                                dict(max_steps=0), dict(time_cost=float("nan")), dict(refusal_cost=-1.0)])
+def test_an_impossible_episode_setting_is_refused_with_what_is_allowed(kw):
+    from addon.core.errors import InputError
+
+    with pytest.raises(InputError, match=next(iter(kw))):
+        ScanPlanningEnv("demo", **kw)
