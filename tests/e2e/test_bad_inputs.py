@@ -115,6 +115,11 @@ def binary_stl_with_inf(tmp):
     return tmp / "inf.stl"
 
 
+def good_cube_stl(tmp):
+    cube_mm().export(tmp / "cube.stl")
+    return tmp / "cube.stl"
+
+
 def obj_with_nan(tmp):
     text = cube_mm().export(file_type="obj").replace("v ", "v nan ", 1)
     (tmp / "nan.obj").write_text(text)
@@ -359,6 +364,11 @@ CASES = [
     ("mesh: missing", part_file(lambda t: t / "gone.stl"), 2, "gone.stl"),
     ("mesh: scale negative", lambda t: ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0',
                                         f'file = "{binary_stl_with_inf(t)}"\nscale = -1.0'))], 2, "scale"),
+    # 0 used to count as "not given" and the part was scanned at its file's own scale
+    ("mesh: scale zero", lambda t: ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0',
+                                    f'file = "{good_cube_stl(t)}"\nscale = 0'))], 2, "allowed > 0"),
+    ("fixture: scale zero", lambda t: ["scan", scene(t, DEMO + f'\n[[fixture]]\nfile = "{good_cube_stl(t)}"\nscale = 0\n')],
+     2, "allowed > 0"),
     # options
     ("option: --frames step zero", demo("--frames", "0:4:0"), 2, "--frames"),
     ("option: --frames words", demo("--frames", "a:b"), 2, "--frames"),

@@ -405,7 +405,7 @@ def _fixtures(top: Table, base: Path) -> tuple:
         if not name.startswith("fixture"):
             name = f"fixture {name}"
         f = Path(t.string("file"))
-        scale = t.number("scale", default=0.0, lo=0.0) or None
+        scale = t.number("scale", default=None, lo=0.0, lo_open=True)
         on = t.string("on", default="table", choices=list(FIXTURE_CARRIERS))
         try:
             mesh = load_workpiece(f if f.is_absolute() else base / f, t.pose("pose"), scale).mesh
@@ -423,7 +423,7 @@ def _workpiece(t: Table, base: Path) -> Workpiece:
     try:
         if t.has("file"):
             f = Path(t.string("file"))
-            scale = t.number("scale", default=0.0, lo=0.0) or None
+            scale = t.number("scale", default=None, lo=0.0, lo_open=True)
             wp = load_workpiece(f if f.is_absolute() else base / f, pose, scale)
         else:
             kind = t.string("shape", choices=list(BUILTINS))
