@@ -30,3 +30,13 @@ def test_the_growth_strip_shows_each_view_new_in_its_panel_and_earlier_after():
     seen = growth_strip(box, top, np.zeros(len(top), int), ["top"], size=(300, 240))
     hidden = growth_strip(box, top * [1, 1, 0], np.zeros(len(top), int), ["under"], size=(300, 240))
     assert _count(hidden, NEW_BGR) < 0.05 * _count(seen, NEW_BGR)
+
+
+def test_colour_bar_labels_keep_two_figures_however_small_the_scale():
+    from addon.core.scan.preview import bar_label
+
+    # A bar whose top is 1.3 µm used to read 1, 1, 0.
+    labels = [bar_label(f * 1.3, 1.3) for f in (0.0, 0.5, 1.0)]
+    assert labels == ["0.0", "0.7", "1.3"] and len(set(labels)) == 3
+    assert [bar_label(f * 55.0, 55.0) for f in (0.0, 0.5, 1.0)] == ["0", "28", "55"]
+    assert bar_label(0.4, 0.4) == "0.40" and bar_label(250.0, 250.0) == "250"
