@@ -100,6 +100,14 @@ def check_output_folder(folder: str | Path, names=(), what: str = "output folder
     if not os.access(existing, os.W_OK | os.X_OK):
         where = "" if existing == p else f" (its nearest existing parent {existing} is not writable)"
         raise InputError(f"{what} {p} cannot be written{where}; choose a folder you can write to")
+    # Permission bits do not tell everything (root passes os.access; /proc and /sys refuse
+    # anyway): try a folder there, and take it away again.
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".scanner-check-", dir=existing))
+    except OSError as exc:
+        where = "" if existing == p else f" (in {existing})"
+        raise InputError(f"{what} {p} cannot be written{where}: {exc.strerror or exc}; "
+                         f"choose a folder you can write to") from None
     for name in names:
         target = p / name
         if target.exists() and not target.is_file():

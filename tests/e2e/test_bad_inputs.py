@@ -434,6 +434,9 @@ CASES = [
     # output folders
     ("out: an existing file", out_is_file, 2, "is a file"),
     ("out: below a file", out_below_file, 2, "is a file"),
+    # Writable by its permission bits for root, refused by the kernel: used to be the bare
+    # "No such file or directory" without naming --out or what to do.
+    ("out: under /proc", demo("--out", "/proc/scanner-test/out"), 2, "--out /proc/scanner-test/out cannot be written"),
     ("out: cloud.ply is a folder", out_holds_folder("cloud.ply"), 2, "cloud.ply"),
     ("out: report.json is a folder", out_holds_folder("report.json"), 2, "report.json"),
     ("out: preview.png is a folder", out_holds_folder("preview.png"), 2, "preview.png"),
