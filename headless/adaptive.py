@@ -26,6 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--target-coverage", type=float, metavar="F",
                         help="stop once the planner's own coverage estimate reaches this share, 0..1 "
                              "(default: the config's, else none)")
+    parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"),
+                        help="render engine, as for scan (default: the config's); raycast needs no Blender")
     parser.add_argument("--force", action="store_true", help="as for scan: skip the memory and time limits")
     parser.add_argument("--quiet", action="store_true", help="no progress and no log of the sweeps")
     parser.set_defaults(run=run)
@@ -40,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from headless import preflight
     from headless.scan import print_summary, progress_and_lock
 
-    config = load_scan_config(args.config)
+    config = load_scan_config(args.config).with_overrides(engine=args.engine)
     settings = config.adaptive
     if args.max_profiles is not None:
         if args.max_profiles < 1:

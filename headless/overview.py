@@ -8,12 +8,12 @@ from pathlib import Path
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="out/cell_overview.png", help="PNG to write (default out/cell_overview.png)")
-    parser.add_argument("--robot", default="adept_viper_s650")
-    parser.add_argument("--probe", default="default")
+    parser.add_argument("--robot", default="adept_viper_s650", help="robot rig under rigs/robots/ (default adept_viper_s650)")
+    parser.add_argument("--probe", default="default", help="probe rig under rigs/probes/ (default: default)")
     parser.add_argument("--workpiece", default="sphere", help="plane, sphere, cylinder or step_block")
-    parser.add_argument("--width", type=int, default=720)
-    parser.add_argument("--height", type=int, default=480)
-    parser.add_argument("--samples", type=int, default=24)
+    parser.add_argument("--width", type=int, default=720, help="picture width in pixels (default 720)")
+    parser.add_argument("--height", type=int, default=480, help="picture height in pixels (default 480)")
+    parser.add_argument("--samples", type=int, default=24, help="Cycles samples per pixel (default 24)")
     parser.add_argument("--scan", metavar="CONFIG",
                         help="first run this scan through the Scanner panel's operator and show the imported "
                              "cloud, framed on the table")

@@ -218,3 +218,13 @@ def test_a_reader_that_closes_the_pipe_is_no_scan_failure(tmp_path):
     assert stderr.strip().splitlines()[-1] == "stopped: the program reading the output closed it (broken pipe)"
     assert "Traceback" not in stderr and "nothing was written" not in stderr
     assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "preview.png", "report.json"]
+
+
+def test_adaptive_takes_the_engine_as_scan_does(tmp_path):
+    out = run_cli("adaptive", "demo", "--engine", "raycast", "--max-profiles", "200", "--quiet",
+                  "--out", str(tmp_path / "out"))
+    assert out.returncode == 0, out.stderr
+    import json
+
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["render_device"] == "CPU (Embree ray casting)" and 0 < report["frames"] <= 200
