@@ -105,7 +105,8 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None) -> W
                          "mesh (or one with no faces)")
     if not np.all(np.isfinite(mesh.vertices)):
         bad = int(np.sum(~np.isfinite(mesh.vertices).all(axis=1)))
-        raise InputError(f"{path}: {bad} vertices have NaN or infinite coordinates; a workpiece needs finite ones")
+        raise InputError(f"{path}: {bad} {'vertex has' if bad == 1 else 'vertices have'} NaN or infinite "
+                         f"coordinates; a workpiece needs finite ones")
     mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
     if scale is None:
         scale = 1000.0 if path.suffix.lower() in METRE_FORMATS else 1.0
