@@ -10,6 +10,7 @@ are metres by their specification and are scaled by 1000. ``scale`` overrides bo
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -96,8 +97,11 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None) -> W
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     try:
-        # Unprocessed first: processing drops the faces of NaN vertices without a word.
-        mesh = trimesh.load(path, force="mesh", process=False)
+        # Unprocessed first: processing drops the faces of NaN vertices without a word. A broken
+        # file's arithmetic (normals of infinite vertices) warns; what is wrong is said below.
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many kinds for broken files
         raise InputError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
@@ -114,12 +118,13 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None) -> W
         raise InputError(f"{path}: scale must be a positive number, got {scale}")
     if scale != 1.0:
         mesh.apply_scale(scale)
-    check_mesh(mesh, str(path))
+    # A file's own, narrower size range first, so every part of the wrong size gets one message.
     extent = float(np.max(mesh.extents))
     if not FILE_MIN_EXTENT_MM <= extent <= FILE_MAX_EXTENT_MM:
         raise InputError(f"{path}: the part is {extent:.4g} mm across (scale {scale:g}); parts on the table are "
                          f"{FILE_MIN_EXTENT_MM:g} to {FILE_MAX_EXTENT_MM:g} mm: is the file in another unit? "
                          "Set the workpiece's scale key (e.g. scale = 1000 for metres, 25.4 for inches)")
+    check_mesh(mesh, str(path))
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)
     return Workpiece(path.stem, mesh, mesh, str(path), pose)
