@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .core.errors import CollisionError, InputError, UnreachablePose
-from .core.geometry.known_space import KnownSpace
+from .core.geometry.known_space import UNKNOWN, KnownSpace
 from .core.scan import next_view
 
 VOXEL_MM = 2.0
@@ -82,6 +82,11 @@ class NextBestView:
         self.impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
         self.refused: list[str] = []  # why, for the last decision
         self.looked = False  # the overview pass has been chosen (or there was none to choose)
+        # Cells a view scanned was expected to see (its fan met the cell first, unknown, in
+        # range) that stayed unknown: no camera saw the spot, or every point there was dropped.
+        # They no longer count as gain: they drew view after view to the same spot for nothing
+        # (on the L-bracket, three sweeps in a row that added nothing).
+        self.missed = np.zeros(self.space.shape, dtype=bool)
         # The cell builds its collision model once, at its first check: here, with the rest of
         # the set-up, rather than inside the first decision (the Scanner reads the part for it,
         # as a real cell's safety system knows its fixtures; the planner does not).
@@ -100,7 +105,7 @@ class NextBestView:
             first = self.overview(scanner, live, probe_now, budget)
             if first is not None:
                 return first
-        ranked = [c for c in next_view.rank(self.space, self.probe, live, scanner.table_deg, probe_now)
+        ranked = [c for c in next_view.rank(self.space, self.probe, live, scanner.table_deg, probe_now, self.missed)
                   if c.gain >= self.min_gain and (budget is None or c.frames <= budget)]
         for c in ranked[:TRIES]:
             if self.feasible(scanner, c):
@@ -118,7 +123,7 @@ class NextBestView:
         None where no tilted turn fits the budget or the robot can do none."""
         turns = [c for c in live if c.kind == "turn" and 0.0 < abs(c.tilt_deg) <= OVERVIEW_MAX_TILT_DEG
                  and (budget is None or c.frames <= budget)]
-        ranked = next_view.rank(self.space, self.probe, turns, scanner.table_deg, probe_now)
+        ranked = next_view.rank(self.space, self.probe, turns, scanner.table_deg, probe_now, self.missed)
         for c in sorted(ranked, key=lambda c: (-abs(c.tilt_deg), -c.tilt_deg)):
             if self.feasible(scanner, c):
                 return c
@@ -140,12 +145,17 @@ class NextBestView:
         return self.space.coverage_estimate(self.lo, self.hi)
 
     def scan(self, scanner, c) -> tuple[list, int]:
-        """Scan candidate ``c`` and learn from it: (its profiles, the cells it taught)."""
+        """Scan candidate ``c`` and learn from it: (its profiles, the cells it taught). The
+        cells its fans were expected to see and that stayed unknown are marked ``missed``."""
         before = self.space.counts()["unknown"]
+        expected = next_view.new_cells(self.space, self.probe, c.waypoints().probe2table)
         profiles = scanner.scan_path(c.waypoints())
         for p in profiles:
             if len(p.points):
                 self.space.add_points(p.probe2table[:3, 3], p.points)
+        if len(expected):
+            i, j, k = expected.T
+            self.missed[i, j, k] |= self.space.state[i, j, k] == UNKNOWN
         self.impossible.add(c.key)  # the same sweep again would see the same (the scan is deterministic)
         return profiles, before - self.space.counts()["unknown"]
 

@@ -54,6 +54,26 @@ def test_gain_falls_where_the_model_already_knows_the_surface():
     assert after < 0.1 * before
 
 
+def test_cells_a_scanned_view_was_promised_and_did_not_teach_count_no_more():
+    # The cells a view's fans first meet, unknown and in range, are what it promises; those
+    # marked as missed (an earlier view promised them and they stayed unknown) do not count.
+    cfg, lo, hi, space = setup()
+    top = [c for c in next_view.candidates(cfg.cell, cfg.probe, lo, hi)
+           if c.kind == "sweep" and c.tilt_deg == 0 and c.table_deg == 0][0]
+    poses = top.waypoints().probe2table
+    cells = next_view.new_cells(space, cfg.probe, poses)
+    assert len(cells) == next_view.gain(space, cfg.probe, poses) > 100
+    inside = (cells >= 0).all() and (cells < np.array(space.shape)).all()
+    assert inside and len(np.unique(cells, axis=0)) == len(cells)
+    missed = np.zeros(space.shape, bool)
+    half = cells[::2]
+    missed[half[:, 0], half[:, 1], half[:, 2]] = True
+    assert next_view.gain(space, cfg.probe, poses, missed) == len(cells) - len(half)
+    ranked = {c.key: c.gain for c in next_view.rank(space, cfg.probe, [top], 0.0, None, missed)}
+    plain = {c.key: c.gain for c in next_view.rank(space, cfg.probe, [top], 0.0, None)}
+    assert ranked[top.key] < plain[top.key]
+
+
 def test_ranking_prefers_gain_per_second_and_drops_empty_views():
     cfg, lo, hi, space = setup()
     cands = next_view.candidates(cfg.cell, cfg.probe, lo, hi)

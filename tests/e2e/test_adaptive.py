@@ -99,3 +99,32 @@ def test_the_overview_is_a_tilted_table_turn_and_finds_more_than_one_from_above(
     small = Scanner(config=config)
     c = NextBestView(small, lo, hi).choose(small, 100)
     assert c is not None and c.kind == "sweep"
+
+
+def test_after_a_view_every_cell_it_promised_is_known_or_marked_missed():
+    """What a scanned view's fans were expected to see is either learnt (free or surface) or
+    marked missed, and a missed cell draws no later view: the same view, asked again, promises
+    only the few cells its rays now reach through the space it carved."""
+    from dataclasses import replace
+
+    from addon import Scanner
+    from addon.adaptive import NextBestView, part_box
+    from addon.core.geometry.known_space import UNKNOWN
+    from addon.core.scan import next_view
+
+    config = load_scan_config("step_block")
+    config = replace(config, render=replace(config.render, engine="raycast"))
+    scanner = Scanner(config=config)
+    lo, hi = part_box(config)
+    planner = NextBestView(scanner, lo, hi)
+    view = planner.choose(scanner, 450)
+    promised = next_view.new_cells(planner.space, planner.probe, view.waypoints().probe2table)
+    planner.scan(scanner, view)
+    i, j, k = promised.T
+    still = planner.space.state[i, j, k] == UNKNOWN
+    assert still.any() and (~still).sum() > 10 * still.sum()  # most learnt, some not
+    assert planner.missed[i, j, k][still].all() and not planner.missed[i, j, k][~still].any()
+    assert next_view.gain(planner.space, planner.probe, view.waypoints().probe2table, planner.missed) \
+        < 0.03 * len(promised)
+    assert next_view.gain(planner.space, planner.probe, view.waypoints().probe2table) > \
+        next_view.gain(planner.space, planner.probe, view.waypoints().probe2table, planner.missed)

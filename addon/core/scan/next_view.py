@@ -137,9 +137,9 @@ def fan_rays(probe: Probe, poses: np.ndarray, rays: int = SAMPLE_RAYS) -> tuple[
     return np.repeat(poses[:, :3, 3], rays, axis=0), dirs
 
 
-def gain(space: KnownSpace, probe: Probe, poses: np.ndarray) -> int:
-    """Distinct unknown cells the laser fans of ``poses`` (table frame) first meet within the
-    probe's range: what those profiles would newly see."""
+def new_cells(space: KnownSpace, probe: Probe, poses: np.ndarray) -> np.ndarray:
+    """Indices (k, 3) of the distinct unknown cells the laser fans of ``poses`` (table frame)
+    first meet within the probe's range: what those profiles would newly see."""
     origins, dirs = fan_rays(probe, poses)
     z0, z1 = probe.z_range_mm
     dist, state = space.first_hits(origins, dirs, z1 / math.cos(probe.fan_rad / 2))
@@ -147,19 +147,35 @@ def gain(space: KnownSpace, probe: Probe, poses: np.ndarray) -> int:
                              len(poses), axis=0).ravel()
     new = (state == UNKNOWN) & (depth >= z0) & (depth <= z1)
     if not new.any():
-        return 0
-    cells, _ = space.cell_of(origins[new] + (dist[new] + 0.25 * space.voxel)[:, None] * dirs[new])
-    return int(len(np.unique(cells, axis=0)))
+        return np.zeros((0, 3), dtype=np.int64)
+    cells, inside = space.cell_of(origins[new] + (dist[new] + 0.25 * space.voxel)[:, None] * dirs[new])
+    return np.unique(cells[inside], axis=0)
+
+
+def gain(space: KnownSpace, probe: Probe, poses: np.ndarray, skip: np.ndarray | None = None) -> int:
+    """How many cells the laser fans of ``poses`` would newly see (:func:`new_cells`), not
+    counting those marked in ``skip`` (a boolean grid of the model's shape: cells earlier views
+    were expected to see and did not; see adaptive.NextBestView.missed)."""
+    cells = new_cells(space, probe, poses)
+    if skip is not None and len(cells):
+        cells = cells[~skip[cells[:, 0], cells[:, 1], cells[:, 2]]]
+    return int(len(cells))
+
+
+def sample_poses(c: Candidate) -> np.ndarray:
+    """The probe poses (table frame) of the SAMPLE_FRAMES frames of ``c`` whose fans are cast."""
+    pick = np.linspace(0, c.frames - 1, min(SAMPLE_FRAMES, c.frames)).round().astype(int)
+    return c.waypoints().probe2table[pick]
 
 
 def rank(space: KnownSpace, probe: Probe, cands: list[Candidate], table_deg_now: float,
-         probe_now: np.ndarray | None) -> list[Candidate]:
-    """The candidates with their gain and cost, best gain per second first (no gain: left out)."""
+         probe_now: np.ndarray | None, skip: np.ndarray | None = None) -> list[Candidate]:
+    """The candidates with their gain and cost, best gain per second first (no gain: left out).
+    ``skip``: cells not to count as gain (see :func:`gain`)."""
     out = []
     for c in cands:
-        wp = c.waypoints()
-        pick = np.linspace(0, c.frames - 1, min(SAMPLE_FRAMES, c.frames)).round().astype(int)
-        g = gain(space, probe, wp.probe2table[pick])
+        poses = sample_poses(c)
+        g = gain(space, probe, poses, skip)
         if g == 0:
             continue
         # The frames between the cast ones see as much again. That holds where neighbouring
@@ -168,7 +184,7 @@ def rank(space: KnownSpace, probe: Probe, cands: list[Candidate], table_deg_now:
         # turn is overcounted. With 6 cast frames (60° apart) a turn from straight above,
         # after the overview, outranked the sweeps that then found more of the step block
         # (it added 0.1 %, they 1.6 and 1.8 %); with 24 it does not.
-        g = int(round(g * c.frames / len(pick)))
+        g = int(round(g * c.frames / len(poses)))
         out.append(replace(c, gain=g, seconds=seconds(c, table_deg_now, probe_now)))
     return sorted(out, key=lambda c: -c.utility)
 
