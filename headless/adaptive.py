@@ -19,8 +19,10 @@ from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from headless.preflight import folder_argument
+
     parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
-    parser.add_argument("--out", help="output folder (default: out/<config name>-adaptive)")
+    parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>-adaptive)")
     parser.add_argument("--max-profiles", type=int, help="profile budget (default: the config's, else 600)")
     parser.add_argument("--min-gain", type=int, help="new cells a sweep must promise (default 30)")
     parser.add_argument("--target-coverage", type=float, metavar="F",

@@ -20,8 +20,10 @@ from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from headless.preflight import folder_argument
+
     parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
-    parser.add_argument("--out", help="output folder (default: out/<config name>-calibration)")
+    parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>-calibration)")
     parser.add_argument("--views", type=int, default=20, help="board poses the robot shows the probe (default 20)")
     parser.add_argument("--poses", metavar="FILE",
                         help="the board views to take, a TOML file of [[view]] tables with xyz_mm and yzz_deg (probe "

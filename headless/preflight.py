@@ -57,6 +57,16 @@ class RenderBudget:
         return self.frames * self.cameras * self.width * self.height * max(self.samples, 1) / PIXELS_PER_SECOND
 
 
+def folder_argument(text: str) -> str:
+    """argparse type of an output folder option: an empty one names no folder (it used to fall
+    back to the default folder without a word)."""
+    import argparse
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty name is no folder; leave the option out for the default")
+    return text
+
+
 def render_budget(config) -> RenderBudget:
     probe, r = config.probe, config.render
     w, h = r.resolution or (probe.cols_px, probe.rows_px)

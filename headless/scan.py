@@ -22,9 +22,11 @@ EXIT_QUALITY = 3
 
 
 def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
+    from headless.preflight import folder_argument
+
     if not demo:
         parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
-    parser.add_argument("--out", help="output folder (default: out/<config name>)")
+    parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>)")
     parser.add_argument("--frames", help="part of the path, as A:B (Python slice, e.g. 0:40 or ::2)")
     parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"),
                         help="render engine: cycles; eevee (renders the spot laser unless the config chooses the "
