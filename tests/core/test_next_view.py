@@ -39,11 +39,14 @@ def test_candidates_look_at_the_box_from_the_robots_side_within_the_probes_range
             assert np.ptp(c.waypoints().table_rad) > np.radians(350)
 
 
+def sweep_from_above(cfg, lo, hi):
+    return [c for c in next_view.candidates(cfg.cell, cfg.probe, lo, hi)
+            if c.kind == "sweep" and c.tilt_deg == 0 and c.table_deg == 0][0]
+
+
 def test_gain_falls_where_the_model_already_knows_the_surface():
     cfg, lo, hi, space = setup()
-    top = [c for c in next_view.candidates(cfg.cell, cfg.probe, lo, hi)
-           if c.kind == "sweep" and c.tilt_deg == 0 and c.table_deg == 0][0]
-    poses = top.waypoints().probe2table
+    poses = sweep_from_above(cfg, lo, hi).waypoints().probe2table
     before = next_view.gain(space, cfg.probe, poses)
     assert before > 100
     # Teach the model a flat top at z = 66 seen from those very poses: little stays unknown there.
@@ -58,8 +61,7 @@ def test_cells_a_scanned_view_was_promised_and_did_not_teach_count_no_more():
     # The cells a view's fans first meet, unknown and in range, are what it promises; those
     # marked as missed (an earlier view promised them and they stayed unknown) do not count.
     cfg, lo, hi, space = setup()
-    top = [c for c in next_view.candidates(cfg.cell, cfg.probe, lo, hi)
-           if c.kind == "sweep" and c.tilt_deg == 0 and c.table_deg == 0][0]
+    top = sweep_from_above(cfg, lo, hi)
     poses = top.waypoints().probe2table
     cells = next_view.new_cells(space, cfg.probe, poses)
     assert len(cells) == next_view.gain(space, cfg.probe, poses) > 100

@@ -76,16 +76,11 @@ def test_the_overview_is_a_tilted_table_turn_and_finds_more_than_one_from_above(
     """Before anything is known every view's rays meet the box alike, so the planner opens with
     a table turn at its steepest tilt, which sees the step block's top and sides; scored
     against the truth afterwards, it finds far more than the turn from straight above."""
-    from dataclasses import replace
-
     from addon import Scanner
-    from addon.adaptive import NextBestView, part_box
+    from addon.adaptive import NextBestView
 
-    config = load_scan_config("step_block")
-    config = replace(config, render=replace(config.render, engine="raycast"))
-    scanner = Scanner(config=config)
-    lo, hi = part_box(config)
-    planner = NextBestView(scanner, lo, hi)
+    config, scanner, planner = _raycast_planner("step_block")
+    lo, hi = planner.lo, planner.hi
     first = planner.choose(scanner, 450)
     assert first.kind == "turn" and abs(first.tilt_deg) == 45.0
     above = next(c for c in planner.pool if c.kind == "turn" and c.tilt_deg == 0.0)
@@ -105,18 +100,10 @@ def test_after_a_view_every_cell_it_promised_is_known_or_marked_missed():
     """What a scanned view's fans were expected to see is either learnt (free or surface) or
     marked missed, and a missed cell draws no later view: the same view, asked again, promises
     only the few cells its rays now reach through the space it carved."""
-    from dataclasses import replace
-
-    from addon import Scanner
-    from addon.adaptive import NextBestView, part_box
     from addon.core.geometry.known_space import UNKNOWN
     from addon.core.scan import next_view
 
-    config = load_scan_config("step_block")
-    config = replace(config, render=replace(config.render, engine="raycast"))
-    scanner = Scanner(config=config)
-    lo, hi = part_box(config)
-    planner = NextBestView(scanner, lo, hi)
+    _, scanner, planner = _raycast_planner("step_block")
     view = planner.choose(scanner, 450)
     promised = next_view.new_cells(planner.space, planner.probe, view.waypoints().probe2table)
     planner.scan(scanner, view)
@@ -128,3 +115,17 @@ def test_after_a_view_every_cell_it_promised_is_known_or_marked_missed():
         < 0.03 * len(promised)
     assert next_view.gain(planner.space, planner.probe, view.waypoints().probe2table) > \
         next_view.gain(planner.space, planner.probe, view.waypoints().probe2table, planner.missed)
+
+
+def _raycast_planner(name: str):
+    """(config, scanner, planner) for scene ``name`` rendered by the raycast engine, the planner
+    told the part's box as a cell would be."""
+    from dataclasses import replace
+
+    from addon import Scanner
+    from addon.adaptive import NextBestView, part_box
+
+    config = load_scan_config(name)
+    config = replace(config, render=replace(config.render, engine="raycast"))
+    scanner = Scanner(config=config)
+    return config, scanner, NextBestView(scanner, *part_box(config))
