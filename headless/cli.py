@@ -125,7 +125,8 @@ def _summary(doc: str) -> str:
     if text.startswith("``") and "``:" in text:
         text = text.split("``:", 1)[1].strip()
     # A sentence ends at ". " before a capital letter, not after an abbreviation ("Eq. 6").
-    ends = [m.start() for m in re.finditer(r"\.\s+(?=[A-Z])", text) if not re.search(r"\b(Eq|e\.g|i\.e|Fig)$", text[:m.start()])]
+    ends = [m.start() for m in re.finditer(r"\.\s+(?=[A-Z])", text)
+            if not re.search(r"\b(Eq|e\.g|i\.e|Fig)$", text[:m.start()])]
     sentence = (text[:ends[0]] if ends else text).rstrip(".")
     return sentence[0].upper() + sentence[1:] if sentence else sentence
 

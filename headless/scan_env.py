@@ -154,7 +154,8 @@ def reference_policy(env, rng):
 def add_arguments(parser) -> None:
     parser.add_argument("--config", default="demo", help="scan config whose cell and part to use (default demo)")
     parser.add_argument("--max-profiles", type=int, default=300, help="profile budget per episode (default 300)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the random baseline and the environment (default 0)")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="seed of the random baseline and the environment (default 0)")
     parser.set_defaults(run=run)
 
 

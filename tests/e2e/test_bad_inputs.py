@@ -367,8 +367,8 @@ CASES = [
     # 0 used to count as "not given" and the part was scanned at its file's own scale
     ("mesh: scale zero", lambda t: ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0',
                                     f'file = "{good_cube_stl(t)}"\nscale = 0'))], 2, "allowed > 0"),
-    ("fixture: scale zero", lambda t: ["scan", scene(t, DEMO + f'\n[[fixture]]\nfile = "{good_cube_stl(t)}"\nscale = 0\n')],
-     2, "allowed > 0"),
+    ("fixture: scale zero",
+     lambda t: ["scan", scene(t, DEMO + f'\n[[fixture]]\nfile = "{good_cube_stl(t)}"\nscale = 0\n')], 2, "allowed > 0"),
     # options
     ("option: --frames step zero", demo("--frames", "0:4:0"), 2, "--frames"),
     ("option: --frames words", demo("--frames", "a:b"), 2, "--frames"),
