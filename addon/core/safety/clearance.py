@@ -77,6 +77,8 @@ class PathClearance:
     samples: int = 0
     exact_queries: int = 0
     bound_queries: int = 0
+    waypoints: int = 0  # of the path checked
+    moved_from: bool = False  # the motion onto the path from a start pose was checked too
 
     @property
     def ok(self) -> bool:
@@ -93,7 +95,10 @@ class PathClearance:
             return ""
         first, last = hit
         worst = self.deepest[self.collisions.index(hit)] if len(self.deepest) == len(self.collisions) else first
-        if first.position < 0:  # the pose the motion starts from
+        if self.moved_from and self.waypoints == 1 and first.position > -1:
+            # One step of a Scanner (move_to, turn_table, ...): it has no frames to name.
+            where = "at the pose moved to" if first.position == 0 else "on the way there"
+        elif first.position < 0:  # the pose the motion starts from
             on = "" if last.frame <= 0 else f" and on to frame {last.frame}"
             where = f"at the start pose{on}" if first.position <= -1 else f"moving to frame 0{on}"
         else:
@@ -300,7 +305,7 @@ class CollisionModel:
             centres[i] = np.einsum("nij,j->ni", T[:, :3, :3], b.centre) + T[:, :3, 3]
             support[i] = np.einsum("nij,kj->nki", T[:, :3, :3], b.support) + T[:, None, :3, 3]
         up = carriers["table"][:, :3, 2]
-        out = PathClearance(self.min_clearance_mm, samples=len(qs))
+        out = PathClearance(self.min_clearance_mm, samples=len(qs), waypoints=n_way, moved_from=q_start is not None)
         closest: dict[int, Contact] = {}
         for i, j, limit in self.pairs:
             bound = self._bound(i, j, centres, support, up)
