@@ -436,6 +436,8 @@ CASES = [
     ("out: below a file", out_below_file, 2, "is a file"),
     # Writable by its permission bits for root, refused by the kernel: used to be the bare
     # "No such file or directory" without naming --out or what to do.
+    ("config: samples not whole", lambda t: ["scan", scene(t, DEMO.replace("samples = 1\n", "samples = 1e12\n", 1))],
+     2, "is not an integer (allowed: a whole number [1, 65536])"),
     ("out: empty", demo("--out", ""), 2, "--out: an empty name is no folder"),
     ("out: under /proc", demo("--out", "/proc/scanner-test/out"), 2, "--out /proc/scanner-test/out cannot be written"),
     ("out: cloud.ply is a folder", out_holds_folder("cloud.ply"), 2, "cloud.ply"),

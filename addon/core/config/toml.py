@@ -132,7 +132,9 @@ class Table:
     def integer(self, key: str, default: Any = _MISSING, *, lo: int | None = None, hi: int | None = None) -> int:
         value = self._get(key, default)
         if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(key, f"{_describe(value)} is not an integer")
+            allowed = "" if lo is None and hi is None else \
+                f" (allowed: a whole number {_range_text(lo, hi, False, False, False)})"
+            raise self.error(key, f"{_describe(value)} is not an integer{allowed}")
         if (lo is not None and value < lo) or (hi is not None and value > hi):
             raise self.error(key, f"{value} is out of range; allowed {_range_text(lo, hi, False, False, False)}")
         return value
