@@ -155,12 +155,15 @@ def main(argv: list[str] | None = None) -> int:
         stops.restore()
         raise
     temp = PrivateTemp()
-    stops.temp, stops.record_only = temp, False
+    stops.temp = temp
     args.stops = stops
     pipeline.set_default_progress(args.stops.progress)  # scans started without one (the benchmarks')
     try:
+        stops.record_only = False
         stops.check()  # Ctrl-C while the command started
-        return args.run(args)
+        code = args.run(args)
+        sys.stdout.flush()  # a closed pipe shows here, inside the handlers, not at the interpreter's exit
+        return code
     except ScannerError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USER_ERROR
@@ -176,8 +179,13 @@ def main(argv: list[str] | None = None) -> int:
         # Whoever read the output (``| head``) has gone: that is no failure of the scan, and
         # files already written (all of a set or none) stay. Exit as a process killed by
         # SIGPIPE would, and let nothing else try the closed pipe on the way out.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        print("stopped: the program reading the output closed it (broken pipe)", file=sys.stderr)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        try:
+            print("stopped: the program reading the output closed it (broken pipe)", file=sys.stderr, flush=True)
+        except OSError:  # stderr went into the same closed pipe (2>&1)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
         return 128 + signal.SIGPIPE
     except OSError as exc:  # a disk full, a folder that vanished, a permission taken away mid-run
         where = f"{exc.filename}: " if exc.filename else ""

@@ -22,6 +22,8 @@ whole sweep (seconds on a CPU): this is a test bench, not a fast simulator of vi
 
 from __future__ import annotations
 
+import numbers
+
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -42,11 +44,14 @@ class ScanPlanningEnv(gym.Env):
                  time_cost: float = 0.01, refusal_cost: float = 0.5):
         from addon.core.config.scan import load_scan_config
 
-        check_whole(max_profiles, "max_profiles (the episode's profile budget)", 1, 10**7)
-        check_whole(grid, "grid (cells per side of the observation)", 2, 256)
-        check_whole(max_steps, "max_steps (sweeps per episode)", 1, 10**5)
+        def whole(v):  # numpy's integers too (a training loop's sweep passes np.int64)
+            return int(v) if isinstance(v, numbers.Integral) and not isinstance(v, bool) else v
+
+        max_profiles = check_whole(whole(max_profiles), "max_profiles (the episode's profile budget)", 1, 10**7)
+        grid = check_whole(whole(grid), "grid (cells per side of the observation)", 2, 256)
+        max_steps = check_whole(whole(max_steps), "max_steps (sweeps per episode)", 1, 10**5)
         for value, what in ((time_cost, "time_cost"), (refusal_cost, "refusal_cost")):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < float("inf"):
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < float("inf"):
                 raise InputError(f"{what} must be a finite number ≥ 0, got {value!r}")
         self.config = load_scan_config(config) if isinstance(config, str) else config
         self.max_profiles, self.grid, self.max_steps = int(max_profiles), int(grid), int(max_steps)

@@ -209,8 +209,12 @@ def test_a_reader_that_closes_the_pipe_is_no_scan_failure(tmp_path):
     # ``... | head -1``: the summary's print fails once the scan's files are written. It used to
     # say "error: Broken pipe (nothing was written)" beside the written files.
     out = tmp_path / "out"
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}  # stdout block-buffered, as in a shell
     proc = subprocess.Popen([sys.executable, "-m", "headless", "scan", "demo", "--engine", "raycast", "--quiet",
-                             "--out", str(out)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             "--out", str(out)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)
     assert proc.stdout.readline().startswith("scan: ")
     proc.stdout.close()
     stderr = proc.stderr.read()

@@ -88,7 +88,7 @@ def write_png(path: str | Path, bgr) -> Path:
 def check_output_folder(folder: str | Path, names=(), what: str = "output folder") -> Path:
     """Refuse, in one line, an output folder a scan could not write into: a file where the
     folder should be or above it, a place that is not writable, or a sub-folder where one of
-    the files ``names`` goes. Nothing is created."""
+    the files ``names`` goes. Nothing is left behind (a trial folder is made and removed)."""
     p = Path(folder)
     if p.exists() and not p.is_dir():
         raise InputError(f"{what} {p} is a file; give a folder (it is made when missing)")

@@ -40,3 +40,4 @@ def test_colour_bar_labels_keep_two_figures_however_small_the_scale():
     assert labels == ["0.0", "0.7", "1.3"] and len(set(labels)) == 3
     assert [bar_label(f * 55.0, 55.0) for f in (0.0, 0.5, 1.0)] == ["0", "28", "55"]
     assert bar_label(0.4, 0.4) == "0.40" and bar_label(250.0, 250.0) == "250"
+    assert bar_label(0.0, 1e-6) == "0.000" and bar_label(float("nan"), float("nan")) == "nan"

@@ -508,6 +508,7 @@ def _stop(tmp, signals, after: str = "frames/s"):
     t = time.monotonic()
     for s in signals:
         proc.send_signal(s)
+        time.sleep(0.05)  # two presses, not one merged signal
     stdout, stderr = proc.communicate(timeout=60)
     return proc.returncode, stderr, time.monotonic() - t, out
 

@@ -59,3 +59,8 @@ def test_an_impossible_episode_setting_is_refused_with_what_is_allowed(kw):
 
     with pytest.raises(InputError, match=next(iter(kw))):
         ScanPlanningEnv("demo", **kw)
+
+
+def test_numpy_numbers_are_taken_as_settings():
+    env = ScanPlanningEnv("demo", max_profiles=np.int64(300), grid=np.int32(8), time_cost=np.float32(0.01))
+    assert env.max_profiles == 300 and env.grid == 8

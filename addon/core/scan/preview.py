@@ -129,7 +129,9 @@ def _colour(t: float) -> tuple[int, int, int]:
 def bar_label(value_um: float, top_um: float) -> str:
     """A colour-bar label: as many decimals as the bar's top needs to keep two figures
     (top 55 µm: "28"; 2.3 µm: "1.2"; 0.4 µm: "0.20"), so a small scale does not read 1, 1, 0."""
-    decimals = max(0, 1 - int(np.floor(np.log10(max(top_um, 1e-6)))))
+    if not (np.isfinite(top_um) and top_um > 0):
+        return f"{value_um:g}"
+    decimals = min(3, max(0, 1 - int(np.floor(np.log10(top_um)))))
     return f"{value_um:.{decimals}f}"
 
 
@@ -139,6 +141,7 @@ def _colour_bar(img, x, y, w, h, top_um: float) -> None:
     cv2.rectangle(img, (x, y), (x + w, y + h), (60, 60, 60), 1)
     for frac in (0.0, 0.5, 1.0):
         yy = int(y + (1 - frac) * h)
-        cv2.putText(img, bar_label(frac * top_um, top_um), (x + w + 4, yy + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (30, 30, 30), 1,
+        cv2.putText(img, bar_label(frac * top_um, top_um), (x + w + 4, yy + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                    (30, 30, 30), 1,
                     cv2.LINE_AA)
     cv2.putText(img, "|error| um", (x - 14, y - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (30, 30, 30), 1, cv2.LINE_AA)
