@@ -4,4 +4,4 @@ import sys
 
 from headless.cli import main
 
-sys.exit(main())
+sys.exit(main(exiting=True))

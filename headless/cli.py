@@ -137,13 +137,16 @@ def _run_kinematics(args: argparse.Namespace) -> int:
     return kinematics_demo.run()
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
     """Run a command in its own temporary folder with Ctrl-C taken as a request to stop
-    (headless.lifecycle); a user's error or a file that cannot be written is one line."""
+    (headless.lifecycle); a user's error or a file that cannot be written is one line.
+    ``exiting``: the process exits with the returned code right after (``python -m
+    headless``), so after a stop the signals stay with the stop until it is gone; otherwise
+    they are given back whatever happened."""
     from headless.lifecycle import Interrupted, PrivateTemp, StopRequests
 
     # The signals are taken before the heavy imports (see StopRequests.record_only).
-    stops = StopRequests()
+    stops = StopRequests(exiting=exiting)
     stops.record_only = True
     stops.install()
     try:

@@ -95,8 +95,12 @@ class StopRequests:
     loaded Blender (a farm's coordinator, which waits on its workers; the kinematics
     commands) nothing swallows exceptions, so the first signal raises Interrupted at once."""
 
-    def __init__(self, temp: PrivateTemp | None = None, stream=None):
+    def __init__(self, temp: PrivateTemp | None = None, stream=None, exiting: bool = False):
         self.temp = temp
+        # The process ends right after the command (``python -m headless``), so a stop's
+        # handler may stay to the end; in a caller that goes on (main() called in-process) the
+        # signals are always given back.
+        self.exiting = exiting
         self.stream = stream or sys.stderr
         self.cleanups: list = []  # what a stop "at once" must still undo (an output folder's lock)
         self.signum: int | None = None
@@ -117,10 +121,11 @@ class StopRequests:
         return self
 
     def restore(self) -> None:
-        """Give the signals back to their old handlers, unless a stop was asked for: the process
-        is then on its way out, and a second Ctrl-C before it is gone must still end it as one
-        stop (exit 128 + signal), not as Python's KeyboardInterrupt from wherever it lands."""
-        if self.signum is not None:
+        """Give the signals back to their old handlers, unless a stop was asked for in a process
+        that exits after the command (``exiting``): it is then on its way out, and a second
+        Ctrl-C before it is gone must still end it as one stop (exit 128 + signal), not as
+        Python's KeyboardInterrupt from wherever it lands."""
+        if self.signum is not None and self.exiting:
             return
         for s, old in self._old.items():
             signal.signal(s, old)

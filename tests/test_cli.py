@@ -1,6 +1,8 @@
 """The command line: demo, a small benchmark, and one-line errors for bad input."""
 
+import argparse
 import importlib.util
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -159,7 +161,7 @@ def test_a_second_ctrl_c_after_the_stop_is_through_still_exits_130():
         "import os, signal, sys, time\n"
         "sys.modules.setdefault('bpy', object())  # a Blender process: the first signal only asks\n"
         "from headless.lifecycle import StopRequests\n"
-        "stops = StopRequests().install()\n"
+        "stops = StopRequests(exiting=True).install()\n"
         "os.kill(os.getpid(), signal.SIGINT)\n"
         "time.sleep(0.2)\n"
         "stops.restore()\n"
@@ -182,6 +184,27 @@ def test_signals_are_given_back_when_no_stop_was_asked_for():
     assert signal.getsignal(signal.SIGINT) == stops._on_signal
     stops.restore()
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_main_called_in_process_gives_the_signals_back_even_after_a_stop(monkeypatch, capsys):
+    # A caller that goes on after main() (a notebook, a test, a farm's own loop) must get its
+    # Ctrl-C back; only ``python -m headless``, which exits right after, keeps the stop's.
+    import signal
+
+    from headless import cli
+
+    def stopped(args):
+        os.kill(os.getpid(), signal.SIGINT)
+        args.stops.check()
+        return 0
+
+    before = signal.getsignal(signal.SIGINT)
+    parser = cli.build_parser()
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    monkeypatch.setattr(parser, "parse_args", lambda argv: argparse.Namespace(run=stopped))
+    assert cli.main(["x"]) == 130
+    assert signal.getsignal(signal.SIGINT) is before
+    assert "interrupted" in capsys.readouterr().err
 
 
 def test_ctrl_c_while_the_command_starts_stops_it_before_the_first_frame(tmp_path):
