@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .core.errors import CollisionError, InputError, UnreachablePose
-from .core.geometry.known_space import UNKNOWN, KnownSpace
+from .core.geometry.known_space import SURFACE, UNKNOWN, KnownSpace
 from .core.scan import next_view
 
 VOXEL_MM = 2.0
@@ -79,6 +79,7 @@ class NextBestView:
         self.lo, self.hi, self.min_gain = lo, hi, int(min_gain)
         self.space = KnownSpace(lo - MARGIN_MM, hi + MARGIN_MM, voxel_mm)
         self.pool = next_view.candidates(scanner.config.cell, self.probe, lo, hi)
+        self.table = scanner.config.cell.table
         self.impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
         self.refused: list[str] = []  # why, for the last decision
         self.looked = False  # the overview pass has been chosen (or there was none to choose)
@@ -98,7 +99,7 @@ class NextBestView:
         promising at least ``min_gain`` cells and fitting ``budget`` profiles; None where there
         is none."""
         probe_now = scanner.pose("table")[:3, 3]
-        live = [c for c in self.pool if c.key not in self.impossible]
+        live = self.live()
         self.refused = []
         if not self.looked:
             self.looked = True
@@ -111,6 +112,38 @@ class NextBestView:
             if self.feasible(scanner, c):
                 return c
         return None
+
+    def live(self) -> list:
+        """The candidates not done or impossible, each as :meth:`sized` lays it out now."""
+        frames = next_view.turn_frames(self.part_radius())
+        return [self.sized(c, frames) for c in self.pool if c.key not in self.impossible]
+
+    def sized(self, c, frames: int | None = None):
+        """Candidate ``c`` as the planner would scan it now: a table turn with its profiles
+        next_view.SPACING_MM apart at the part's radius as the model knows it so far
+        (:meth:`part_radius`; ``frames`` where already worked out) instead of at the box's
+        corner (on the sphere in its box, 32 mm against 51 mm: 137 profiles instead of 180);
+        a sweep as it is."""
+        if c.kind != "turn":
+            return c
+        frames = next_view.turn_frames(self.part_radius()) if frames is None else frames
+        return c if c.frames == frames else next_view.resampled_turn(c, frames, self.table)
+
+    def part_radius(self) -> float:
+        """How far from the table's axis the part reaches, as the model tells it: the farthest
+        surface cell above the table's layer, to its outer corner; before any is known, the
+        box's corner. Surface not seen yet may lie farther out: there a turn sized to this
+        radius lays its profiles farther apart."""
+        sp = self.space
+        corner = float(np.hypot(max(abs(self.lo[0]), abs(self.hi[0])), max(abs(self.lo[1]), abs(self.hi[1]))))
+        cells = np.argwhere(sp.state == SURFACE)
+        if not len(cells):
+            return corner
+        c = sp.centres(cells)
+        inside = np.all((c >= self.lo) & (c <= self.hi), axis=1) & (c[:, 2] >= self.lo[2] + sp.voxel)
+        if not inside.any():
+            return corner
+        return min(corner, float(np.max(np.hypot(c[inside, 0], c[inside, 1]))) + sp.voxel / np.sqrt(2.0))
 
     def overview(self, scanner, live, probe_now, budget):
         """The overview pass, before anything is known: a full table turn with the probe at the

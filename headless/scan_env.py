@@ -81,6 +81,7 @@ class ScanPlanningEnv(gym.Env):
     def step(self, action):
         table_step, view, kind = (int(a) for a in np.asarray(action).reshape(3))
         c = self._by_key.get(self._key(table_step, view, kind))
+        c = None if c is None else self.planner.sized(c)  # a table turn laid out for the part as known now
         self.steps += 1
         if c is None:  # a sweep steeper than next_view.MAX_SWEEP_TILT_DEG: only table turns look that low
             info = {"sweep": f"sweep at table {360.0 * table_step / next_view.TABLE_STEPS:.0f} deg, tilt "
@@ -101,7 +102,9 @@ class ScanPlanningEnv(gym.Env):
         info.update(profiles=self.profiles, learnt=learnt,
                     surface_cells=int((self.planner.space.state == SURFACE).sum()),
                     coverage_estimate=self.planner.coverage_estimate())
-        terminated = self.profiles + min(c.frames for c in self.planner.pool) > self.max_profiles
+        frames = next_view.turn_frames(self.planner.part_radius())
+        terminated = self.profiles + min(self.planner.sized(c, frames).frames for c in self.planner.pool) \
+            > self.max_profiles
         truncated = self.steps >= self.max_steps
         return self._observation(), float(reward), bool(terminated), bool(truncated), info
 

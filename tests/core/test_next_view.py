@@ -89,3 +89,30 @@ def test_ranking_prefers_gain_per_second_and_drops_empty_views():
     there = next_view.rank(space, cfg.probe, [c], c.table_deg + 180.0, None)[0]
     assert there.gain == here.gain
     assert there.seconds - here.seconds == pytest.approx(180.0 / next_view.TABLE_DEG_PER_S)
+
+
+def test_a_table_turn_lays_its_profiles_the_spacing_apart_at_the_radius_asked():
+    for radius in (5.0, 20.0, 31.4, 51.0, 400.0):
+        n = next_view.turn_frames(radius)
+        assert 8 <= n <= next_view.MAX_TURN_FRAMES
+        step = 2 * np.pi * radius / n  # arc between neighbouring profiles at that radius
+        assert step <= next_view.SPACING_MM + 1e-9 or n == next_view.MAX_TURN_FRAMES
+        assert n == 8 or 2 * np.pi * radius / (n - 1) > next_view.SPACING_MM  # no more than needed
+    assert next_view.turn_frames(20.0, spacing_mm=2.0) < next_view.turn_frames(20.0)
+
+
+def test_a_resampled_turn_keeps_the_probe_where_it_stands_in_the_world():
+    cfg, lo, hi, _ = setup()
+    turn = [c for c in next_view.candidates(cfg.cell, cfg.probe, lo, hi) if c.kind == "turn" and c.tilt_deg == 45][0]
+    fewer = next_view.resampled_turn(turn, 40, cfg.cell.table)
+    assert fewer.frames == 40 and fewer.key == turn.key
+    wp, old = fewer.waypoints(), turn.waypoints()
+    assert wp.table_rad[0] == pytest.approx(old.table_rad[0])
+    steps = np.diff(wp.table_rad)
+    assert np.allclose(steps, 2 * np.pi / 40)  # a full circle, end left out
+    # Probe pose in the robot's base frame: the same for every frame, and the turn's own.
+    world = cfg.cell.table.table2base(wp.table_rad) @ wp.probe2table
+    world_old = cfg.cell.table.table2base(old.table_rad[:1]) @ old.probe2table[:1]
+    assert np.allclose(world, world_old[0], atol=1e-9)
+    with pytest.raises(ValueError, match="only a table turn"):
+        next_view.resampled_turn(sweep_from_above(cfg, lo, hi), 40, cfg.cell.table)

@@ -4,6 +4,7 @@ what its rays have taught it, given only a box around the part, and writes what 
 import json
 
 import numpy as np
+import pytest
 
 from addon.core.geometry.cloud import load_ply
 from addon.core.config.scan import load_scan_config
@@ -129,3 +130,26 @@ def _raycast_planner(name: str):
     config = replace(config, render=replace(config.render, engine="raycast"))
     scanner = Scanner(config=config)
     return config, scanner, NextBestView(scanner, *part_box(config))
+
+
+def test_table_turns_are_laid_out_for_the_part_as_far_as_the_model_knows_it():
+    """Before anything is seen a turn's profiles are spaced for the box's corner; once the model
+    holds surface, for the farthest surface from the table's axis. The table top, which
+    reaches out to the box's edge, and points outside the box do not count."""
+    from addon.core.scan import next_view
+
+    config, scanner, planner = _raycast_planner("demo")
+    lo, hi = planner.lo, planner.hi
+    corner = float(np.hypot(max(abs(lo[0]), abs(hi[0])), max(abs(lo[1]), abs(hi[1]))))
+    assert planner.part_radius() == pytest.approx(corner)
+    a = np.linspace(0, 2 * np.pi, 720, endpoint=False)
+    wall = np.column_stack([25.0 * np.cos(a), 25.0 * np.sin(a), np.full(a.size, 20.0)])
+    table = np.column_stack([0.95 * hi[0] * np.cos(a), 0.95 * hi[0] * np.sin(a), np.full(a.size, 0.2)])
+    stray = np.array([[hi[0] + 4.0, 0.0, 20.0]])  # in the model's margin, outside the part's box
+    for points in (wall, table, stray):
+        planner.space.add_points(np.array([0.0, 0.0, 250.0]), points)
+    r = planner.part_radius()
+    assert 25.0 <= r <= 25.0 + 2.0 * planner.space.voxel
+    turns = [c for c in planner.live() if c.kind == "turn"]
+    assert turns and all(c.frames == next_view.turn_frames(r) for c in turns)
+    assert all(c.frames < p.frames for c, p in zip(turns, [p for p in planner.pool if p.kind == "turn"]))

@@ -91,14 +91,15 @@ def candidates(cell, probe: Probe, lo, hi) -> list[Candidate]:
       SPACING_MM apart;
     - table turns: the probe still at each tilt (and side), 70° among them (aimed low: the
       sides, and what hangs over them), the laser plane holding the table's axis, the table
-      turning a full circle in steps of SPACING_MM at the box's rim."""
+      turning a full circle in steps of SPACING_MM at the box's rim (the planner lays them
+      out again at the part's radius once it knows it: :func:`resampled_turn`)."""
     lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
     centre = 0.5 * (lo + hi)
     half = 0.5 * float(np.linalg.norm((hi - lo)[:2])) + 5.0
     standoff = 0.5 * sum(probe.z_range_mm)
     up = np.array([0.0, 0.0, 1.0])
     frames = max(2, int(math.ceil(2 * half / SPACING_MM)))
-    turn_frames = max(8, min(MAX_TURN_FRAMES, int(math.ceil(2 * math.pi * half / SPACING_MM))))
+    frames_per_turn = turn_frames(half)
     out = []
     for k in range(TABLE_STEPS):
         table_deg = 360.0 * k / TABLE_STEPS
@@ -123,10 +124,29 @@ def candidates(cell, probe: Probe, lo, hi) -> list[Candidate]:
                     # Aimed off the axis towards the probe's side (the near half of the part).
                     off = np.zeros(3) if side is None else 0.5 * half * side
                     at = aim + off + (0.2 * half * s if side is None else 0.0)
-                    turn = scanpath.turntable(turn_frames, at - standoff * beam, beam, up if side is not None else None,
+                    turn = scanpath.turntable(frames_per_turn, at - standoff * beam, beam, up if side is not None else None,
                                               start_rad=table_rad, table=cell.table)
                     out.append(Candidate("turn", table_deg, signed, turn))
     return out
+
+
+def turn_frames(radius_mm: float, spacing_mm: float | None = None) -> int:
+    """Profiles for a full table turn that lays them ``spacing_mm`` (default SPACING_MM) apart
+    at ``radius_mm`` from the table's axis (at least 8, at most MAX_TURN_FRAMES)."""
+    spacing_mm = SPACING_MM if spacing_mm is None else spacing_mm
+    return max(8, min(MAX_TURN_FRAMES, int(math.ceil(2 * math.pi * radius_mm / spacing_mm))))
+
+
+def resampled_turn(c: Candidate, frames: int, table) -> Candidate:
+    """Table turn ``c`` with ``frames`` profiles over its full circle instead: the probe where
+    it stands in the world, the first profile at the same table angle."""
+    if c.kind != "turn":
+        raise ValueError(f"only a table turn can be resampled, not a {c.kind}")
+    wp = c.waypoints()
+    probe2base = table.table2base(wp.table_rad[0]) @ wp.probe2table[0]
+    angles = wp.table_rad[0] + 2 * np.pi * np.arange(frames) / frames
+    return replace(c, wp=scanpath.Waypoints(table.base2table(angles) @ probe2base, angles,
+                                            np.full(frames, wp.segment[0])))
 
 
 def fan_rays(probe: Probe, poses: np.ndarray, rays: int = SAMPLE_RAYS) -> tuple[np.ndarray, np.ndarray]:
