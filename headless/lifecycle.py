@@ -113,8 +113,13 @@ class StopRequests:
         self.record_only = False
 
     def install(self) -> "StopRequests":
+        """Take SIGINT and SIGTERM, except one the process was started with ignored: a job a
+        script put in the background (its shell ignores SIGINT for it) is not the terminal's to
+        stop, and stays so, as Python itself leaves such a signal ignored."""
         for s in SIGNAL_NAMES:
             try:
+                if signal.getsignal(s) == signal.SIG_IGN:
+                    continue
                 self._old[s] = signal.signal(s, self._on_signal)
             except ValueError:  # not the main thread: leave the signals alone
                 pass

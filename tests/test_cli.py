@@ -174,6 +174,28 @@ def test_a_second_ctrl_c_after_the_stop_is_through_still_exits_130():
     assert "survived" not in out.stdout and "Traceback" not in out.stderr
 
 
+def test_a_signal_ignored_at_start_up_stays_ignored():
+    # A script's background job (``scan ... &`` in a non-interactive shell) starts with SIGINT
+    # ignored: a Ctrl-C meant for the script's foreground must not stop it.
+    import signal
+
+    script = (
+        "import os, signal, time\n"
+        "from headless.lifecycle import StopRequests\n"
+        "stops = StopRequests(exiting=True).install()\n"
+        "assert signal.getsignal(signal.SIGTERM) == stops._on_signal\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.2)\n"
+        "stops.check()\n"
+        "stops.restore()\n"
+        "assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN\n"
+        "print('survived')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert out.returncode == 0 and "survived" in out.stdout, (out.returncode, out.stderr)
+
+
 def test_signals_are_given_back_when_no_stop_was_asked_for():
     import signal
 
