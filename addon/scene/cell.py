@@ -29,7 +29,7 @@ from .laser import add_laser
 from .materials import diffuse
 from .meshes import mesh_object
 from ..core.config.render import RenderOptions, laser_engine_mismatch
-from .render import configure, render_animation
+from .render import configure, opengl_device, render_animation
 from .turntable import add_turntable, add_workpiece, set_table_angle
 from .units import from_blender
 
@@ -150,11 +150,15 @@ class SceneCell:
         self.device_used = configure(self.scene, self.probe, settings, self.cameras[0])
         with self._only_the_cell():
             if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else
-                return render_animation(self.scene, first, last, cameras, out_dir, rows)
-            if move_table is None:  # Cycles does not motion-blur lights: with motion blur, move the part
-                move_table = settings.motion_blur_shutter > 0
-            with self._without_rig(first, last, move_table):
-                return render_animation(self.scene, first, last, cameras, out_dir, rows)
+                images = render_animation(self.scene, first, last, cameras, out_dir, rows)
+            else:
+                if move_table is None:  # Cycles does not motion-blur lights: with motion blur, move the part
+                    move_table = settings.motion_blur_shutter > 0
+                with self._without_rig(first, last, move_table):
+                    images = render_animation(self.scene, first, last, cameras, out_dir, rows)
+        if settings.engine == "eevee":  # its OpenGL device is known once it has rendered
+            self.device_used = opengl_device() or self.device_used
+        return images
 
     @contextmanager
     def _only_the_cell(self):

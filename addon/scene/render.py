@@ -37,7 +37,8 @@ VIEWS = (("left", "_L"), ("right", "_R"))
 
 
 def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, camera_left: bpy.types.Object) -> str:
-    """Set the scene up for probe renders; returns the device used."""
+    """Set the scene up for probe renders; returns the device used (Cycles': the one it was
+    given; Eevee's: the OpenGL device once it has rendered, see :func:`opengl_device`)."""
     r = scene.render
     r.engine = BLENDER_ENGINES[settings.engine]
     W, H = settings.resolution or (probe.cols_px, probe.rows_px)
@@ -55,6 +56,8 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, cam
         r.motion_blur_shutter = settings.motion_blur_shutter
         r.motion_blur_position = "CENTER"
     device = "CPU"
+    if settings.engine == "eevee":
+        device = opengl_device() or "GPU (OpenGL)"
     if settings.engine == "cycles":
         device = use_device(scene, settings.device)
         c = scene.cycles
@@ -179,6 +182,21 @@ def set_rows(scene: bpy.types.Scene, rows: tuple[int, int] | None) -> None:
     r.use_crop_to_border = True
     r.border_min_x, r.border_max_x = 0.0, 1.0
     r.border_min_y, r.border_max_y = (H - r1) / H, (H - r0) / H
+
+
+def opengl_device() -> str | None:
+    """What Eevee rendered on, from the GPU module (known once Eevee has rendered; None before
+    or where the module cannot tell): "GPU (OpenGL: NVIDIA H100 ...)", or "CPU (software
+    OpenGL: llvmpipe ...)" where no GPU drives OpenGL (Mesa's software rasteriser)."""
+    try:
+        import gpu
+
+        renderer = gpu.platform.renderer_get()
+        software = gpu.platform.device_type_get() == "SOFTWARE"
+        backend = gpu.platform.backend_type_get().title().replace("Opengl", "OpenGL")
+    except Exception:  # not initialised (no Eevee render yet), or a build without the module
+        return None
+    return f"CPU (software {backend}: {renderer})" if software else f"GPU ({backend}: {renderer})"
 
 
 def render_animation(scene: bpy.types.Scene, first: int, last: int, cameras=(0, 1),

@@ -89,6 +89,21 @@ def test_each_engine_refuses_the_other_engines_gaussian_laser(scene):
         sc.render(1, 1, RenderOptions(engine="cycles"))
 
 
+def test_an_eevee_render_reports_the_opengl_device_it_ran_on(scene):
+    # Eevee draws through OpenGL: on a GPU, or through Mesa's software rasteriser where there is
+    # none (this CI machine). The report must say which, not "CPU" for an H100.
+    import gpu
+
+    sc = build_cell(scene, Cell(load_robot("ur5")), load_probe("default"), builtin_workpiece("plane"), laser="spot")
+    qs, thetas = scanning_path(sc, 1)
+    sc.keyframe(qs, thetas)
+    sc.render(1, 1, RenderOptions(engine="eevee", samples=1), cameras=(0,))
+    renderer = gpu.platform.renderer_get()
+    assert renderer and renderer in sc.device_used
+    software = gpu.platform.device_type_get() == "SOFTWARE"
+    assert sc.device_used.startswith("CPU (software OpenGL" if software else "GPU (OpenGL"), sc.device_used
+
+
 def test_rebuilding_replaces_the_cell(scene):
     import bpy
 
