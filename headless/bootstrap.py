@@ -30,6 +30,7 @@ from __future__ import annotations
 import glob
 import hashlib
 import os
+import signal
 import subprocess
 import sys
 import venv
@@ -108,7 +109,12 @@ def ensure_python() -> None:
     other = find_python(REQUIRED_PYTHON)
     if other and os.environ.get("_SCANNER_BOOTSTRAP_REEXEC") != "1":
         os.environ["_SCANNER_BOOTSTRAP_REEXEC"] = "1"
-        sys.exit(subprocess.call([other, "-m", "headless.bootstrap", *sys.argv[1:]], cwd=REPO))
+        # Replaced, not waited for: a Ctrl-C then reaches one process, not a parent that
+        # would kill the command when its own wait is interrupted.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os.chdir(REPO)
+        os.execv(other, [other, "-m", "headless.bootstrap", *sys.argv[1:]])
     sys.exit(f"error: this project needs CPython {want} (bpy 5.2 LTS is built for it only); found "
              f"{sys.version.split()[0]} and no python{want} on PATH or in pyenv: install CPython {want} "
              f"(e.g. 'pyenv install {want}') and run the same command again")
@@ -194,12 +200,34 @@ def main(argv: list[str]) -> int:
     ensure_venv()
     py = str(venv_python())
     if argv[0] == "test":
-        rc = subprocess.call([py, "-m", "pytest", *argv[1:]], cwd=REPO)
+        rc = run_in_foreground([py, "-m", "pytest", *argv[1:]])
         if rc == PYTEST_NO_TESTS:
             print("[test] pytest collected no tests for this selection; nothing failed", flush=True)
             return 0
         return rc
-    return subprocess.call([py, "-m", "headless", *argv], cwd=REPO)
+    # The command becomes this process: a Ctrl-C or SIGTERM then reaches the scan alone, which
+    # stops as it promises (the frames under way finished, nothing half-written, exit 130),
+    # instead of a parent that would kill it when its own wait is interrupted.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.chdir(REPO)
+    os.execv(py, [py, "-m", "headless", *argv])
+    return 1  # not reached
+
+
+def run_in_foreground(cmd: list[str]) -> int:
+    """Run ``cmd`` and wait for it, its exit code back (a signal's as 128 + its number). A
+    Ctrl-C at the terminal reaches the child too (one process group): the parent ignores its
+    own meanwhile and lets the child decide; a SIGTERM sent to the parent is passed on."""
+    proc = subprocess.Popen(cmd, cwd=REPO)
+    old = {signal.SIGINT: signal.signal(signal.SIGINT, signal.SIG_IGN),
+           signal.SIGTERM: signal.signal(signal.SIGTERM, lambda signum, frame: proc.send_signal(signum))}
+    try:
+        rc = proc.wait()
+    finally:
+        for signum, handler in old.items():
+            signal.signal(signum, handler)
+    return 128 - rc if rc < 0 else rc
 
 
 if __name__ == "__main__":

@@ -143,7 +143,7 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
     ``exiting``: the process exits with the returned code right after (``python -m
     headless``), so after a stop the signals stay with the stop until it is gone; otherwise
     they are given back whatever happened."""
-    from headless.lifecycle import Interrupted, PrivateTemp, StopRequests
+    from headless.lifecycle import SIGNAL_NAMES, Interrupted, PrivateTemp, StopRequests
 
     # The signals are taken before the heavy imports (see StopRequests.record_only).
     stops = StopRequests(exiting=exiting)
@@ -165,6 +165,9 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
         stops.record_only = False
         stops.check()  # Ctrl-C while the command started
         code = args.run(args)
+        if stops.signum is not None and code == 0:  # asked for once nothing was left to stop
+            print(f"({SIGNAL_NAMES.get(stops.signum, 'the stop')} came after the last frame: the command "
+                  f"finished and wrote its results)", file=sys.stderr, flush=True)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers, not at the interpreter's exit
         return code
     except ScannerError as exc:

@@ -1,5 +1,6 @@
 """The set-up step installs once and is skipped while the lock file is unchanged."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -53,9 +54,33 @@ def test_failed_install_leaves_no_stamp(fake_repo, monkeypatch):
 
 def test_no_tests_collected_is_not_a_failure(fake_repo, monkeypatch):
     monkeypatch.setattr(bootstrap, "ensure_python", lambda: None)
-    monkeypatch.setattr(bootstrap.subprocess, "call",
-                        lambda cmd, cwd=None: bootstrap.PYTEST_NO_TESTS if "pytest" in cmd else 0)
+    monkeypatch.setattr(bootstrap, "run_in_foreground",
+                        lambda cmd: bootstrap.PYTEST_NO_TESTS if "pytest" in cmd else 0)
     assert bootstrap.main(["test", "-k", "nothing_matches"]) == 0
+
+
+def test_a_child_in_the_foreground_gets_the_ctrl_c_and_its_exit_code_comes_back():
+    # The terminal's Ctrl-C reaches parent and child alike; the parent must neither die of it
+    # nor kill the child, which stops in its own time and whose exit code comes back.
+    import signal
+    import time
+
+    script = (
+        "import os, signal, sys, time\n"
+        "from headless import bootstrap\n"
+        "child = ('import signal, sys, time\\n'\n"
+        "         'signal.signal(signal.SIGINT, lambda s, f: (time.sleep(0.5), sys.exit(130)))\\n'\n"
+        "         'print(\"ready\", flush=True); time.sleep(30)')\n"
+        "sys.exit(bootstrap.run_in_foreground([sys.executable, '-c', child]))\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    assert proc.stdout.readline().strip() == "ready"
+    time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGINT)  # as the terminal does: the whole foreground group
+    out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert "Traceback" not in err
 
 
 def test_help_runs_on_plain_python():

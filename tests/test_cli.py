@@ -174,6 +174,24 @@ def test_a_second_ctrl_c_after_the_stop_is_through_still_exits_130():
     assert "survived" not in out.stdout and "Traceback" not in out.stderr
 
 
+def test_a_stop_asked_for_after_the_last_frame_says_the_results_were_written(monkeypatch, capsys):
+    # In a Blender process a Ctrl-C is recorded and acted on at the next frame; one that comes
+    # when no frame is left finds the command finishing: exit 0, and a line saying so.
+    import signal
+
+    from headless import cli
+
+    def finished(args):
+        args.stops.signum = signal.SIGINT  # recorded while the results were being written
+        return 0
+
+    parser = cli.build_parser()
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    monkeypatch.setattr(parser, "parse_args", lambda argv: argparse.Namespace(run=finished))
+    assert cli.main(["x"]) == 0
+    assert "Ctrl-C came after the last frame" in capsys.readouterr().err
+
+
 def test_a_signal_ignored_at_start_up_stays_ignored():
     # A script's background job (``scan ... &`` in a non-interactive shell) starts with SIGINT
     # ignored: a Ctrl-C meant for the script's foreground must not stop it.
@@ -224,9 +242,40 @@ def test_main_called_in_process_gives_the_signals_back_even_after_a_stop(monkeyp
     parser = cli.build_parser()
     monkeypatch.setattr(cli, "build_parser", lambda: parser)
     monkeypatch.setattr(parser, "parse_args", lambda argv: argparse.Namespace(run=stopped))
-    assert cli.main(["x"]) == 130
-    assert signal.getsignal(signal.SIGINT) is before
-    assert "interrupted" in capsys.readouterr().err
+    try:
+        assert cli.main(["x"]) == 130
+        assert signal.getsignal(signal.SIGINT) is before
+        assert "interrupted" in capsys.readouterr().err
+    finally:  # whatever failed, pytest keeps its own Ctrl-C
+        signal.signal(signal.SIGINT, before)
+
+
+def test_python_m_headless_keeps_the_stop_against_a_second_ctrl_c_on_its_way_out():
+    # ``python -m headless`` exits right after main(): a second Ctrl-C landing between main's
+    # return and the exit must still end the process as one stop (130), not as a traceback.
+    script = (
+        "import argparse, os, runpy, signal, sys, time\n"
+        "sys.modules.setdefault('bpy', type(sys)('bpy'))  # a Blender process: a signal is recorded\n"
+        "from headless import cli\n"
+        "parser = cli.build_parser()\n"
+        "cli.build_parser = lambda: parser\n"
+        "def stopped(args):\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    time.sleep(0.1)\n"
+        "    args.stops.check()\n"
+        "parser.parse_args = lambda argv=None: argparse.Namespace(run=stopped)\n"
+        "real_exit = sys.exit\n"
+        "def late_second_press(code=0):\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    time.sleep(0.2)\n"
+        "    print('survived', flush=True)\n"
+        "    real_exit(code)\n"
+        "sys.exit = late_second_press\n"
+        "runpy.run_module('headless', run_name='__main__')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 130, (out.returncode, out.stderr[-500:])
+    assert "Traceback" not in out.stderr
 
 
 def test_ctrl_c_while_the_command_starts_stops_it_before_the_first_frame(tmp_path):
