@@ -132,10 +132,11 @@ def _raycast_planner(name: str):
     return config, scanner, NextBestView(scanner, *part_box(config))
 
 
-def test_table_turns_are_laid_out_for_the_part_as_far_as_the_model_knows_it():
-    """Before anything is seen a turn's profiles are spaced for the box's corner; once the model
-    holds surface, for the farthest surface from the table's axis. The table top, which
-    reaches out to the box's edge, and points outside the box do not count."""
+def test_table_turns_are_laid_out_for_the_part_as_far_as_it_was_measured():
+    """Before anything is seen a turn's profiles are spaced for the box's corner; once points
+    come back, for the farthest point of the part from the table's axis. The table top, which
+    reaches out to the box's edge, and points outside the box do not count; a flange 1 mm
+    above the table does."""
     from addon.core.scan import next_view
 
     config, scanner, planner = _raycast_planner("demo")
@@ -143,13 +144,14 @@ def test_table_turns_are_laid_out_for_the_part_as_far_as_the_model_knows_it():
     corner = float(np.hypot(max(abs(lo[0]), abs(hi[0])), max(abs(lo[1]), abs(hi[1]))))
     assert planner.part_radius() == pytest.approx(corner)
     a = np.linspace(0, 2 * np.pi, 720, endpoint=False)
-    wall = np.column_stack([25.0 * np.cos(a), 25.0 * np.sin(a), np.full(a.size, 20.0)])
-    table = np.column_stack([0.95 * hi[0] * np.cos(a), 0.95 * hi[0] * np.sin(a), np.full(a.size, 0.2)])
-    stray = np.array([[hi[0] + 4.0, 0.0, 20.0]])  # in the model's margin, outside the part's box
-    for points in (wall, table, stray):
-        planner.space.add_points(np.array([0.0, 0.0, 250.0]), points)
-    r = planner.part_radius()
-    assert 25.0 <= r <= 25.0 + 2.0 * planner.space.voxel
+    ring = lambda r, z: np.column_stack([r * np.cos(a), r * np.sin(a), np.full(a.size, z)])
+    laser = np.array([0.0, 0.0, 250.0])
+    planner.learn(laser, ring(25.0, 20.0))
+    planner.learn(laser, ring(0.95 * hi[0], 0.05))  # the table top, out to the box's edge
+    planner.learn(laser, np.array([[hi[0] + 4.0, 0.0, 20.0]]))  # outside the part's box
+    assert planner.part_radius() == pytest.approx(25.0, abs=1e-6)
     turns = [c for c in planner.live() if c.kind == "turn"]
-    assert turns and all(c.frames == next_view.turn_frames(r) for c in turns)
+    assert turns and all(c.frames == next_view.turn_frames(25.0) for c in turns)
     assert all(c.frames < p.frames for c, p in zip(turns, [p for p in planner.pool if p.kind == "turn"]))
+    planner.learn(laser, ring(30.0, 1.0))  # a thin flange reaching farther out
+    assert planner.part_radius() == pytest.approx(30.0, abs=1e-6)
