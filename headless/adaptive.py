@@ -73,6 +73,11 @@ def run(args: argparse.Namespace) -> int:
                                  log=None if args.quiet else (lambda m: print(m, flush=True)))
         if stops is not None:
             stops.check()
+        if not steps:
+            raise InputError(f"no view was scanned: none the robot can do fits the budget of {settings.max_profiles} "
+                             f"profiles and promises {settings.min_gain} new cells (raise --max-profiles, or check "
+                             f"that the [adaptive] box {lo.round(1).tolist()} .. {hi.round(1).tolist()} mm is the "
+                             f"part's, on the table within the robot's reach); nothing written")
         result = scanner.result(out)
         print_summary(result, time.perf_counter() - t)
         plan_s = [s.planning_s for s in steps]

@@ -79,7 +79,14 @@ class ScanPlanningEnv(gym.Env):
         return self._observation(), {"profiles": 0, "surface_cells": 0, "coverage_estimate": 0.0}
 
     def step(self, action):
-        table_step, view, kind = (int(a) for a in np.asarray(action).reshape(3))
+        if not hasattr(self, "_by_key"):
+            raise RuntimeError("call reset() before step()")
+        a = np.asarray(action)
+        if a.shape != (3,) or a.dtype.kind not in "iu" or not self.action_space.contains(a.astype(np.int64)):
+            raise ValueError(f"action {action!r} is not in the action space {self.action_space}: three whole "
+                             f"numbers, a table step 0..{next_view.TABLE_STEPS - 1}, a view 0..{len(self.tilts) - 1} "
+                             f"and the kind (0 a sweep, 1 a table turn)")
+        table_step, view, kind = (int(v) for v in a)
         c = self._by_key.get(self._key(table_step, view, kind))
         c = None if c is None else self.planner.sized(c)  # a table turn laid out for the part as known now
         self.steps += 1

@@ -155,3 +155,12 @@ def test_table_turns_are_laid_out_for_the_part_as_far_as_it_was_measured():
     assert all(c.frames < p.frames for c, p in zip(turns, [p for p in planner.pool if p.kind == "turn"]))
     planner.learn(laser, ring(30.0, 1.0))  # a thin flange reaching farther out
     assert planner.part_radius() == pytest.approx(30.0, abs=1e-6)
+
+
+def test_a_budget_no_view_fits_is_refused_and_writes_nothing(tmp_path, capsys):
+    # The smallest view of the demo's box (a sweep across it) takes more than 10 profiles.
+    out = tmp_path / "out"
+    assert main(["adaptive", "demo", "--engine", "raycast", "--out", str(out), "--max-profiles", "10"]) == 2
+    err = capsys.readouterr().err
+    assert "no view was scanned" in err and "10 profiles" in err and "Traceback" not in err
+    assert not any(p.name in ("cloud.ply", "report.json", "preview.png") for p in out.glob("*")) if out.exists() else True

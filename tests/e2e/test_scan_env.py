@@ -64,3 +64,16 @@ def test_an_impossible_episode_setting_is_refused_with_what_is_allowed(kw):
 def test_numpy_numbers_are_taken_as_settings():
     env = ScanPlanningEnv("demo", max_profiles=np.int64(300), grid=np.int32(8), time_cost=np.float32(0.01))
     assert env.max_profiles == 300 and env.grid == 8
+
+
+def test_an_action_outside_the_action_space_is_refused_in_one_line():
+    from headless.scan_env import ScanPlanningEnv
+
+    env = ScanPlanningEnv("demo", max_profiles=150, max_steps=2)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step([0, 0, 0])
+    env.reset(seed=0)
+    for bad in ([8, 0, 0], [-1, 0, 0], [0, 7, 0], [0, 0, 2], [1.7, 0.2, 0], [0, 0], [10 ** 20, 0, 0]):
+        with pytest.raises(ValueError, match="not in the action space"):
+            env.step(bad)
+    assert env.profiles == 0 and env.steps == 0  # nothing scanned, nothing counted
