@@ -136,6 +136,25 @@ def ensure_venv() -> None:
                 "the first time downloads about 600 MB, mostly bpy")
 
 
+# Import names of the lock's packages that differ from the package's name.
+PACKAGE_OF_MODULE = {"cv2": "opencv-contrib-python-headless", "fcl": "python-fcl", "igl": "libigl",
+                     "yaml": "pyyaml", "PIL": "pillow", "sklearn": "scikit-learn"}
+
+
+def missing_package_line(exc: ModuleNotFoundError) -> str | None:
+    """One line for ``python -m headless`` started with a Python that lacks a package of the
+    lock (outside .venv): which one, and the two commands that have it. None where the module
+    missing is the project's own (a bug, shown as one)."""
+    name = (exc.name or "").split(".")[0]
+    if not name or name in ("addon", "headless"):
+        return None
+    package = PACKAGE_OF_MODULE.get(name, name)
+    here = _shown(venv_python())
+    return (f"error: this Python ({sys.executable}) has no '{name}' (package {package}); the project's "
+            f"packages are in .venv: run '{here} -m headless ...', or 'python3 -m headless.bootstrap ...', "
+            f"which sets .venv up first")
+
+
 def _shown(path: Path) -> Path:
     """A path as the user would type it from the repository root."""
     return path.relative_to(REPO) if path.is_relative_to(REPO) else path

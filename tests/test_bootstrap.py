@@ -118,3 +118,21 @@ def test_a_pyenv_shim_that_does_not_run_is_passed_over(tmp_path, monkeypatch):
     monkeypatch.setenv("PYENV_ROOT", str(tmp_path / "pyenv"))
     monkeypatch.setattr(bootstrap.sys, "version_info", (3, 0, 0))
     assert bootstrap.find_python((3, 13)) in (None, "/usr/local/bin/python3.13", "/usr/bin/python3.13")
+
+
+def test_python_m_headless_outside_the_venv_says_in_one_line_which_package_is_missing_and_where_it_is():
+    # A Python without OpenCV stands in for the system's python3: cv2 cannot be imported.
+    script = ("import runpy, sys; sys.modules['cv2'] = None; sys.argv = ['headless', 'demo']; "
+              "runpy.run_module('headless', run_name='__main__')")
+    done = subprocess.run([sys.executable, "-c", script], cwd=bootstrap.REPO, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+    assert "'cv2'" in lines[0] and "opencv-contrib-python-headless" in lines[0]
+    assert "-m headless" in lines[0] and "headless.bootstrap" in lines[0]
+
+
+def test_a_missing_module_of_the_project_itself_is_not_blamed_on_the_set_up():
+    assert bootstrap.missing_package_line(ModuleNotFoundError("no", name="addon.core.nothing")) is None
+    assert "package python-fcl" in bootstrap.missing_package_line(ModuleNotFoundError("no", name="fcl"))
