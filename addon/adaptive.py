@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .core.config.scan import MAX_PROFILES
 from .core.errors import CollisionError, InputError, UnreachablePose
 from .core.geometry.known_space import UNKNOWN, KnownSpace
 from .core.scan import next_view
@@ -28,6 +29,7 @@ OVERVIEW_MAX_TILT_DEG = 45.0  # steeper turns look at the sides and miss the top
 MARGIN_MM = 6.0   # the model's box around the part's
 TRIES = 12        # candidates asked for reachability per decision, best first
 TABLE_CLEARANCE_MM = 0.2  # a point this far above the table top is the part's (see part_radius)
+OUTSIDE_WARNING = 0.05  # a share of the points outside the part's box that says the box is too small
 
 
 @dataclass(frozen=True)
@@ -76,6 +78,10 @@ class NextBestView:
         if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()
                                                         and (hi > lo).all()):
             raise InputError(f"the part's bounding box needs lo < hi, three finite numbers each, got {lo!r}, {hi!r}")
+        if hi[2] <= 0.0:
+            raise InputError(f"the part's bounding box {lo.tolist()} .. {hi.tolist()} mm lies under the table top "
+                             f"(z = 0 in the table frame): its top must be above 0")
+        check_min_gain(min_gain)
         self.probe = scanner.config.probe
         self.lo, self.hi, self.min_gain = lo, hi, int(min_gain)
         self.space = KnownSpace(lo - MARGIN_MM, hi + MARGIN_MM, voxel_mm)
@@ -85,6 +91,9 @@ class NextBestView:
         self.impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
         self.refused: list[str] = []  # why, for the last decision
         self.looked = False  # the overview pass has been chosen (or there was none to choose)
+        self.frames_seen = 0  # the scanner's frames learnt from (catch_up)
+        self.points_seen = 0  # points above the table top learnt from ...
+        self.points_outside = 0  # ... and of them, farther than a cell outside the part's box
         # Cells a view scanned was expected to see (its fan met the cell first, unknown, in
         # range) that stayed unknown: no camera saw the spot, or every point there was dropped.
         # They no longer count as gain: they drew view after view to the same spot for nothing
@@ -140,6 +149,29 @@ class NextBestView:
         corner = float(np.hypot(max(abs(self.lo[0]), abs(self.hi[0])), max(abs(self.lo[1]), abs(self.hi[1]))))
         return corner if self.reach is None else min(corner, self.reach)
 
+    def fits(self, lo, hi, voxel_mm: float) -> bool:
+        """Whether this planner's model is the one asked for: the same box and cell size."""
+        return bool(np.array_equal(self.lo, np.asarray(lo, float)) and np.array_equal(self.hi, np.asarray(hi, float))
+                    and self.space.voxel == float(voxel_mm))
+
+    def catch_up(self, scanner) -> int:
+        """Learn from every profile the scanner measured that this planner has not seen (a
+        scan under way before the planner joined, or moves made between two adaptive runs);
+        once anything is known, no overview is needed. Returns the profiles learnt."""
+        n = 0
+        for frame, probe2table, points in scanner.measurements(self.frames_seen):
+            self.learn(probe2table[:3, 3], points)
+            self.frames_seen = frame + 1
+            n += 1
+        if self.points_seen:
+            self.looked = True
+        return n
+
+    def outside_share(self) -> float:
+        """The share of the points measured above the table that lie more than a cell outside
+        the part's box: a box told too small (or off the part) shows here."""
+        return self.points_outside / self.points_seen if self.points_seen else 0.0
+
     def learn(self, origin, points) -> None:
         """Add one profile's points (n, 3), table frame, measured from the laser at ``origin``
         to the model, and how far from the axis the part reaches (:meth:`part_radius`)."""
@@ -147,6 +179,10 @@ class NextBestView:
         if not len(P):
             return
         self.space.add_points(origin, P)
+        above = P[P[:, 2] > TABLE_CLEARANCE_MM]
+        self.points_seen += len(above)
+        pad = self.space.voxel
+        self.points_outside += int(np.sum(np.any((above < self.lo - pad) | (above > self.hi + pad), axis=1)))
         floor = max(self.lo[2], 0.0) + TABLE_CLEARANCE_MM  # the table top is z = 0 in the table frame
         part = np.all((P[:, :2] >= self.lo[:2]) & (P[:, :2] <= self.hi[:2]), axis=1) & (P[:, 2] > floor) \
             & (P[:, 2] <= self.hi[2])
@@ -186,14 +222,16 @@ class NextBestView:
         """How much of the part's surface the model says is seen (0..1), from its box alone."""
         return self.space.coverage_estimate(self.lo, self.hi)
 
-    def scan(self, scanner, c) -> tuple[list, int]:
+    def scan(self, scanner, c, progress=None) -> tuple[list, int]:
         """Scan candidate ``c`` and learn from it: (its profiles, the cells it taught). The
-        cells its fans were expected to see and that stayed unknown are marked ``missed``."""
+        cells its fans were expected to see and that stayed unknown are marked ``missed``.
+        ``progress(stage, done, total)`` after each chunk of its frames."""
         before = self.space.counts()["unknown"]
         expected = next_view.new_cells(self.space, self.probe, c.waypoints().probe2table)
-        profiles = scanner.scan_path(c.waypoints())
+        profiles = scanner.scan_path(c.waypoints(), progress)
         for p in profiles:
             self.learn(p.probe2table[:3, 3], p.points)
+        self.frames_seen = max(self.frames_seen, profiles[-1].frame + 1) if profiles else self.frames_seen
         if len(expected):
             i, j, k = expected.T
             self.missed[i, j, k] |= self.space.state[i, j, k] == UNKNOWN
@@ -209,23 +247,42 @@ def check_target_coverage(target) -> None:
         raise InputError(f"the target coverage must be a share in (0, 1] (0.9 for 90 %), got {target!r}")
 
 
+def check_min_gain(min_gain) -> None:
+    """The new cells a sweep must promise: a whole number, at least 1."""
+    if isinstance(min_gain, bool) or not isinstance(min_gain, (int, np.integer)) or min_gain < 1:
+        raise InputError(f"min_gain (the new cells a sweep must promise) must be a whole number ≥ 1, "
+                             f"got {min_gain!r}")
+
+
 def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 30,
                   target_coverage: float | None = None, voxel_mm: float = VOXEL_MM, progress=None,
-                  log=None) -> list[AdaptiveStep]:
+                  log=None, planner: NextBestView | None = None, setup_s: float = 0.0) -> list[AdaptiveStep]:
     """Scan the part inside the box [lo, hi] (table frame, mm) adaptively with ``scanner``;
     returns the decisions. ``target_coverage`` (0..1, None: none): stop once the model's
-    coverage estimate reaches it. ``progress(stage, done, total)`` after each sweep (profiles)."""
-    if isinstance(max_profiles, bool) or not isinstance(max_profiles, int) or max_profiles < 1:
-        raise InputError(f"max_profiles must be a positive whole number, got {max_profiles!r}")
+    coverage estimate reaches it. ``progress(stage, done, total)`` before each sweep and after
+    each chunk of its frames (profiles of this run against ``max_profiles``). ``planner``: one
+    to go on with (a second run on the same scanner; it first learns whatever the scanner
+    measured since), set up in ``setup_s``; None: a new one over [lo, hi]."""
+    if isinstance(max_profiles, bool) or not isinstance(max_profiles, (int, np.integer)) \
+            or not 1 <= max_profiles <= MAX_PROFILES:
+        raise InputError(f"max_profiles must be a whole number from 1 to {MAX_PROFILES}, got {max_profiles!r}")
+    check_min_gain(min_gain)
     check_target_coverage(target_coverage)
-    t = time.perf_counter()
-    planner = NextBestView(scanner, lo, hi, min_gain=min_gain, voxel_mm=voxel_mm)
-    setup = time.perf_counter() - t
-    if log:
-        log(f"adaptive: planner set up in {setup:.2f} s ({len(planner.pool)} candidate sweeps)")
+    if planner is None:
+        t = time.perf_counter()
+        planner = NextBestView(scanner, lo, hi, min_gain=min_gain, voxel_mm=voxel_mm)
+        setup_s = time.perf_counter() - t
+    if log and setup_s:
+        log(f"adaptive: planner set up in {setup_s:.2f} s ({len(planner.pool)} candidate sweeps)")
+    planner.min_gain = int(min_gain)
+    caught = planner.catch_up(scanner)
+    if log and caught:
+        log(f"adaptive: learnt from the {caught} profiles measured before this run")
     steps: list[AdaptiveStep] = []
     taken = 0
+    say = progress or (lambda stage, done, total: None)
     while taken < max_profiles:
+        say("adaptive", taken, max_profiles)  # a stop asked for during the last sweep takes effect here
         t = time.perf_counter()
         chosen = planner.choose(scanner, max_profiles - taken)
         planning = time.perf_counter() - t
@@ -237,12 +294,16 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
                 log(f"adaptive: stopping after {len(steps)} sweeps: no reachable sweep promises {min_gain} new "
                     f"cells within the budget")
             break
-        profiles, learnt = planner.scan(scanner, chosen)
+        say("adaptive", taken, max_profiles)  # ... or during the planning
+        before = taken
+        profiles, learnt = planner.scan(scanner, chosen, lambda stage, done, total: say(
+            "adaptive", before + done, max_profiles))
         taken += len(profiles)
         estimate = planner.coverage_estimate()
         step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
-                            chosen.gain, planning, len(planner.refused), estimate, 0.0 if steps else setup)
+                            chosen.gain, planning, len(planner.refused), estimate, setup_s)
         steps.append(step)
+        setup_s = 0.0
         if log:
             log(f"adaptive: sweep {len(steps)}: {step.sweep}; learnt {step.new_cells} cells, coverage estimate "
                 f"{estimate * 100:.0f} % (planned in {planning:.2f} s, {step.refused} refused)")
@@ -257,4 +318,10 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
             if log:
                 log(f"adaptive: stopping after {len(steps)} sweeps: the last two taught fewer than {min_gain} cells")
             break
+    outside = planner.outside_share()
+    if log and outside > OUTSIDE_WARNING:
+        log(f"adaptive: warning: {outside * 100:.0f} % of the points measured above the table lie outside the part's "
+            f"box {planner.lo.round(1).tolist()} .. {planner.hi.round(1).tolist()} mm: the part reaches beyond the "
+            f"box the planner was told ([adaptive] box_min_mm/box_max_mm or radius_mm/height_mm), which plans and "
+            f"estimates coverage inside it only")
     return steps

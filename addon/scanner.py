@@ -127,6 +127,7 @@ class Scanner:
         self._extra: dict = {}  # what joins the report besides the scan itself (an adaptive scan's sweeps)
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
         self._clearances: list = []  # the collision check of every move and path (PathClearance)
+        self._planner = None  # the adaptive planner of the last adaptive() call, to go on from
         if not len(config.waypoints):
             self._look_at_the_table()
 
@@ -188,6 +189,22 @@ class Scanner:
     def cloud(self) -> Cloud:
         """Everything measured so far (table frame)."""
         return Cloud.concatenate(self._parts)
+
+    def measurements(self, first: int = 0):
+        """Every profile measured from frame ``first`` on, in order, as (its frame, the probe's
+        pose in the table frame (4, 4), its points (n, 3), table frame): what a planner that
+        joins a scan under way learns from."""
+        if first >= self._frames:
+            return
+        q = np.concatenate([p[0] for p in self._poses])[first:]
+        table_rad = np.concatenate([p[1] for p in self._poses])[first:]
+        probe2table = self.config.cell.probe2table(q, table_rad)
+        cloud = self.cloud
+        order = np.argsort(cloud.frame, kind="stable")
+        frames, points = cloud.frame[order], cloud.points[order]
+        cuts = np.searchsorted(frames, np.arange(first, self._frames + 1))
+        for i in range(len(q)):
+            yield first + i, probe2table[i], points[cuts[i]:cuts[i + 1]]
 
     # -- moves ---------------------------------------------------------------------------
     def move_to(self, pose, relative_to: str = "table") -> np.ndarray:
@@ -337,15 +354,16 @@ class Scanner:
         several concatenated): (joints, table angles rad), nothing moved."""
         return self._plan_waypoints(waypoints)[:2]
 
-    def scan_path(self, waypoints: Waypoints) -> list[Profile]:
+    def scan_path(self, waypoints: Waypoints, progress=None) -> list[Profile]:
         """A profile at each of ``waypoints`` (probe poses in the table frame and table angles,
         e.g. ``core.kinematics.path.turntable``: the probe still while the table turns), solved
-        and checked before anything moves; the robot and the table end at the last one."""
-        return self._scan_waypoints(waypoints, "path")
+        and checked before anything moves; the robot and the table end at the last one.
+        ``progress(stage, done, total)`` after each chunk of frames."""
+        return self._scan_waypoints(waypoints, "path", progress)
 
-    def _scan_waypoints(self, waypoints: Waypoints, what: str) -> list[Profile]:
+    def _scan_waypoints(self, waypoints: Waypoints, what: str, progress=None) -> list[Profile]:
         q, table_rad, _ = self._plan_waypoints(waypoints, record=True, what=what)
-        profiles = self._scan_frames(q, table_rad)
+        profiles = self._scan_frames(q, table_rad, progress)
         self._q = np.array(q[-1], dtype=np.float64)
         self._table_rad = float(table_rad[-1])
         return profiles
@@ -400,10 +418,10 @@ class Scanner:
             self._timing["scene"] += time.perf_counter() - t
         return {"scene_cell": None if self._scene is None else self._scene_cell(), "raycaster": self._raycaster}
 
-    def _scan_frames(self, q: np.ndarray, table_rad: np.ndarray) -> list[Profile]:
+    def _scan_frames(self, q: np.ndarray, table_rad: np.ndarray, progress=None) -> list[Profile]:
         """Render, detect and triangulate the frames at joints q (n, 6) and table angles (n,);
         their points join the cloud under the next frame numbers."""
-        steps = self._frames_steps(q, table_rad)
+        steps = self._frames_steps(q, table_rad, progress=progress)
         while True:
             try:
                 next(steps)
@@ -459,15 +477,23 @@ class Scanner:
         sweeps chosen (``AdaptiveStep``); they join the report under ``adaptive``, and
         ``save(out_dir)`` writes what a scan writes. ``progress(stage, done, total)`` after each
         sweep; ``log(line)`` for each decision."""
-        from .adaptive import adaptive_scan, part_box
+        from .adaptive import NextBestView, adaptive_scan, part_box
 
         settings = self.config.adaptive
         lo, hi = part_box(self.config) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
         budget = settings.max_profiles if max_profiles is None else max_profiles
         target = settings.target_coverage if target_coverage is None else target_coverage
-        steps = adaptive_scan(self, lo, hi, max_profiles=budget,
-                              min_gain=settings.min_gain if min_gain is None else min_gain,
-                              target_coverage=target, voxel_mm=settings.voxel_mm, progress=progress, log=log)
+        gain = settings.min_gain if min_gain is None else min_gain
+        # A second call goes on from what the first learnt (and from anything measured since),
+        # instead of planning the same views again; a different box or cell size starts afresh.
+        setup = 0.0
+        if self._planner is None or not self._planner.fits(lo, hi, settings.voxel_mm):
+            t = time.perf_counter()
+            self._planner = NextBestView(self, lo, hi, voxel_mm=settings.voxel_mm)
+            setup = time.perf_counter() - t
+        steps = adaptive_scan(self, lo, hi, max_profiles=budget, min_gain=gain, target_coverage=target,
+                              voxel_mm=settings.voxel_mm, progress=progress, log=log, planner=self._planner,
+                              setup_s=setup)
         done = self._extra.get("adaptive", {}).get("sweeps", [])
         self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": budget,
                                    "target_coverage": target,

@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from addon import Scanner
     from addon.adaptive import check_target_coverage, part_box
-    from addon.core.config.scan import load_scan_config
+    from addon.core.config.scan import MAX_PROFILES, load_scan_config
     from addon.core.errors import InputError
     from addon.core.scan.outputs import OUTPUT_FILES
     from headless import preflight
@@ -47,8 +47,8 @@ def run(args: argparse.Namespace) -> int:
     config = load_scan_config(args.config).with_overrides(engine=args.engine)
     settings = config.adaptive
     if args.max_profiles is not None:
-        if args.max_profiles < 1:
-            raise InputError(f"--max-profiles must be at least 1, got {args.max_profiles}")
+        if not 1 <= args.max_profiles <= MAX_PROFILES:
+            raise InputError(f"--max-profiles must be from 1 to {MAX_PROFILES}, got {args.max_profiles}")
         settings = replace(settings, max_profiles=args.max_profiles)
     if args.min_gain is not None:
         if args.min_gain < 1:
@@ -69,8 +69,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         t = time.perf_counter()
         scanner = Scanner(config=replace(config, adaptive=settings))
-        steps = scanner.adaptive((lo, hi), progress=progress,
-                                 log=None if args.quiet else (lambda m: print(m, flush=True)))
+        steps = scanner.adaptive((lo, hi), progress=progress, log=None if args.quiet else progress.bar.say)
+        progress.bar.finish()
         if stops is not None:
             stops.check()
         if not steps:
@@ -89,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as exc:
         from headless.lifecycle import Interrupted
 
+        progress.bar.finish()
         exc = exc if isinstance(exc, Interrupted) else Interrupted(2)
         print(f"{exc.describe()}: nothing written to {out}", file=sys.stderr, flush=True)
         return exc.exit_code

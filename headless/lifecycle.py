@@ -82,6 +82,8 @@ class Interrupted(KeyboardInterrupt):
 
     def describe(self) -> str:
         what = SIGNAL_NAMES.get(self.signum, f"signal {self.signum}")
+        if self.unit == "profiles":  # an adaptive scan's total is a budget, not a plan
+            return f"interrupted ({what}) after {self.done} profiles of a budget of {self.total}"
         if self.total:
             return f"interrupted ({what}) after {self.done} of {self.total} {self.unit}"
         return f"interrupted ({what}) before the first frame"
@@ -170,5 +172,6 @@ class StopRequests:
             raise self.interrupted()
 
     def progress(self, stage: str, done: int, total: int) -> None:
-        self.done, self.total, self.unit = done, total, "shards" if stage == "shards" else "frames"
+        self.done, self.total = done, total
+        self.unit = {"shards": "shards", "adaptive": "profiles"}.get(stage, "frames")
         self.check()

@@ -89,6 +89,8 @@ def progress_and_lock(args, out):
         if stops is not None:
             stops.progress(stage, done, total)
 
+    progress.bar = bar  # say(line) and finish() for a command that logs as it goes
+
     lock = OutputLock(out).acquire()
     if stops is not None:
         stops.cleanups.append(lock.release)
@@ -97,7 +99,10 @@ def progress_and_lock(args, out):
 
 class ProgressBar:
     """Progress of long work on stderr: one bar redrawn in place on a terminal (done/total,
-    rate, time left); where stderr is not a terminal (a log, CI), a plain line per 10 %."""
+    rate, time left); where stderr is not a terminal (a log, CI), a plain line per 10 %.
+    An adaptive scan's ``total`` is a budget (it may stop well before): its bar counts
+    profiles against the budget and promises no time left. ``say(line)`` prints a line
+    (stdout) without running it into the bar; ``finish()`` ends a bar left open."""
 
     def __init__(self, quiet: bool, stream=None):
         self.quiet = quiet
@@ -105,6 +110,7 @@ class ProgressBar:
         self.tty = self.stream.isatty()
         self.start = time.perf_counter()
         self.shown = -1
+        self.drawn = ""  # the bar on screen now (tty), "" once its line is ended
 
     def __call__(self, stage: str, done: int, total: int) -> None:
         if self.quiet:
@@ -112,18 +118,41 @@ class ProgressBar:
         frac = min(done / max(total, 1), 1.0)
         elapsed = time.perf_counter() - self.start
         rate = done / max(elapsed, 1e-9)
-        unit = "shards" if stage == "shards" else "frames"
-        left = _clock((total - done) / rate) if 0 < done < total else ("-" if done == 0 else "0:00")
-        text = f"{stage}: {done}/{total} {unit}, {rate:.1f} {unit}/s, {left} left"
+        if stage == "adaptive":
+            text = f"{stage}: {done} profiles of a budget of {total}, {rate:.1f} profiles/s"
+        else:
+            unit = "shards" if stage == "shards" else "frames"
+            left = _clock((total - done) / rate) if 0 < done < total else ("-" if done == 0 else "0:00")
+            text = f"{stage}: {done}/{total} {unit}, {rate:.1f} {unit}/s, {left} left"
         if self.tty:
             bar = "#" * int(30 * frac)
-            self.stream.write(f"\r[{bar:<30}] {text} ")
+            self.drawn = f"\r[{bar:<30}] {text} "
+            self.stream.write(self.drawn)
             if done >= total:
                 self.stream.write("\n")
+                self.drawn = ""
             self.stream.flush()
         elif int(frac * 10) > self.shown:
             self.shown = int(frac * 10)
             print(f"{text} ({frac * 100:.0f} %)", file=self.stream, flush=True)
+
+    def say(self, line: str) -> None:
+        """Print ``line`` on stdout; on a terminal the bar is cleared first and drawn again
+        below it."""
+        if self.drawn:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+        print(line, flush=True)
+        if self.drawn:
+            self.stream.write(self.drawn)
+            self.stream.flush()
+
+    def finish(self) -> None:
+        """End the bar's line where the work stopped short of its total (a budget not spent)."""
+        if self.drawn:
+            self.stream.write("\n")
+            self.stream.flush()
+            self.drawn = ""
 
 
 def run_scan_command(args: argparse.Namespace) -> int:

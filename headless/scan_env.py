@@ -23,12 +23,14 @@ whole sweep (seconds on a CPU): this is a test bench, not a fast simulator of vi
 from __future__ import annotations
 
 import numbers
+import os
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 from addon.adaptive import NextBestView, part_box
+from addon.core.config.scan import MAX_PROFILES
 from addon.core.errors import InputError, check_whole
 from addon.core.geometry.known_space import SURFACE
 from addon.core.scan import next_view
@@ -47,13 +49,18 @@ class ScanPlanningEnv(gym.Env):
         def whole(v):  # numpy's integers too (a training loop's sweep passes np.int64)
             return int(v) if isinstance(v, numbers.Integral) and not isinstance(v, bool) else v
 
-        max_profiles = check_whole(whole(max_profiles), "max_profiles (the episode's profile budget)", 1, 10**7)
+        max_profiles = check_whole(whole(max_profiles), "max_profiles (the episode's profile budget)", 1, MAX_PROFILES)
         grid = check_whole(whole(grid), "grid (cells per side of the observation)", 2, 256)
         max_steps = check_whole(whole(max_steps), "max_steps (sweeps per episode)", 1, 10**5)
         for value, what in ((time_cost, "time_cost"), (refusal_cost, "refusal_cost")):
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < float("inf"):
                 raise InputError(f"{what} must be a finite number ≥ 0, got {value!r}")
-        self.config = load_scan_config(config) if isinstance(config, str) else config
+        if isinstance(config, (str, os.PathLike)):
+            config = load_scan_config(os.fspath(config))
+        elif not hasattr(config, "adaptive"):
+            raise InputError(f"config must be a scan config's name, a path to its .toml file or a loaded ScanConfig, "
+                             f"got {config!r}")
+        self.config = config
         self.max_profiles, self.grid, self.max_steps = int(max_profiles), int(grid), int(max_steps)
         self.time_cost, self.refusal_cost = float(time_cost), float(refusal_cost)
         self.tilts = [0.0] + [t * sign for t in next_view.TILTS_DEG[1:] for sign in (1.0, -1.0)]

@@ -153,6 +153,30 @@ def test_progress_bar_redraws_one_line_on_a_terminal():
     assert "100/100 frames" in text and "left" in text and "frames/s" in text
 
 
+def test_an_adaptive_bar_counts_profiles_against_the_budget_and_log_lines_do_not_run_into_it(capsys):
+    import io
+
+    from headless.lifecycle import Interrupted
+    from headless.scan import ProgressBar
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    stream = Tty()
+    bar = ProgressBar(quiet=False, stream=stream)
+    bar("adaptive", 120, 10**5)
+    bar.say("adaptive: sweep 1: a table turn")
+    bar("adaptive", 240, 10**5)
+    bar.finish()
+    text = stream.getvalue()
+    assert "240 profiles of a budget of 100000" in text and "left" not in text  # no years-long estimate
+    # The bar is cleared before the log line and drawn again after it; finish() ends its line.
+    assert text.count("\r\033[K") == 1 and text.endswith("\n") and text.count("\n") == 1
+    assert capsys.readouterr().out == "adaptive: sweep 1: a table turn\n"
+    assert Interrupted(2, 240, 600, "profiles").describe() == "interrupted (Ctrl-C) after 240 profiles of a budget of 600"
+
+
 def test_a_second_ctrl_c_after_the_stop_is_through_still_exits_130():
     # The race a user can hit: the first Ctrl-C's stop has unwound the command and given the
     # signals back, and the second press lands before the process is gone. It must stay one

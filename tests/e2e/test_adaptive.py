@@ -164,3 +164,78 @@ def test_a_budget_no_view_fits_is_refused_and_writes_nothing(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "no view was scanned" in err and "10 profiles" in err and "Traceback" not in err
     assert not any(p.name in ("cloud.ply", "report.json", "preview.png") for p in out.glob("*")) if out.exists() else True
+
+
+def test_a_second_adaptive_run_goes_on_from_what_the_first_learnt():
+    from addon import Scanner
+
+    config, _, _ = _raycast_planner("demo")
+    scanner = Scanner(config=config)
+    first = scanner.adaptive(max_profiles=200)
+    taken = scanner.report().to_dict()["frames"]
+    lines = []
+    second = scanner.adaptive(max_profiles=200, log=lines.append)
+    views = lambda steps: {(s.sweep.split(" at ")[0], s.table_deg, s.tilt_deg) for s in steps}
+    assert first and second and not views(first) & views(second), (views(first), views(second))
+    assert not any("set up" in line for line in lines)  # the same model, not a new one
+    assert all(s.new_cells > 0 for s in second)  # it learnt from them: they were not views done before
+    assert scanner.report().to_dict()["frames"] == taken + sum(s.profiles for s in second)
+    assert len(scanner.report().to_dict()["adaptive"]["sweeps"]) == len(first) + len(second)
+
+
+def test_a_planner_joining_a_scan_under_way_learns_what_was_measured_and_skips_the_overview():
+    from addon import Scanner
+    from addon.adaptive import NextBestView, part_box
+
+    config, scanner, planner = _raycast_planner("demo")
+    overview = planner.choose(scanner, 450)
+    scanner.scan_path(overview.waypoints())
+    lines = []
+    steps = scanner.adaptive(max_profiles=150, log=lines.append)
+    assert any(f"learnt from the {overview.frames} profiles" in line for line in lines), lines
+    assert steps and steps[0].sweep.split(",")[:2] != overview.describe().split(",")[:2]
+    # The model it planned on holds the points measured before it joined.
+    fresh = NextBestView(Scanner(config=config), *part_box(config))
+    assert scanner._planner.space.counts()["surface"] > fresh.space.counts()["surface"] + 100
+
+
+def test_a_stop_asked_for_during_a_sweep_takes_effect_before_the_next_one_renders():
+    from addon import Scanner
+
+    config, _, _ = _raycast_planner("demo")
+    scanner = Scanner(config=config)
+    calls, swept = [], []
+
+    def progress(stage, done, total):
+        calls.append((stage, done, total))
+        if swept:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        scanner.adaptive(max_profiles=400, progress=progress,
+                         log=lambda line: swept.append(line) if "sweep 1:" in line else None)
+    first = scanner.report().to_dict()["frames"]
+    assert first > 0 and all(stage == "adaptive" and total == 400 for stage, _, total in calls)
+    # The bar moved within the sweep (after each chunk of frames), not only between sweeps.
+    assert any(0 < done < first for _, done, _ in calls)
+    assert scanner.report().to_dict()["frames"] == first  # nothing of a second sweep
+
+
+def test_a_box_told_too_small_for_the_part_is_warned_about(capsys):
+    from addon import Scanner
+
+    config, _, _ = _raycast_planner("demo")
+    lines = []
+    Scanner(config=config).adaptive(([-12.0, -12.0, 0.0], [12.0, 12.0, 20.0]), max_profiles=150,
+                                    log=lines.append)
+    assert any("warning" in line and "outside the part's box" in line for line in lines), lines[-3:]
+
+
+def test_min_gain_is_checked(tmp_path):
+    from addon import Scanner
+    from addon.core.errors import InputError
+
+    config, _, _ = _raycast_planner("demo")
+    for bad in (0, -3, 2.5, "30", True):
+        with pytest.raises(InputError, match="min_gain"):
+            Scanner(config=config).adaptive(max_profiles=100, min_gain=bad)

@@ -66,6 +66,21 @@ def test_numpy_numbers_are_taken_as_settings():
     assert env.max_profiles == 300 and env.grid == 8
 
 
+def test_a_config_is_taken_as_a_path_too_and_an_agents_sweep_promises_no_cells_it_did_not_estimate():
+    from pathlib import Path
+
+    from addon.core.config.toml import resolve_rig
+    from addon.core.errors import InputError
+
+    env = ScanPlanningEnv(Path(resolve_rig("scenes", "demo")), max_profiles=150, max_steps=2)
+    assert env.config.name == ScanPlanningEnv("demo").config.name
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.array([1, 2, 0]))
+    assert info["refused"] is None and "sweep at table" in info["sweep"] and "new cells" not in info["sweep"]
+    with pytest.raises(InputError, match="scan config"):
+        ScanPlanningEnv(42)
+
+
 def test_an_action_outside_the_action_space_is_refused_in_one_line():
     from headless.scan_env import ScanPlanningEnv
 

@@ -112,6 +112,11 @@ WIDTH_RATIO = 1.6
 NARROW_RATIO = 0.8
 
 
+# The most profiles an adaptive scan may be given (config, command line, Gymnasium env): hours
+# of rendering, far beyond any part here (a table turn takes 120-450).
+MAX_PROFILES = 100_000
+
+
 @dataclass(frozen=True)
 class AdaptiveSettings:
     """[adaptive]: what the adaptive planner is told and may spend. ``box``: the part's
@@ -382,6 +387,9 @@ def _adaptive(t: Table) -> AdaptiveSettings:
         lo, hi = t.numbers("box_min_mm", 3, lo=-1e4, hi=1e4), t.numbers("box_max_mm", 3, lo=-1e4, hi=1e4)
         if not (hi > lo).all():
             raise t.error("box_max_mm", f"{hi.tolist()} must exceed box_min_mm {lo.tolist()} in x, y and z")
+        if hi[2] <= 0.0:
+            raise t.error("box_max_mm", f"{hi.tolist()}: the box lies under the table top (z = 0 in the table "
+                                        f"frame); its top must be above 0")
         box = (lo, hi)
     if t.has("radius_mm") or t.has("height_mm"):
         if box is not None:
@@ -391,7 +399,7 @@ def _adaptive(t: Table) -> AdaptiveSettings:
         h = t.number("height_mm", lo=0.0, hi=1e4, lo_open=True)
         box = (np.array([-r, -r, 0.0]), np.array([r, r, h]))
     target = t.number("target_coverage", default=None, lo=0.0, hi=1.0, lo_open=True)
-    out = AdaptiveSettings(box, t.integer("max_profiles", default=600, lo=1, hi=100_000),
+    out = AdaptiveSettings(box, t.integer("max_profiles", default=600, lo=1, hi=MAX_PROFILES),
                            t.integer("min_gain", default=30, lo=1, hi=10**9),
                            t.number("voxel_mm", default=2.0, lo=0.1, hi=100.0), target)
     t.finish()

@@ -103,6 +103,8 @@ class Table:
         return default
 
     def has(self, key: str) -> bool:
+        """Whether the file gives ``key``; a key asked about is one this table knows."""
+        self._used.add(key)
         return key in self.data
 
     # -- scalars --------------------------------------------------------------

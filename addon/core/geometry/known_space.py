@@ -42,7 +42,8 @@ class KnownSpace:
                              f"hi {hi.tolist()}, cell {voxel_mm} mm")
         shape = np.ceil((hi - lo) / voxel_mm).astype(int)
         if int(np.prod(shape)) > 200_000_000:
-            raise InputError(f"{'x'.join(map(str, shape))} cells of {voxel_mm} mm is too many; use larger cells")
+            raise InputError(f"{'x'.join(map(str, shape))} cells of {voxel_mm} mm is too many for the model of what "
+                             f"is known: use larger cells ([adaptive] voxel_mm) or a smaller box")
         self.lo, self.voxel = lo, float(voxel_mm)
         self.hi = lo + shape * self.voxel
         self.state = np.zeros(tuple(shape), dtype=np.uint8)
