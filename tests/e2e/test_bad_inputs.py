@@ -320,6 +320,8 @@ CASES = [
      "box_max_mm, box_min_mm, height_mm, max_profiles, min_gain, radius_mm, target_coverage, voxel_mm"),
     ("option: adaptive --max-profiles a billion", lambda t: ["adaptive", "demo", "--max-profiles", "1000000000",
                                                              "--out", str(t / "out")], 2, "from 1 to 100000"),
+    ("option: --device with the raycast engine", lambda t: ["scan", "demo", "--engine", "raycast", "--device", "gpu",
+                                                            "--out", str(t / "out")], 2, "--engine cycles"),
     ("option: adaptive --min-gain zero", lambda t: ["adaptive", "demo", "--min-gain", "0", "--out",
                                                     str(t / "out")], 2, "--min-gain"),
     ("option: adaptive --max-profiles zero", lambda t: ["adaptive", "demo", "--max-profiles", "0", "--out",

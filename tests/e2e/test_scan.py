@@ -176,6 +176,11 @@ def test_cli_scan_writes_outputs_and_gates_on_rms(tmp_path):
     report = json.loads((out / "report.json").read_text())
     assert report["frames"] == 10
     assert "RMS" in res.stdout and "profiles/s" in res.stdout
+    import bpy
+
+    # What produced it: Blender (a Cycles scan) and the geometry packages beside Python's.
+    assert report["software"]["blender"] == bpy.app.version_string
+    assert {"python", "numpy", "opencv", "trimesh", "embreex"} <= set(report["software"])
 
 
 @pytest.mark.parametrize(

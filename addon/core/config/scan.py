@@ -230,6 +230,10 @@ class ScanConfig:
             why = replace(cfg, render=render).raycast_refusal()
             if why:
                 raise InputError(f"--engine raycast: {why}")
+        if device is not None and render.engine != "cycles":
+            raise InputError(f"--device {device} picks Cycles' render device, and this scan renders with "
+                             f"{render.engine} ({'OpenGL' if render.engine == 'eevee' else 'Embree on the CPU'}): "
+                             f"leave --device out, or add --engine cycles")
         if samples is not None:
             if not 1 <= samples <= 65536:
                 raise InputError(f"--samples must be in [1, 65536], got {samples}")

@@ -5,7 +5,9 @@ written atomically, all at the end."""
 from __future__ import annotations
 
 import platform
+import sys
 import time
+from importlib import metadata
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +37,24 @@ class ScanResult:
     error_um: np.ndarray | None = None
     on_part: np.ndarray | None = None
 
+
+# Packages whose version a scan's figures depend on, where installed: the distribution's name.
+VERSIONED = {"trimesh": "trimesh", "embreex": "embreex", "libigl": "libigl", "python-fcl": "python-fcl"}
+
+
+def software_versions() -> dict:
+    """What produced a scan: Python, numpy, OpenCV, Blender where it is loaded (this core
+    never imports it), and the geometry packages installed."""
+    out = {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__}
+    bpy = sys.modules.get("bpy")
+    if bpy is not None and hasattr(bpy, "app"):
+        out["blender"] = bpy.app.version_string
+    for key, dist in VERSIONED.items():
+        try:
+            out[key] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            pass
+    return out
 
 def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, out_dir: str | Path | None,
              t_start: float, extra: dict | None = None) -> ScanResult:
@@ -82,7 +102,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         # fixture, over the whole motion and per path entry, with where it occurs (None: not checked).
         "clearance": None if plan.clearance is None else plan.clearance.report(),
         "warnings": warnings,
-        "software": {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__},
+        "software": software_versions(),
         **(extra or {}),
     }
     files = {}
