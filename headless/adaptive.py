@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from headless.preflight import folder_argument
 
     parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
-    parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>-adaptive)")
+    parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>-adaptive, with -<engine> added where --engine changes it)")
     parser.add_argument("--max-profiles", type=int, help="profile budget (default: the config's, else 600)")
     parser.add_argument("--min-gain", type=int, help="new cells a sweep must promise (default 30)")
     parser.add_argument("--target-coverage", type=float, metavar="F",
@@ -42,9 +42,10 @@ def run(args: argparse.Namespace) -> int:
     from addon.core.errors import InputError
     from addon.core.scan.outputs import OUTPUT_FILES
     from headless import preflight
-    from headless.scan import print_summary, progress_and_lock
+    from headless.scan import default_out, print_summary, progress_and_lock
 
-    config = load_scan_config(args.config).with_overrides(engine=args.engine)
+    given = load_scan_config(args.config)
+    config = given.with_overrides(engine=args.engine)
     settings = config.adaptive
     if args.max_profiles is not None:
         if not 1 <= args.max_profiles <= MAX_PROFILES:
@@ -57,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     if args.target_coverage is not None:
         check_target_coverage(args.target_coverage)
         settings = replace(settings, target_coverage=args.target_coverage)
-    out = args.out or str(Path("out") / f"{Path(config.source).stem}-adaptive")
+    out = args.out or default_out(given, args.engine, "adaptive")
     preflight.check_scan(config, out, names=OUTPUT_FILES.values(), force=args.force)
     lo, hi = part_box(config)
     print(f"adaptive: {config.name}: {config.robot.name}, {config.probe.name}; the planner is told the box "

@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
 
     if not demo:
         parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
-    parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>)")
+    parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>, with -<engine> added where --engine changes it)")
     parser.add_argument("--frames", help="part of the path, as A:B (Python slice, e.g. 0:40 or ::2)")
     parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"),
                         help="render engine: cycles; eevee (renders the spot laser unless the config chooses the "
@@ -159,14 +159,24 @@ def run_scan_command(args: argparse.Namespace) -> int:
     from addon.core.config.scan import load_scan_config
 
     config = load_scan_config(args.config)
-    return _run(args, config, args.out or str(Path("out") / Path(config.source).stem))
+    return _run(args, config, args.out or default_out(config, args.engine))
 
 
 def run_demo(args: argparse.Namespace) -> int:
     from addon.core.config.scan import load_scan_config
 
     config = load_scan_config("demo")
-    return _run(args, config, args.out or "out/demo")
+    return _run(args, config, args.out or default_out(config, args.engine))
+
+
+def default_out(config, engine: str | None = None, kind: str = "") -> str:
+    """The output folder where none is given: out/<config's file name>[-kind], with the engine
+    added where --engine changed it (out/demo-raycast), so that a scan with another engine
+    does not overwrite the config's own."""
+    name = Path(config.source).stem + (f"-{kind}" if kind else "")
+    if engine is not None and engine != config.render.engine:
+        name += f"-{engine}"
+    return str(Path("out") / name)
 
 
 def _run(args: argparse.Namespace, config, out: str) -> int:

@@ -350,3 +350,13 @@ def test_adaptive_takes_the_engine_as_scan_does(tmp_path):
 
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert report["render_device"] == "CPU (Embree ray casting)" and 0 < report["frames"] <= 200
+
+
+def test_the_default_output_folder_names_an_engine_the_command_line_changed():
+    from addon.core.config.scan import load_scan_config
+    from headless.scan import default_out
+
+    demo = load_scan_config("demo")
+    assert default_out(demo) == default_out(demo, demo.render.engine) == str(Path("out") / "demo")
+    assert default_out(demo, "raycast") == str(Path("out") / "demo-raycast")
+    assert default_out(demo, "raycast", "adaptive") == str(Path("out") / "demo-adaptive-raycast")
