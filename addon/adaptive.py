@@ -321,7 +321,7 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
     outside = planner.outside_share()
     if log and outside > OUTSIDE_WARNING:
         log(f"adaptive: warning: {outside * 100:.0f} % of the points measured above the table lie outside the part's "
-            f"box {planner.lo.round(1).tolist()} .. {planner.hi.round(1).tolist()} mm: the part reaches beyond the "
-            f"box the planner was told ([adaptive] box_min_mm/box_max_mm or radius_mm/height_mm), which plans and "
+            f"box {planner.lo.round(1).tolist()} .. {planner.hi.round(1).tolist()} mm: the part (or something else "
+            f"on the table) reaches beyond the box the planner was told ([adaptive] box_min_mm/box_max_mm or radius_mm/height_mm), which plans and "
             f"estimates coverage inside it only")
     return steps
