@@ -127,6 +127,34 @@ def _world(scene, strength: float) -> None:
 
 
 @contextlib.contextmanager
+def ctrl_c_after_render():
+    """A Ctrl-C during a render call, raised once the call is over instead of lost.
+
+    Cycles runs Python callbacks while it renders; a KeyboardInterrupt raised inside one is
+    caught and printed by Blender, which goes on (a user's script carried on after Ctrl-C).
+    Where SIGINT has Python's own handler (a script, the Python prompt), the signal is only
+    recorded during the call, and KeyboardInterrupt is raised when the call has returned and
+    its files are cleaned up. A program with a handler of its own (the command line's
+    headless.lifecycle.StopRequests) and calls from other threads are left alone.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() \
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+    asked = []
+    signal.signal(signal.SIGINT, lambda signum, frame: asked.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if asked:
+        raise KeyboardInterrupt("Ctrl-C during a render: raised once the render call returned")
+
+
+@contextlib.contextmanager
 def blender_output_captured():
     """Keep Blender's per-frame log lines ("Fra: ...", "Saved: '...exr'") off the terminal.
 
@@ -210,6 +238,11 @@ def render_animation(scene: bpy.types.Scene, first: int, last: int, cameras=(0, 
     """
     if last < first:
         raise InputError(f"frame range {first}..{last} is empty")
+    with ctrl_c_after_render():
+        return _render_animation(scene, first, last, cameras, out_dir, rows)
+
+
+def _render_animation(scene, first, last, cameras, out_dir, rows):
     use_views(scene, cameras)
     set_rows(scene, rows)
     keep = out_dir is not None
@@ -244,6 +277,11 @@ def render_animation(scene: bpy.types.Scene, first: int, last: int, cameras=(0, 
 
 def render_still(scene: bpy.types.Scene, camera: bpy.types.Object, width: int, height: int) -> np.ndarray:
     """One image from ``camera`` (no multiview) as float32 (H, W, 3); render settings otherwise as they are."""
+    with ctrl_c_after_render():
+        return _render_still(scene, camera, width, height)
+
+
+def _render_still(scene, camera, width, height):
     r = scene.render
     old = (r.use_multiview, scene.camera, r.resolution_x, r.resolution_y, r.filepath)
     folder = Path(tempfile.mkdtemp(prefix="scanner-still-"))

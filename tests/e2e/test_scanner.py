@@ -172,3 +172,33 @@ def test_a_scan_whose_ik_comes_over_the_bridge_gives_the_local_cloud(tmp_path):
     a, b = bridged.cloud, local.cloud
     assert len(a) == len(b) > 1000
     np.testing.assert_allclose(a.points, b.points, atol=1e-6)
+
+
+def test_ctrl_c_while_cycles_renders_stops_a_users_script():
+    """Cycles catches a KeyboardInterrupt raised inside its Python callbacks and renders on;
+    the Scanner defers the Ctrl-C to the end of the render call, so a script stops there
+    instead of carrying on as if nobody had asked."""
+    import signal
+    import time
+
+    script = (
+        "from addon import Scanner\n"
+        "s = Scanner.from_config('demo')\n"
+        "s.sweep([-20, -40, 200], [-20, 40, 200], 3)\n"  # Blender set up, the first render done
+        "print('rendering', flush=True)\n"
+        "for _ in range(20):\n"
+        "    s.sweep([-20, -40, 200], [-20, 40, 200], 40)\n"
+        "print('FINISHED', flush=True)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+    try:
+        assert proc.stdout.readline().strip() == "rendering"
+        time.sleep(1.5)  # well inside the renders (each sweep takes seconds)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert "FINISHED" not in out and proc.returncode != 0, (out, err[-2000:])
+    assert err.rstrip().splitlines()[-1].startswith("KeyboardInterrupt"), err[-2000:]
+    assert "StructRNA" not in err and "cycles" not in err.lower(), err[-2000:]
