@@ -128,6 +128,7 @@ class Scanner:
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
         self._clearances: list = []  # the collision check of every move and path (PathClearance)
         self._planner = None  # the adaptive planner of the last adaptive() call, to go on from
+        self._fixture_frames: dict = {}  # {fixture: frames whose laser met it} (moves and sweeps)
         if not len(config.waypoints):
             self._look_at_the_table()
 
@@ -438,7 +439,9 @@ class Scanner:
         if plan is None:
             if self._surfaces is None:
                 self._surfaces = cell_surfaces(cfg)
-            plan = plan_frames(cfg, q, table_rad, allow_blind=True, surfaces=self._surfaces)
+            plan = plan_frames(cfg, q, table_rad, allow_blind=True, surfaces=self._surfaces, first_frame=self._frames)
+            for name, frames in plan.fixture_frames.items():
+                self._fixture_frames[name] = np.union1d(self._fixture_frames.get(name, []), frames).astype(int)
             self._timing["plan"] += time.perf_counter() - t
         first = self._frames
         n = len(q)
@@ -518,7 +521,10 @@ class Scanner:
         table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
         from .core.safety import PathClearance
 
-        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings),
+        from .core.scan.plan import fixture_warnings
+
+        warnings = list(self._warnings) + fixture_warnings(self._fixture_frames, len(q))
+        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), warnings,
                     PathClearance.merge(self._clearances) if self._clearances else None)
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
                           {"render_device": render_device(self._raycaster, self._sc), **extra})

@@ -274,6 +274,8 @@ def print_summary(result, wall: float) -> None:
     """The scan's summary on stdout: points, error, coverage, clearance, drops, time, speed, files."""
     r = result.report
     e = r["error_um"]
+    if r["config"].get("calibration"):
+        print(f"\n  calibration   triangulated with the calibrated probe in {r['config']['calibration']}", end="")
     print(f"\n  points        {r['points']} ({r['points_on_part']} on the part, {r['points_on_table']} on the table), "
           f"{r['valid_fraction'] * 100:.1f} % of sensor columns with a line")
     if e["n"]:

@@ -185,3 +185,37 @@ def test_neighbouring_links_are_not_pairs_but_distant_ones_are():
     assert ("link 1", "link 2") not in names and ("link 2", "link 1") not in names
     assert ("probe", "link 6") not in names
     assert ("link 1", "link 4") in names and ("probe", "table") in names and ("link 3", "workpiece") in names
+
+
+def test_a_fixture_in_the_lasers_way_is_warned_of_on_the_table_or_in_the_world():
+    """Fixtures are collision bodies only (no engine renders them), so a fixture the laser
+    meets before the part would not hide it: the plan says so, naming the fixture and the
+    frames. A post over the sphere's top (table frame), the same post given in the robot
+    base's frame at the table's axis, and one out of the laser's reach."""
+    from addon.core.safety import Fixture
+
+    demo = load_scan_config("demo")
+    post = trimesh.creation.box([40.0, 40.0, 180.0])
+    post.apply_translation([0.0, 0.0, 90.0])  # 0..180 mm over the table: the probe passes 28 mm above it
+    axis = demo.cell.table.table2base(0.0)
+    world_post = post.copy()
+    world_post.apply_transform(axis)
+    aside = post.copy()
+    aside.apply_translation([200.0, 0.0, 0.0])
+    for name, mesh, on in (("fixture post", post, "table"), ("fixture post", world_post, "world")):
+        plan = plan_scan(replace(demo, fixtures=(Fixture(name, mesh, on), Fixture("fixture aside", aside, "table"))))
+        met = [w for w in plan.warnings if "the laser meets" in w]
+        assert len(met) == 1 and "fixture post" in met[0] and "not rendered" in met[0], plan.warnings
+        # The demo's beam points at the sphere for most of its 180 frames: the post is in its way there.
+        assert set(plan.fixture_frames) == {"fixture post"} and len(plan.fixture_frames["fixture post"]) > 90
+    assert not any("the laser meets" in w for w in plan_scan(demo).warnings)
+    # Step by step, the Scanner's report says the same, once per fixture however many moves:
+    # of each sweep's 4 frames (y = -40, -13, 13, 40 mm; the line across the motion, along x),
+    # the two over the post's 40 mm.
+    cfg = replace(demo, render=replace(demo.render, engine="raycast"),
+                  fixtures=(Fixture("fixture post", post, "table"),))
+    s = Scanner(config=cfg)
+    for _ in range(2):
+        s.sweep([-20.0, -40.0, 215.0], [-20.0, 40.0, 215.0], 4)
+    met = [w for w in s.report().to_dict()["warnings"] if "the laser meets" in w]
+    assert len(met) == 1 and "at 4 of 8 frames (1-2, 5-6)" in met[0], met

@@ -258,3 +258,31 @@ def test_a_mesh_part_is_measured_signed_and_the_summary_has_no_nan(tmp_path):
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     e = report["error_um"]
     assert e["n"] > 100 and e["bias_um"] is not None and abs(e["bias_um"]) < 20 and e["rms_um"] < 30
+
+
+def test_a_scan_says_which_calibrated_probe_triangulated_it_and_which_fixtures_it_knew(tmp_path):
+    from dataclasses import replace
+
+    import trimesh
+
+    from addon.core.config.rigs import load_probe, probe_toml
+    from addon.core.optics.calibrated import ProbeCalibration
+
+    probe = load_probe("default")
+    (tmp_path / "cal.toml").write_text(probe_toml(replace(probe, calibration=ProbeCalibration.of(probe))))
+    trimesh.creation.box([10.0, 10.0, 10.0]).export(tmp_path / "block.stl")
+    text = (REPO / "rigs" / "scenes" / "demo.toml").read_text()
+    text = text.replace('rig = "default"', 'rig = "default"\ncalibration = "cal.toml"', 1)
+    text = text.replace("[[path]]", '[[fixture]]\nname = "stop"\nfile = "block.stl"\n[fixture.pose]\n'
+                                    'xyz_mm = [100.0, 0.0, 5.0]\n\n[[path]]', 1)
+    (tmp_path / "scan.toml").write_text(text)
+    res = cli("scan", str(tmp_path / "scan.toml"), "--engine", "raycast", "--frames", "0:10", "--out",
+              str(tmp_path / "out"), "--quiet")
+    assert res.returncode == 0, res.stderr[-1500:]
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["config"]["calibration"].startswith(str(tmp_path / "cal.toml"))
+    assert report["config"]["fixtures"] == [{"name": "fixture stop", "on": "table"}]
+    assert f"calibrated probe in {tmp_path / 'cal.toml'}" in res.stdout
+    plain = cli("scan", "demo", "--engine", "raycast", "--frames", "0:10", "--out", str(tmp_path / "plain"), "--quiet")
+    assert json.loads((tmp_path / "plain" / "report.json").read_text())["config"]["calibration"] is None
+    assert "calibrated" not in plain.stdout

@@ -555,4 +555,6 @@ def with_calibration(probe: Probe, calibrated_file, where: str) -> Probe:
     if (found.rows_px, found.cols_px) != (probe.rows_px, probe.cols_px):
         raise ConfigError(f"{where}: {calibrated_file} was calibrated on a {found.cols_px}x{found.rows_px} sensor; "
                           f"this probe has {probe.cols_px}x{probe.rows_px}")
-    return replace(probe, calibration=found.calibration)
+    source = found.calibration.source
+    return replace(probe, calibration=replace(found.calibration,
+                                              source=f"{calibrated_file}" + (f" ({source})" if source else "")))

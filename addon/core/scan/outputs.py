@@ -82,7 +82,11 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
                    "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
                    "triangulate": config.triangulate_method, "fuse": config.fuse,
                    "sensor": "ideal" if config.sensor.ideal else sensor_effects(config.sensor),
-                   "material": config.material},
+                   "material": config.material,
+                   # The probe model triangulation used: None for the nominal (exact) probe, else
+                   # the calibration file it came from.
+                   "calibration": None if probe.calibration is None else (probe.calibration.source or "given"),
+                   "fixtures": [{"name": f.name, "on": f.on} for f in config.fixtures]},
         "frames": n,
         "points": len(cloud),
         "valid_fraction": stats["valid"] / max(stats["columns"], 1),

@@ -32,6 +32,8 @@ class Plan:
     predicted_rows: np.ndarray
     warnings: list = field(default_factory=list)
     clearance: PathClearance | None = None
+    # {fixture name: frames (path indices) whose laser meets it before the part or the table}
+    fixture_frames: dict = field(default_factory=dict)
 
 
 def frame_ranges(indices) -> str:
@@ -67,6 +69,7 @@ def plan_scan(config: ScanConfig, allow_blind: bool = False) -> Plan:
                         f"waypoints at frames {frame_ranges(sol.jumps)} (near a singularity or a limit)")
     plan = plan_frames(config, sol.q, wp.table_rad, allow_blind, warnings)
     plan.clearance = clearance
+    warnings += fixture_warnings(plan.fixture_frames, len(wp))
     return plan
 
 
@@ -104,12 +107,14 @@ def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, t
 
 
 def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_blind: bool = False,
-                warnings: list | None = None, surfaces: SurfaceCaster | None = None) -> Plan:
+                warnings: list | None = None, surfaces: SurfaceCaster | None = None, first_frame: int = 0) -> Plan:
     """The plan for frames whose joints are known (q (n, 6), table_rad (n,)): the laser fan cast
     against the part and the table (``surfaces``, built here when not given) for the cameras to
-    render and the rows the line can fall on."""
+    render and the rows the line can fall on, and against the fixtures (``fixture_frames``,
+    numbered from ``first_frame``)."""
     wp_probe2table = config.cell.probe2table(q, table_rad)
-    foot = laser_footprint(config.probe, wp_probe2table, surfaces or cell_surfaces(config))
+    surfaces = surfaces or cell_surfaces(config)
+    foot = laser_footprint(config.probe, wp_probe2table, surfaces)
     warnings = [] if warnings is None else warnings
     n = len(q)
     if foot.empty_frames and not allow_blind:
@@ -126,8 +131,62 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
             simplefilter("ignore", RuntimeWarning)  # frames no camera sees: NaN, as meant
             rows = foot.rows[:, list(cameras)]
             predicted = np.column_stack([np.nanmin(rows[:, :, 0], axis=1), np.nanmax(rows[:, :, 1], axis=1)])
+    fixtures = {name: frames + first_frame for name, frames in
+                fixtures_in_the_laser(config, wp_probe2table, table_rad, surfaces).items()}
     return Plan(np.asarray(q, dtype=np.float64), np.asarray(table_rad, dtype=np.float64), cameras, predicted,
-                warnings)
+                warnings, fixture_frames=fixtures)
+
+
+# Rays of the laser fan cast per frame against the fixtures.
+FIXTURE_RAYS = 33
+_FIXTURE_CASTERS: list = []  # (the config's fixtures tuple, {"table"|"world": SurfaceCaster})
+
+
+def fixtures_in_the_laser(config: ScanConfig, probe2table: np.ndarray, table_rad: np.ndarray,
+                          surfaces: SurfaceCaster) -> dict:
+    """{fixture name: frame indices (into probe2table)} where the laser fan meets that fixture
+    inside the probe's range before the part or the table. Fixtures are collision bodies only:
+    no engine renders them, so a fixture in the laser's way would not hide what lies behind
+    it; the scan warns of it instead of passing it over. Table fixtures are cast in the table
+    frame, world fixtures in the robot base's frame (the rays carried there per frame)."""
+    if not config.fixtures or not len(probe2table):
+        return {}
+    casters = next((c for f, c in _FIXTURE_CASTERS if f is config.fixtures), None)
+    if casters is None:
+        casters = {on: [(f.name, SurfaceCaster([f.mesh])) for f in config.fixtures if f.on == on]
+                   for on in ("table", "world")}
+        _FIXTURE_CASTERS.insert(0, (config.fixtures, casters))
+        del _FIXTURE_CASTERS[4:]
+    probe = config.probe
+    n, rays = len(probe2table), FIXTURE_RAYS
+    alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
+    local = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
+    origins = np.repeat(probe2table[:, :3, 3], rays, axis=0)
+    dirs = np.einsum("nij,kj->nki", probe2table[:, :3, :3], local).reshape(-1, 3)
+    reach = probe.z_range_mm[1] / math.cos(probe.fan_rad / 2)  # the farthest a camera reads the line
+    nearest = np.full(n * rays, reach)
+    pts, ray, _ = surfaces.caster.intersects_location(origins, dirs, multiple_hits=False)
+    nearest[ray] = np.minimum(reach, np.linalg.norm(pts - origins[ray], axis=1))
+    to_base = config.cell.table.table2base(np.repeat(np.asarray(table_rad, dtype=np.float64), rays))
+    world_o = np.einsum("nij,nj->ni", to_base[:, :3, :3], origins) + to_base[:, :3, 3]
+    world_d = np.einsum("nij,nj->ni", to_base[:, :3, :3], dirs)
+    out = {}
+    for on, (o, d) in (("table", (origins, dirs)), ("world", (world_o, world_d))):
+        for name, caster in casters[on]:
+            pts, ray, _ = caster.caster.intersects_location(o, d, multiple_hits=False)
+            if not len(ray):
+                continue
+            met = ray[np.linalg.norm(pts - o[ray], axis=1) < nearest[ray]]
+            if len(met):
+                out[name] = np.unique(met // rays)
+    return out
+
+
+def fixture_warnings(fixture_frames: dict, frames: int) -> list[str]:
+    """One warning per fixture in the laser's way (see :func:`fixtures_in_the_laser`)."""
+    return [f"the laser meets {name} before the part or the table at {len(idx)} of {frames} frames "
+            f"({frame_ranges(list(idx))}): fixtures are collision bodies only, not rendered, so the cloud shows "
+            f"what lies behind {name} as if it were not there" for name, idx in fixture_frames.items()]
 
 
 def cell_surfaces(config: ScanConfig) -> SurfaceCaster:
