@@ -541,4 +541,8 @@ class Scanner:
         returns their paths."""
         if not isinstance(out_dir, (str, Path)) or not str(out_dir):
             raise InputError(f"save needs an output folder (a path), got {out_dir!r}")
+        from .core.files import check_output_folder
+        from .core.scan.outputs import OUTPUT_FILES
+
+        check_output_folder(out_dir, OUTPUT_FILES.values())  # a file in the way, no permission: one line
         return self.result(out_dir).files

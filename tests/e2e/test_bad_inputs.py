@@ -631,3 +631,17 @@ PROCESS_CASES = [case_ctrl_c_once, case_ctrl_c_twice, case_sigterm, case_ctrl_c_
 @pytest.mark.parametrize("case", PROCESS_CASES, ids=[c.__name__[5:] for c in PROCESS_CASES])
 def test_process_case(case, tmp_path):
     case(tmp_path)
+
+
+@pytest.mark.parametrize("make,key", [
+    (demo_plus("[[fixture]]\nname = 'clamp'\nfile = 'c.stl'\n[fixture.pose]\nxyz_mm = [nan, 0.0, 0.0]"),
+     "fixture[1].pose.xyz_mm: element 0"),
+    (lambda t: ["scan", scene(t, (REPO / "rigs" / "scenes" / "ur5_urdf.toml").read_text().replace(
+        "[robot]", "[robot]\npackage_dirs = \"~/ros\"", 1))], "robot.package_dirs: '~/ros'"),
+])
+def test_a_bad_value_in_a_table_names_its_own_key_once_not_the_file_it_sits_beside(tmp_path, capsys, make, key):
+    argv = make(tmp_path)
+    assert main(argv + ["--out", str(tmp_path / "out"), "--engine", "raycast"]) == 2
+    line = capsys.readouterr().err.strip()
+    assert f"scene.toml: {key}" in line and line.count("scene.toml") == 1 and "robot.urdf:" not in line \
+        and ".file:" not in line, line

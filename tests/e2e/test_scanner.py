@@ -90,6 +90,12 @@ def test_sweep_report_and_save(scanner, tmp_path):
     assert {p.name for p in (tmp_path / "out").iterdir()} == {"cloud.ply", "report.json", "preview.png"}
     again = ScanReport.from_dict(json.loads(files["report"].read_text()))
     assert again.points == report.points and again.error_um.rms_um == pytest.approx(report.error_um.rms_um)
+    # A place that cannot take the files: one line naming it, as the command line says it.
+    (tmp_path / "afile").write_text("x")
+    for bad, words in ((tmp_path / "afile", "is a file"), (tmp_path / "afile" / "sub", "is a file, so no folder"),
+                       ("/proc/scanner-out", "cannot be written")):
+        with pytest.raises(InputError, match=words):
+            scanner.save(bad)
 
 
 def test_run_gives_the_chunk_engines_cloud_point_for_point():

@@ -293,15 +293,18 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     if rt.has("rig") == rt.has("urdf"):
         raise rt.error("rig", "give exactly one of rig (a bundled name or a .toml DH table) or urdf (a .urdf file)")
     key = "rig" if rt.has("rig") else "urdf"
+    # The table's own values first: their errors name their own keys; the file's errors after.
+    if key == "rig":
+        rig = rt.string("rig")
+    else:
+        f = Path(rt.string("urdf")).expanduser()
+        dirs = [Path(d).expanduser() for d in rt.strings("package_dirs", default=[])]
+        links = rt.string("base_link", default="") or None, rt.string("tool_link", default="") or None
     try:
         if key == "rig":
-            robot = load_robot(_rig_path(base, rt.string("rig")))
+            robot = load_robot(_rig_path(base, rig))
         else:
-            f = Path(rt.string("urdf")).expanduser()
-            dirs = [Path(d).expanduser() for d in rt.strings("package_dirs", default=[])]
-            robot = load_robot(f if f.is_absolute() else base / f,
-                               base_link=rt.string("base_link", default="") or None,
-                               tool_link=rt.string("tool_link", default="") or None,
+            robot = load_robot(f if f.is_absolute() else base / f, base_link=links[0], tool_link=links[1],
                                package_dirs=[d if d.is_absolute() else base / d for d in dirs])
     except ConfigError as exc:
         raise ConfigError(f"{path}: robot.{key}: {exc}") from None
@@ -419,8 +422,9 @@ def _fixtures(top: Table, base: Path) -> tuple:
         f = Path(t.string("file"))
         scale = t.number("scale", default=None, lo=0.0, lo_open=True)
         on = t.string("on", default="table", choices=list(FIXTURE_CARRIERS))
+        pose = t.pose("pose")  # its own errors name its own keys
         try:
-            mesh = load_workpiece(f if f.is_absolute() else base / f, t.pose("pose"), scale).mesh
+            mesh = load_workpiece(f if f.is_absolute() else base / f, pose, scale).mesh
         except (InputError, ConfigError) as exc:
             raise t.error("file", str(exc)) from None
         t.finish()
