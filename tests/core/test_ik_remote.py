@@ -51,6 +51,14 @@ def test_an_unreachable_target_is_a_failed_solve_with_the_controllers_reason(ser
     assert not res.success and "found no solution" in res.message and f":{server.port}" in res.message
 
 
+def test_a_controller_serving_another_robot_is_named_when_its_joints_miss(server):
+    puma = load_robot("puma560")  # this cell's robot; the server solves for the Viper
+    T = puma.fk(np.radians([10.0, -30.0, 20.0, 0.0, 40.0, 0.0]))
+    res = replace(puma, ik_via=_client(server.port)).ik(T, np.zeros(6))
+    assert not res.success, res.message
+    assert f"serves the robot {load_robot('adept_viper_s650').name!r}" in res.message and puma.name in res.message
+
+
 def test_nothing_listening_is_one_line_naming_host_and_port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -135,6 +135,23 @@ class ControllerIK:
                                   f"{request['id']}: {raw[:80]!r}")
         return answer
 
+    def served_robot(self) -> str | None:
+        """The robot the controller says it serves (its ping's ``robot``), asked once; None
+        where it does not say or cannot be asked."""
+        if not hasattr(self, "_served"):
+            try:
+                name = self.ping().get("robot")
+            except ControllerError:
+                name = None
+            self._served = name if isinstance(name, str) else None
+        return self._served
+
+    def _other_robot(self, robot) -> str:
+        """Words for a failed solve where the controller serves another robot than this cell's."""
+        served = self.served_robot()
+        return f" (the controller serves the robot {served!r}; this cell's is {robot.name!r})" \
+            if served and served != robot.name else ""
+
     def ping(self) -> dict:
         answer = self.call({"op": "ping"})
         if answer.get("protocol") != PROTOCOL:
@@ -164,7 +181,8 @@ class ControllerIK:
             q = np.array(joints, dtype=np.float64)
         if not success:
             return IKResult(seed if q is None else q, False, math.inf, math.inf, 0,
-                            f"the controller at {where} found no solution: {reason}", "controller", "out_of_reach")
+                            f"the controller at {where} found no solution: {reason}{self._other_robot(robot)}",
+                            "controller", "out_of_reach")
         if q is None:
             raise ControllerError(f"IK controller at {where}: a successful answer without 'joints_rad'")
         pos_err, rot_err = pose_errors(robot, q[None, :], T[None])
@@ -175,5 +193,6 @@ class ControllerIK:
             return IKResult(q, True, pos, rot, 0, "ok", "controller", "ok")
         why = ("outside this cell's joint limits" if not inside else
                f"{pos:.3g} mm and {math.degrees(rot):.3g}° from the target in this cell's kinematics")
+        why += self._other_robot(robot)
         return IKResult(q, False, pos, rot, 0, f"the controller at {where} answered joints {why}", "controller",
                         "joint_limits" if not inside else "numerical")
