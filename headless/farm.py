@@ -158,8 +158,12 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
         f"(skipped), {len(todo)} to compute")
     if merge_only and todo:
         listed = "; ".join(f"{s.describe()}: {why}" for s, why in todo[:8])
+        expected = {s.file_name() for s in parts}
+        others = sorted(p.name for p in folder.glob("shard_*.npz") if p.name not in expected) if folder.is_dir() else []
+        hint = (f"; {len(others)} shard files of another split are there (e.g. {others[0]}): merge with the "
+                f"--shard-frames they were made with") if others else ""
         raise ScannerError(f"{len(todo)} of {len(parts)} shards are not ready in {folder} ({listed}"
-                           f"{'; ...' if len(todo) > 8 else ''}); run them first")
+                           f"{'; ...' if len(todo) > 8 else ''}); run them first{hint}")
     for s, why in todo:
         if why != "missing":
             log(f"  recomputing {s.describe()}: {why}")

@@ -147,6 +147,11 @@ def test_a_farm_manager_can_run_one_shard_per_task_then_merge(single, tmp_path):
     cloud = load_ply(out / "cloud.ply")
     np.testing.assert_allclose(cloud.points, single.cloud.points, atol=1e-4)  # PLY holds float32
     np.testing.assert_array_equal(cloud.frame, single.cloud.frame)
+    # Merging with another split than the shards were made with names what is there.
+    other = [a if a != "10" else "8" for a in base]
+    wrong = subprocess.run(other + ["--merge"], cwd=repo, capture_output=True, text=True)
+    assert wrong.returncode == 2 and "2 shard files of another split" in wrong.stderr \
+        and "--shard-frames they were made with" in wrong.stderr, wrong.stderr
 
 
 def cancel_shard_once(index: int, marker: str):
