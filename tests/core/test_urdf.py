@@ -285,3 +285,50 @@ def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     with pytest.raises(ConfigError, match=words) as info:
         load_robot(path, **kw)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("limit", ["", '<limit effort="1" velocity="1"/>'], ids=["no limit element", "no lower/upper"])
+def test_a_revolute_joint_without_limits_is_refused_naming_it(limit, tmp_path):
+    # The URDF specification makes <limit> compulsory for revolute joints; none is not ±360°.
+    path = _six(tmp_path)
+    text = path.read_text()
+    j2 = text.index('<joint name="j2"')
+    path.write_text(text[:j2] + text[j2:].replace('<limit lower="-3.1" upper="3.1" effort="1" velocity="1"/>',
+                                                  limit, 1))
+    with pytest.raises(ConfigError) as info:
+        load_robot(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert str(path) in message and "revolute joint 'j2' has no limits" in message
+    assert 'lower="..." upper="..."' in message and "radians" in message and "continuous" in message
+
+
+def test_a_continuous_joint_needs_no_limits_and_turns_a_full_turn_either_way(tmp_path):
+    path = _six(tmp_path, types=["revolute", "continuous"] + ["revolute"] * 4)
+    path.write_text(path.read_text().replace('<limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>'
+                                             '<joint name="j2"', '</joint><joint name="j2"', 1))
+    assert '<joint name="j1" type="continuous"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.1" ' \
+           'rpy="0 0 0"/><axis xyz="0 1 0"/></joint>' in path.read_text()
+    robot = load_robot(path)
+    np.testing.assert_allclose(robot.q_min_rad, [-3.1, -2 * np.pi, -3.1, -3.1, -3.1, -3.1])
+    np.testing.assert_allclose(robot.q_max_rad, [3.1, 2 * np.pi, 3.1, 3.1, 3.1, 3.1])
+
+
+@pytest.mark.parametrize("joint,tag,old,new,words", [
+    ("j5", "origin", 'xyz="0 0 0.1"', 'xyz="0 nan 0.1"', "joint 'j5' origin xyz: 'nan' is not a finite number"),
+    ("j1", "origin", 'rpy="0 0 0"', 'rpy="0 inf 0"', "joint 'j1' origin rpy: 'inf' is not a finite number"),
+    ("j3", "axis", 'xyz="1 0 0"', 'xyz="NaN 0 0"', "joint 'j3' axis xyz: 'NaN' is not a finite number"),
+    ("j2", "origin", 'xyz="0 0 0.1"', 'xyz="0 0.1"', "joint 'j2' origin xyz: '0 0.1' has 2 numbers; give three"),
+])
+def test_a_non_finite_joint_origin_or_axis_is_named_where_it_was_written(joint, tag, old, new, words, tmp_path):
+    path = _six(tmp_path)
+    text = path.read_text()
+    at = text.index(f'<joint name="{joint}"')
+    end = text.index("</joint>", at)
+    assert old in text[at:end]
+    path.write_text(text[:at] + text[at:end].replace(old, new, 1) + text[end:])
+    with pytest.raises(ConfigError) as info:
+        load_robot(path)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(f"{path}: ") and words in message, message
+    assert "a_mm" not in message and "NaN or inf" not in message

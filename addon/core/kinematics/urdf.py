@@ -3,8 +3,10 @@
 The file is read with yourdfpy. The chain runs from a base link (default: the root)
 to a tool link (default: the one leaf of the tree); its joints must be six revolute,
 continuous or prismatic joints, with any number of fixed joints between them (planar
-and floating joints are refused). Lengths in URDF are metres; here they become
-millimetres, a prismatic joint's position and limits too.
+and floating joints are refused). Revolute and prismatic joints must give
+``<limit lower upper>``, as the URDF specification requires; continuous joints get ±2π.
+Joint origins and axes must be finite numbers. Lengths in URDF are metres; here they
+become millimetres, a prismatic joint's position and limits too.
 
 Every serial chain of revolute and prismatic joints has a standard Denavit–Hartenberg
 description (a prismatic joint slides d along z_{i−1} instead of turning θ about it)
@@ -146,18 +148,24 @@ class UrdfChain:
                 self._attach_fixed(j.child)
 
     def limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each moving joint's (lower, upper): radians, or mm where it slides. The URDF
+        specification makes <limit> compulsory for revolute and prismatic joints, so one
+        without it (or without lower and upper) is refused; continuous joints have none and
+        get ±2π (±360°)."""
         lo, hi = [], []
         for j in self.moving:
-            if j.type == "prismatic" and (j.limit is None or j.limit.lower is None or j.limit.upper is None):
-                raise ConfigError(f"{self.path}: prismatic joint {j.name!r} has no limits; a sliding joint needs "
-                                  "<limit lower=... upper=...> (metres)")
-            if j.type == "continuous" or j.limit is None or j.limit.lower is None or j.limit.upper is None:
+            if j.type == "continuous":
                 lo.append(-2 * np.pi)
                 hi.append(2 * np.pi)
-            else:
-                unit = M_TO_MM if j.type == "prismatic" else 1.0
-                lo.append(float(j.limit.lower) * unit)
-                hi.append(float(j.limit.upper) * unit)
+                continue
+            if j.limit is None or j.limit.lower is None or j.limit.upper is None:
+                what = ("metres" if j.type == "prismatic" else
+                        'radians; or type="continuous" for a joint that turns without limits, which gets ±360°')
+                raise ConfigError(f"{self.path}: {j.type} joint {j.name!r} has no limits; a {j.type} joint needs "
+                                  f'<limit lower="..." upper="..."/> ({what})')
+            unit = M_TO_MM if j.type == "prismatic" else 1.0
+            lo.append(float(j.limit.lower) * unit)
+            hi.append(float(j.limit.upper) * unit)
         lo, hi = np.array(lo), np.array(hi)
         bad = np.nonzero(~(np.isfinite(lo) & np.isfinite(hi)) | (lo >= hi))[0]
         if bad.size:
@@ -290,14 +298,41 @@ def _parse(path: Path, package_dirs):
     import xml.etree.ElementTree as ET
 
     try:  # well-formed XML first: the URDF parser would quietly recover from a cut file
-        ET.parse(path)
+        tree = ET.parse(path)
     except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: not a readable URDF file (XML: {exc})") from None
+    _check_joint_numbers(tree.getroot(), path)
     try:
         return URDF.load(str(path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False,
                          filename_handler=lambda name: name)
     except Exception as exc:  # lxml and yourdfpy raise many kinds for a malformed file
         raise ConfigError(f"{path}: not a readable URDF file ({type(exc).__name__}: {exc})") from None
+
+
+JOINT_VECTORS = (("origin", "xyz", "metres"), ("origin", "rpy", "radians"), ("axis", "xyz", "a direction"))
+
+
+def _check_joint_numbers(root, path: Path) -> None:
+    """Every joint's origin xyz and rpy and its axis as written: three finite numbers each,
+    so that a NaN is named where the user wrote it, not in the DH table derived from it."""
+    for joint in root.iter("joint"):
+        name = joint.get("name", "?")
+        for tag, attribute, unit in JOINT_VECTORS:
+            element = joint.find(tag)
+            text = None if element is None else element.get(attribute)
+            if text is None:
+                continue
+            words = text.split()
+            where = f"{path}: joint {name!r} {tag} {attribute}"
+            for word in words:
+                try:
+                    value = float(word)
+                except ValueError:
+                    value = float("nan")
+                if not np.isfinite(value):
+                    raise ConfigError(f"{where}: {word!r} is not a finite number; give three finite numbers ({unit})")
+            if len(words) != 3:
+                raise ConfigError(f"{where}: {text.strip()!r} has {len(words)} numbers; give three ({unit})")
 
 
 def _check_conversion(robot: Robot, chain: UrdfChain) -> None:
