@@ -78,6 +78,9 @@ def plan_views(config: ScanConfig, board: ChArUcoBoard, views: int, poses=None):
         for k, T in enumerate(targets):
             check_transform(T, f"calibration view {k}")
         views = len(targets)
+    if views < MIN_VIEWS:
+        raise CalibrationError(f"{views} board view{'s' * (views != 1)} given; a calibration needs at least {MIN_VIEWS}"
+                               + (" (give more [[view]] tables)" if poses is not None else ""))
     cfg = replace(config, workpiece=_board_workpiece(board), fixtures=())
     q_prev = np.asarray(config.q_start if config.q_start is not None else
                         np.clip(np.zeros(6), config.robot.q_min_rad, config.robot.q_max_rad), dtype=np.float64)
@@ -98,8 +101,8 @@ def plan_views(config: ScanConfig, board: ChArUcoBoard, views: int, poses=None):
         q_prev = q[0]
     if len(kept_q) < MIN_VIEWS:
         why = f"; first refusal (view {dropped[0][0]}): {dropped[0][1]}" if dropped else ""
-        raise CalibrationError(f"only {len(kept_q)} of {views} board views can be reached without a collision; "
-                               f"a calibration needs at least {MIN_VIEWS}{why}")
+        raise CalibrationError(f"only {len(kept_q)} of {views} board views can be reached without a collision "
+                               f"({len(dropped)} left out); a calibration needs at least {MIN_VIEWS}{why}")
     return np.array(kept_q), np.array(kept_T), dropped
 
 

@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from addon.calibrate import FILES, calibrate
     from addon.core.config.scan import load_scan_config
-    from addon.core.errors import InputError
+    from addon.core.errors import ConfigError, InputError
     from addon.core.files import check_output_folder
     from headless.scan import progress_and_lock
 
@@ -53,11 +53,25 @@ def run(args: argparse.Namespace) -> int:
     if args.poses:
         from addon.core.calibration import load_views
 
+        from addon.core.calibration.solve import MIN_VIEWS
+
         poses = load_views(args.poses)
+        if len(poses) < MIN_VIEWS:
+            raise ConfigError(f"{args.poses}: {len(poses)} board view{'s' * (len(poses) != 1)} ([[view]] tables); "
+                              f"a calibration needs at least {MIN_VIEWS}")
     count = args.views if poses is None else len(poses)
     print(f"calibrate: {config.name}: {config.robot.name}, {config.probe.name}; {count} board views"
           + (f" from {args.poses}" if poses is not None else " (proposed)"), flush=True)
-    progress, lock = progress_and_lock(args, out)
+    bar_progress, lock = progress_and_lock(args, out)
+
+    def progress(stage, done, total):
+        # The plan is no work to wait for but a count of board views: one line, not a bar of frames.
+        if stage == "plan":
+            if not args.quiet:
+                bar_progress.bar.say(f"plan: {done} of {total} board views reachable")
+            return
+        bar_progress(stage, done, total)
+
     try:
         t = time.perf_counter()
         run_ = calibrate(config, out, views=args.views, distortion=distortion, poses=poses, progress=progress)

@@ -92,10 +92,14 @@ def test_calibrate_command_takes_the_users_poses_and_writes_its_files(tmp_path, 
 
     probe = load_probe("default")
     poses = _poses_file(tmp_path / "poses.toml", board_views(board_for(probe), probe.z_range_mm, 6))
-    rc = main(["calibrate", "demo", "--poses", poses, "--out", str(tmp_path / "cal"), "--quiet"])
-    text = capsys.readouterr().out
+    rc = main(["calibrate", "demo", "--poses", poses, "--out", str(tmp_path / "cal")])
+    captured = capsys.readouterr()
+    text = captured.out
     assert rc == 0, text
     assert "6 board views from" in text and "reprojection" in text and "laser plane" in text
+    # The plan's progress counts board views, not frames.
+    assert "plan: 6 of 6 board views reachable" in text
+    assert "plan:" not in captured.err and "images:" in captured.err
     assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == ["calibration.json", "calibration.png",
                                                                      "probe.toml"]
 
@@ -109,3 +113,47 @@ def test_parallel_poses_from_the_user_are_refused_with_nothing_written(tmp_path,
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "parallel" in err[0], err
     assert not (tmp_path / "cal").exists() or not any((tmp_path / "cal").iterdir())
+
+
+def test_too_few_poses_from_the_user_are_refused_as_too_few_not_as_collisions(tmp_path, capsys):
+    from addon.core.calibration import board_for, board_views
+
+    probe = load_probe("default")
+    poses = _poses_file(tmp_path / "two.toml", board_views(board_for(probe), probe.z_range_mm, 2))
+    rc = main(["calibrate", "demo", "--poses", poses, "--out", str(tmp_path / "cal"), "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert poses in err[0] and "2 board views" in err[0] and "at least 4" in err[0], err
+    assert "collision" not in err[0] and "reached" not in err[0], err
+    assert not (tmp_path / "cal").exists() or not any((tmp_path / "cal").iterdir())
+
+
+def test_too_few_poses_through_the_api_are_refused_as_too_few():
+    from addon.core.calibration import board_for, board_views
+    from addon.core.errors import CalibrationError
+
+    probe = load_probe("default")
+    with pytest.raises(CalibrationError) as info:
+        calibrate("demo", None, poses=board_views(board_for(probe), probe.z_range_mm, 3))
+    assert str(info.value) == "3 board views given; a calibration needs at least 4 (give more [[view]] tables)"
+    with pytest.raises(CalibrationError, match="^2 board views given; a calibration needs at least 4$"):
+        calibrate("demo", None, views=2)
+
+
+def test_views_left_out_as_unreachable_are_named_as_such():
+    from addon.calibrate import plan_views
+    from addon.core.calibration import board_for, board_views
+    from addon.core.errors import CalibrationError
+
+    cfg = load_scan_config("demo")
+    board = board_for(cfg.probe)
+    views = board_views(board, cfg.probe.z_range_mm, 4)
+    far = views.copy()
+    far[1:, :3, 3] += [0.0, 0.0, 5000.0]  # five metres above the table: out of the arm's reach
+    q, kept, dropped = plan_views(cfg, board, 4, views)
+    assert len(q) == 4 and dropped == []
+    with pytest.raises(CalibrationError) as info:
+        plan_views(cfg, board, 4, far)
+    message = str(info.value)
+    assert message.startswith("only 1 of 4 board views can be reached without a collision (3 left out); "
+                              "a calibration needs at least 4; first refusal (view 1): unreachable"), message
