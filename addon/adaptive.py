@@ -112,11 +112,11 @@ class NextBestView:
         probe_now = scanner.pose("table")[:3, 3]
         live = self.live()
         self.refused = []
-        if not self.looked:
-            self.looked = True
+        if not self.looked:  # until a view is scanned (scan) or no overview can be had
             first = self.overview(scanner, live, probe_now, budget)
             if first is not None:
                 return first
+            self.looked = True
         ranked = [c for c in next_view.rank(self.space, self.probe, live, scanner.table_deg, probe_now, self.missed)
                   if c.gain >= self.min_gain and (budget is None or c.frames <= budget)]
         for c in ranked[:TRIES]:
@@ -166,11 +166,6 @@ class NextBestView:
         if self.points_seen:
             self.looked = True
         return n
-
-    def outside_share(self) -> float:
-        """The share of the points measured above the table that lie more than a cell outside
-        the part's box: a box told too small (or off the part) shows here."""
-        return self.points_outside / self.points_seen if self.points_seen else 0.0
 
     def learn(self, origin, points) -> None:
         """Add one profile's points (n, 3), table frame, measured from the laser at ``origin``
@@ -236,6 +231,7 @@ class NextBestView:
             i, j, k = expected.T
             self.missed[i, j, k] |= self.space.state[i, j, k] == UNKNOWN
         self.impossible.add(c.key)  # the same sweep again would see the same (the scan is deterministic)
+        self.looked = True
         return profiles, before - self.space.counts()["unknown"]
 
 
@@ -275,6 +271,7 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
     if log and setup_s:
         log(f"adaptive: planner set up in {setup_s:.2f} s ({len(planner.pool)} candidate sweeps)")
     planner.min_gain = int(min_gain)
+    seen, outside = planner.points_seen, planner.points_outside  # this run's share is warned of, once
     caught = planner.catch_up(scanner)
     if log and caught:
         log(f"adaptive: learnt from the {caught} profiles measured before this run")
@@ -318,7 +315,8 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
             if log:
                 log(f"adaptive: stopping after {len(steps)} sweeps: the last two taught fewer than {min_gain} cells")
             break
-    outside = planner.outside_share()
+    new = planner.points_seen - seen
+    outside = (planner.points_outside - outside) / new if new else 0.0
     if log and outside > OUTSIDE_WARNING:
         log(f"adaptive: warning: {outside * 100:.0f} % of the points measured above the table lie outside the part's "
             f"box {planner.lo.round(1).tolist()} .. {planner.hi.round(1).tolist()} mm: the part (or something else "

@@ -191,6 +191,12 @@ class Scanner:
         """Everything measured so far (table frame)."""
         return Cloud.concatenate(self._parts)
 
+    def _note_fixtures(self, fixture_frames: dict, first: int) -> None:
+        """Add a plan's fixtures in the laser's way (frames from 0) as frames from ``first``."""
+        for name, frames in fixture_frames.items():
+            self._fixture_frames[name] = np.union1d(self._fixture_frames.get(name, []),
+                                                    np.asarray(frames) + first).astype(int)
+
     def measurements(self, first: int = 0):
         """Every profile measured from frame ``first`` on, in order, as (its frame, the probe's
         pose in the table frame (4, 4), its points (n, 3), table frame): what a planner that
@@ -390,6 +396,7 @@ class Scanner:
         plan = plan_scan(cfg)
         self._timing["plan"] += time.perf_counter() - t
         self._warnings += plan.warnings
+        self._note_fixtures(plan.fixture_frames, self._frames)
         if plan.clearance is not None:
             self._clearances.append(plan.clearance)
         yield from self._frames_steps(plan.q, plan.table_rad, plan=plan, progress=progress)
@@ -439,9 +446,8 @@ class Scanner:
         if plan is None:
             if self._surfaces is None:
                 self._surfaces = cell_surfaces(cfg)
-            plan = plan_frames(cfg, q, table_rad, allow_blind=True, surfaces=self._surfaces, first_frame=self._frames)
-            for name, frames in plan.fixture_frames.items():
-                self._fixture_frames[name] = np.union1d(self._fixture_frames.get(name, []), frames).astype(int)
+            plan = plan_frames(cfg, q, table_rad, allow_blind=True, surfaces=self._surfaces)
+            self._note_fixtures(plan.fixture_frames, self._frames)
             self._timing["plan"] += time.perf_counter() - t
         first = self._frames
         n = len(q)
@@ -487,6 +493,9 @@ class Scanner:
         budget = settings.max_profiles if max_profiles is None else max_profiles
         target = settings.target_coverage if target_coverage is None else target_coverage
         gain = settings.min_gain if min_gain is None else min_gain
+        # Checked in adaptive_scan; numpy's integers (a training loop's) become Python's for the report.
+        budget = int(budget) if isinstance(budget, np.integer) else budget
+        gain = int(gain) if isinstance(gain, np.integer) else gain
         # A second call goes on from what the first learnt (and from anything measured since),
         # instead of planning the same views again; a different box or cell size starts afresh.
         setup = 0.0
@@ -521,11 +530,9 @@ class Scanner:
         table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
         from .core.safety import PathClearance
 
-        from .core.scan.plan import fixture_warnings
-
-        warnings = list(self._warnings) + fixture_warnings(self._fixture_frames, len(q))
-        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), warnings,
-                    PathClearance.merge(self._clearances) if self._clearances else None)
+        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings),
+                    PathClearance.merge(self._clearances) if self._clearances else None,
+                    fixture_frames=self._fixture_frames)
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
                           {"render_device": render_device(self._raycaster, self._sc), **extra})
         self._cached = (key, result)

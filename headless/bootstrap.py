@@ -146,8 +146,8 @@ def missing_package_line(exc: ModuleNotFoundError) -> str | None:
     lock (outside .venv): which one, and the two commands that have it. None where the module
     missing is the project's own (a bug, shown as one)."""
     name = (exc.name or "").split(".")[0]
-    if not name or name in ("addon", "headless"):
-        return None
+    if not name or name in ("addon", "headless") or Path(sys.prefix).resolve() == VENV.resolve():
+        return None  # the project's own module, or .venv itself lacks it: a bug or a broken set-up, shown as such
     package = PACKAGE_OF_MODULE.get(name, name)
     here = _shown(venv_python())
     return (f"error: this Python ({sys.executable}) has no '{name}' (package {package}); the project's "

@@ -126,6 +126,9 @@ def _world(scene, strength: float) -> None:
         bg.inputs["Strength"].default_value = strength
 
 
+RAISED_AFTER_RENDER = "Ctrl-C during a render: raised once the render call returned"
+
+
 @contextlib.contextmanager
 def ctrl_c_after_render():
     """A Ctrl-C during a render call, raised once the call is over instead of lost.
@@ -134,8 +137,11 @@ def ctrl_c_after_render():
     caught and printed by Blender, which goes on (a user's script carried on after Ctrl-C).
     Where SIGINT has Python's own handler (a script, the Python prompt), the signal is only
     recorded during the call, and KeyboardInterrupt is raised when the call has returned and
-    its files are cleaned up. A program with a handler of its own (the command line's
-    headless.lifecycle.StopRequests) and calls from other threads are left alone.
+    its files are cleaned up (a scan's render calls are sized to about a second; a second
+    press meanwhile is recorded too, since raised inside Cycles it would be lost as well).
+    Where the call fails after a Ctrl-C, the KeyboardInterrupt is raised from that failure. A
+    program with a handler of its own (the command line's headless.lifecycle.StopRequests)
+    and calls from other threads are left alone.
     """
     import signal
     import threading
@@ -148,10 +154,15 @@ def ctrl_c_after_render():
     signal.signal(signal.SIGINT, lambda signum, frame: asked.append(signum))
     try:
         yield
+    except BaseException as exc:
+        if asked and not isinstance(exc, KeyboardInterrupt):  # the stop comes first, the failure is its cause
+            raise KeyboardInterrupt(RAISED_AFTER_RENDER) from exc
+        raise
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler)
     if asked:
-        raise KeyboardInterrupt("Ctrl-C during a render: raised once the render call returned")
+        raise KeyboardInterrupt(RAISED_AFTER_RENDER)
+
 
 
 @contextlib.contextmanager

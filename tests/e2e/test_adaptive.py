@@ -214,11 +214,26 @@ def test_a_stop_asked_for_during_a_sweep_takes_effect_before_the_next_one_render
     with pytest.raises(KeyboardInterrupt):
         scanner.adaptive(max_profiles=400, progress=progress,
                          log=lambda line: swept.append(line) if "sweep 1:" in line else None)
-    first = scanner.report().to_dict()["frames"]
+    first = int(swept[0].split(" profiles")[0].rsplit(" ", 1)[1])  # "sweep 1: ..., 180 profiles, ..."
     assert first > 0 and all(stage == "adaptive" and total == 400 for stage, _, total in calls)
     # The bar moved within the sweep (after each chunk of frames), not only between sweeps.
     assert any(0 < done < first for _, done, _ in calls)
     assert scanner.report().to_dict()["frames"] == first  # nothing of a second sweep
+
+
+def test_a_stop_between_choosing_the_overview_and_scanning_it_leaves_it_to_be_chosen_again():
+    _, scanner, planner = _raycast_planner("step_block")
+    first = planner.choose(scanner, 450)
+    assert planner.choose(scanner, 450).key == first.key  # not scanned yet: still the overview
+
+
+def test_numpy_whole_numbers_are_taken_as_budget_and_gain():
+    from addon import Scanner
+
+    config, _, _ = _raycast_planner("demo")
+    s = Scanner(config=config)
+    steps = s.adaptive(max_profiles=np.int64(200), min_gain=np.int32(30))
+    assert steps and s.report().to_dict()["adaptive"]["max_profiles"] == 200
 
 
 def test_a_box_told_too_small_for_the_part_is_warned_about(capsys):

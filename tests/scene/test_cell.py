@@ -156,3 +156,38 @@ def test_eevees_first_render_call_is_one_frame(scene):
     cfg = load_scan_config("demo")
     assert ScanRun(cfg, scene)._chunk_size() > 1
     assert ScanRun(cfg.with_overrides(engine="eevee"), scene)._chunk_size() == 1
+
+
+def test_a_ctrl_c_during_a_render_call_is_raised_once_the_call_is_over():
+    """What Cycles would swallow inside its callbacks: the signal is recorded during the call,
+    raised after it; the handler is Python's own again; a handler of the caller's own (the
+    command line's) and a nested call are left alone; a failure after a Ctrl-C is its cause."""
+    import os
+    import signal
+
+    from addon.scene.render import RAISED_AFTER_RENDER, ctrl_c_after_render
+
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    got = []
+    with pytest.raises(KeyboardInterrupt, match=RAISED_AFTER_RENDER):
+        with ctrl_c_after_render():
+            with ctrl_c_after_render():  # nested: the outer one holds the signal
+                os.kill(os.getpid(), signal.SIGINT)
+                os.kill(os.getpid(), signal.SIGINT)  # a second press is recorded too
+            got.append("the call went on to its end")
+    assert got and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    with pytest.raises(KeyboardInterrupt) as caught:
+        with ctrl_c_after_render():
+            os.kill(os.getpid(), signal.SIGINT)
+            raise RuntimeError("the render failed")
+    assert isinstance(caught.value.__cause__, RuntimeError)
+    with ctrl_c_after_render():  # no Ctrl-C: nothing raised
+        pass
+    asked = []
+    old = signal.signal(signal.SIGINT, lambda signum, frame: asked.append(signum))
+    try:
+        with ctrl_c_after_render():  # the caller's own handler gets the signal at once
+            os.kill(os.getpid(), signal.SIGINT)
+        assert asked == [signal.SIGINT]
+    finally:
+        signal.signal(signal.SIGINT, old)

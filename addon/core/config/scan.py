@@ -405,6 +405,7 @@ def _adaptive(t: Table) -> AdaptiveSettings:
         r = t.number("radius_mm", lo=0.0, hi=1e4, lo_open=True)
         h = t.number("height_mm", lo=0.0, hi=1e4, lo_open=True)
         box = (np.array([-r, -r, 0.0]), np.array([r, r, h]))
+    t.allow("box_min_mm", "box_max_mm", "radius_mm", "height_mm")
     target = t.number("target_coverage", default=None, lo=0.0, hi=1.0, lo_open=True)
     out = AdaptiveSettings(box, t.integer("max_profiles", default=600, lo=1, hi=MAX_PROFILES),
                            t.integer("min_gain", default=30, lo=1, hi=10**9),

@@ -103,9 +103,12 @@ class Table:
         return default
 
     def has(self, key: str) -> bool:
-        """Whether the file gives ``key``; a key asked about is one this table knows."""
-        self._used.add(key)
         return key in self.data
+
+    def allow(self, *keys: str) -> None:
+        """Name ``keys`` among those this table takes, for :meth:`finish`'s list of what is
+        allowed, where the file may leave them all out (one of two ways to say a thing)."""
+        self._used.update(keys)
 
     # -- scalars --------------------------------------------------------------
     def number(self, key: str, default: Any = _MISSING, *, lo: float | None = None,

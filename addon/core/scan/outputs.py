@@ -21,7 +21,7 @@ from ..geometry.cloud import Cloud, ply_bytes
 from ..geometry.footprint import SurfaceCaster, measurable_points
 from ..geometry.surface_fit import across_line
 from ..kinematics.turntable import TABLE_RADIUS_MM, table_top_mesh
-from .plan import Plan
+from .plan import Plan, fixture_warnings
 from .preview import render_preview
 from .report import report_json
 
@@ -72,7 +72,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     n = int(len(stats["band_rows"]))
     scan_time = timing.get("render", 0.0) + timing.get("detect", 0.0) + timing.get("triangulate", 0.0)
     r = config.render
-    warnings = list(plan.warnings)
+    warnings = list(plan.warnings) + fixture_warnings(plan.fixture_frames, len(plan.q))
     used = (extra or {}).get("render_device")
     if r.engine == "cycles" and r.device != "CPU" and used == "CPU":
         warnings.append(f"render device {r.device} asked for, but no such GPU answered: rendered on the CPU")

@@ -69,7 +69,6 @@ def plan_scan(config: ScanConfig, allow_blind: bool = False) -> Plan:
                         f"waypoints at frames {frame_ranges(sol.jumps)} (near a singularity or a limit)")
     plan = plan_frames(config, sol.q, wp.table_rad, allow_blind, warnings)
     plan.clearance = clearance
-    warnings += fixture_warnings(plan.fixture_frames, len(wp))
     return plan
 
 
@@ -107,11 +106,11 @@ def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, t
 
 
 def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_blind: bool = False,
-                warnings: list | None = None, surfaces: SurfaceCaster | None = None, first_frame: int = 0) -> Plan:
+                warnings: list | None = None, surfaces: SurfaceCaster | None = None) -> Plan:
     """The plan for frames whose joints are known (q (n, 6), table_rad (n,)): the laser fan cast
     against the part and the table (``surfaces``, built here when not given) for the cameras to
     render and the rows the line can fall on, and against the fixtures (``fixture_frames``,
-    numbered from ``first_frame``)."""
+    the frames' indices)."""
     wp_probe2table = config.cell.probe2table(q, table_rad)
     surfaces = surfaces or cell_surfaces(config)
     foot = laser_footprint(config.probe, wp_probe2table, surfaces)
@@ -131,8 +130,7 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
             simplefilter("ignore", RuntimeWarning)  # frames no camera sees: NaN, as meant
             rows = foot.rows[:, list(cameras)]
             predicted = np.column_stack([np.nanmin(rows[:, :, 0], axis=1), np.nanmax(rows[:, :, 1], axis=1)])
-    fixtures = {name: frames + first_frame for name, frames in
-                fixtures_in_the_laser(config, wp_probe2table, table_rad, surfaces).items()}
+    fixtures = fixtures_in_the_laser(config, wp_probe2table, table_rad, surfaces)
     return Plan(np.asarray(q, dtype=np.float64), np.asarray(table_rad, dtype=np.float64), cameras, predicted,
                 warnings, fixture_frames=fixtures)
 
@@ -163,10 +161,10 @@ def fixtures_in_the_laser(config: ScanConfig, probe2table: np.ndarray, table_rad
     local = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
     origins = np.repeat(probe2table[:, :3, 3], rays, axis=0)
     dirs = np.einsum("nij,kj->nki", probe2table[:, :3, :3], local).reshape(-1, 3)
-    reach = probe.z_range_mm[1] / math.cos(probe.fan_rad / 2)  # the farthest a camera reads the line
-    nearest = np.full(n * rays, reach)
+    reach = np.tile(probe.z_range_mm[1] / np.cos(alpha), n)  # each ray's distance to the range's far end
+    nearest = reach.copy()
     pts, ray, _ = surfaces.caster.intersects_location(origins, dirs, multiple_hits=False)
-    nearest[ray] = np.minimum(reach, np.linalg.norm(pts - origins[ray], axis=1))
+    nearest[ray] = np.minimum(reach[ray], np.linalg.norm(pts - origins[ray], axis=1))
     to_base = config.cell.table.table2base(np.repeat(np.asarray(table_rad, dtype=np.float64), rays))
     world_o = np.einsum("nij,nj->ni", to_base[:, :3, :3], origins) + to_base[:, :3, 3]
     world_d = np.einsum("nij,nj->ni", to_base[:, :3, :3], dirs)
