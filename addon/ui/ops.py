@@ -6,15 +6,26 @@ the user can fix are reported in the status bar, and nothing changes then.
 
 from __future__ import annotations
 
+import os
 
 import bpy
 import numpy as np
 from bpy.props import FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from ..core.errors import ScannerError
+from ..core.errors import InputError, ScannerError
 from ..scene.render_state import RenderState, kept_render_settings
 from . import models
+
+
+# The modal scan under way, if any: while it runs, the operators that would change the cell
+# or start other work are greyed out (they would pull the scene from under it).
+_SCAN_RUNNING = [False]
+
+
+def idle() -> bool:
+    """No modal scan is running (see _SCAN_RUNNING)."""
+    return not _SCAN_RUNNING[0]
 
 
 def _cell_built(context) -> bool:
@@ -27,6 +38,10 @@ class SCANNER_OT_build_cell(bpy.types.Operator):
     bl_idname = "scanner.build_cell"
     bl_label = "Build Cell"
     bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return idle()  # not while a scan runs
 
     def execute(self, context):
         from ..scene.cell import build_cell
@@ -49,6 +64,10 @@ class SCANNER_OT_load_probe(bpy.types.Operator):
     bl_idname = "scanner.load_probe"
     bl_label = "Load from Rig"
     bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return idle()  # not while a scan runs
 
     def execute(self, context):
         from ..core.config.rigs import load_probe
@@ -73,7 +92,7 @@ class SCANNER_OT_go(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return _cell_built(context)
+        return idle() and _cell_built(context)
 
     def execute(self, context):
         from ..core.kinematics.euler import pose_from_xyz_yzz
@@ -122,7 +141,7 @@ class SCANNER_OT_render_views(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return _cell_built(context)
+        return idle() and _cell_built(context)
 
     def execute(self, context):
         from ..core.config.render import with_sensor
@@ -181,12 +200,34 @@ def _panel_config(context, config: str):
     return load_scan_config(source)
 
 
+def _checked_output(folder: str, config_name: str):
+    """The output folder a scan will write into, refused before any rendering where it cannot
+    be written, or where it is relative (//...) to a .blend never saved (it would land
+    wherever Blender was started)."""
+    from ..core.files import check_output_folder
+    from ..core.scan.outputs import OUTPUT_FILES
+
+    if folder.startswith("//") and not bpy.data.filepath:
+        raise InputError(f"the output folder {folder} is relative to the .blend file, which is not saved yet: "
+                         f"save it first, or give an absolute folder")
+    return check_output_folder(models.output_dir(folder, config_name), OUTPUT_FILES.values())
+
+
+def _error_text(e: dict) -> str:
+    """The part's error for a message: RMS in µm, or why there is none."""
+    return f"RMS {e['rms_um']:.1f} µm" if e.get("n") else "no point on the part (no error to give)"
+
+
 class SCANNER_OT_scan(bpy.types.Operator):
     """Run the chosen scan: render, detect, triangulate, and bring the cloud into the scene (Esc cancels)"""
 
     bl_idname = "scanner.scan"
     bl_label = "Scan"
     bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return idle()  # not while a scan runs
 
     # The operator carries its parameters, so that a script can call
     # bpy.ops.scanner.scan(config="step_block", frames="0:100:20", output_dir="/tmp/scans")
@@ -218,9 +259,11 @@ class SCANNER_OT_scan(bpy.types.Operator):
     def _start(self, context):
         from ..scanner import Scanner
 
+        config = self._config(context)
+        _checked_output(self.output_dir or context.scene.scanner.output_dir, config.name)  # before any render
         self._state = RenderState(context.scene)  # put back when the scan ends, however it ends
         try:
-            self._scanner = Scanner(config=self._config(context), scene=context.scene)
+            self._scanner = Scanner(config=config, scene=context.scene)
             self._steps = self._scanner.run_steps()
             self._progress = next(self._steps)  # plans the path (a refusal raises here), then the first chunk
         except BaseException:
@@ -256,8 +299,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
         if s.import_cloud:
             import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
                          result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
-        e = result.report["error_um"]
-        self.report({"INFO"}, f"Scanned {result.report['points']} points, RMS {e['rms_um']:.1f} um; "
+        self.report({"INFO"}, f"Scanned {result.report['points']} points, {_error_text(result.report['error_um'])}; "
                               f"files in {result.files['cloud'].parent}")
 
     def execute(self, context):
@@ -283,6 +325,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
         self._timer = wm.event_timer_add(0.01, window=context.window)
         wm.progress_begin(0, self._progress[1])
         wm.modal_handler_add(self)
+        _SCAN_RUNNING[0] = True
         models.status(context, f"Scanning {self._progress[1]} frames... (Esc to cancel)")
         return {"RUNNING_MODAL"}
 
@@ -310,6 +353,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
         return {"FINISHED"}
 
     def _stop(self, context):
+        _SCAN_RUNNING[0] = False
         self._restore()
         wm = context.window_manager
         if self._timer is not None:
@@ -335,8 +379,18 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
         from ..core.geometry.cloud import save_ply
         from ..scene.cloud_object import cloud_from_object
 
-        cloud = cloud_from_object(bpy.data.objects[models.CLOUD_NAME])
-        path = save_ply(cloud, self.filepath)
+        given = bpy.path.abspath(self.filepath)
+        target = bpy.path.ensure_ext(given, ".ply")
+        try:
+            if not self.filepath or os.path.isdir(given):
+                raise InputError(f"export needs a file name, got the folder {given}")
+            cloud = cloud_from_object(bpy.data.objects[models.CLOUD_NAME])
+            path = save_ply(cloud, target)
+        except (ScannerError, OSError) as exc:
+            where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+            text = _message(exc) if isinstance(exc, ScannerError) else f"{where}{exc.strerror or exc}"
+            self.report({"ERROR"}, f"Export PLY: {text} (nothing written)")
+            return {"CANCELLED"}
         self.report({"INFO"}, f"Wrote {len(cloud)} points to {path}")
         return {"FINISHED"}
 
@@ -347,6 +401,10 @@ class SCANNER_OT_calibrate(bpy.types.Operator):
     bl_idname = "scanner.calibrate"
     bl_label = "Calibrate Probe"
     bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        return idle()  # not while a scan runs
 
     config: StringProperty(name="Config", default="",
                            description="Scan config whose cell and probe are calibrated (empty: the panel's choice)")
@@ -388,6 +446,10 @@ class SCANNER_OT_adaptive(bpy.types.Operator):
     bl_label = "Adaptive Scan"
     bl_options = {"REGISTER", "UNDO"}
 
+    @classmethod
+    def poll(cls, context):
+        return idle()  # not while a scan runs
+
     config: StringProperty(name="Config", default="",
                            description="Scan config (its [[path]] is ignored; empty: the panel's choice)")
     max_profiles: IntProperty(name="Profile Budget", default=0, min=0, max=100_000,
@@ -407,12 +469,12 @@ class SCANNER_OT_adaptive(bpy.types.Operator):
         try:
             cfg = _panel_config(context, self.config)
             budget = self.max_profiles or cfg.adaptive.max_profiles
+            folder = _checked_output(self.output_dir or s.output_dir, f"{cfg.name} adaptive")  # before any render
             wm.progress_begin(0, budget)
             with kept_render_settings(context.scene):
                 scanner = Scanner(config=cfg, scene=context.scene)
                 steps = scanner.adaptive(max_profiles=budget, target_coverage=self.target_coverage or None,
                                          progress=lambda stage, done, total: wm.progress_update(done))
-                folder = models.output_dir(self.output_dir or s.output_dir, f"{cfg.name} adaptive")
                 result = scanner.result(folder) if steps else None
         except Exception as exc:
             self.report({"ERROR"}, _message(exc))
@@ -430,8 +492,9 @@ class SCANNER_OT_adaptive(bpy.types.Operator):
             import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
                          result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
         r = result.report
-        self.report({"INFO"}, f"Adaptive scan: {len(steps)} sweeps, {r['frames']} profiles, {r['points']} points, "
-                              f"RMS {r['error_um']['rms_um']:.1f} um; files in {result.files['cloud'].parent}")
+        views = f"{len(steps)} view{'s' if len(steps) != 1 else ''}"
+        self.report({"INFO"}, f"Adaptive scan: {views}, {r['frames']} profiles, {r['points']} points, "
+                              f"{_error_text(r['error_um'])}; files in {result.files['cloud'].parent}")
         return {"FINISHED"}
 
 

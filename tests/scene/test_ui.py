@@ -404,3 +404,49 @@ def test_the_adaptive_operator_scans_from_the_box_and_brings_the_cloud_in(panel,
     from addon.ui import models
 
     assert models.CLOUD_NAME in bpy.data.objects
+
+
+def test_an_output_folder_that_cannot_take_the_files_is_refused_before_anything_renders(panel, tmp_path):
+    import time
+
+    s = panel.scanner
+    s.scan_config = "step_block"
+    (tmp_path / "afile").write_text("x")
+    for folder, words in (("/proc/scanner-out", "cannot be written"), (str(tmp_path / "afile"), "is a file"),
+                          ("//scans", "not saved yet")):
+        s.output_dir = folder
+        t = time.perf_counter()
+        with pytest.raises(RuntimeError, match=words):
+            bpy.ops.scanner.scan(frames="0:100:10")
+        with pytest.raises(RuntimeError, match=words):
+            bpy.ops.scanner.adaptive(config="demo", max_profiles=120)
+        assert time.perf_counter() - t < 20.0  # refused up front, not after the renders
+    assert bpy.data.objects.get("Scan cloud") is None
+
+
+def test_export_ply_where_it_cannot_be_written_says_so_in_one_line(panel, tmp_path):
+    s = panel.scanner
+    s.scan_config = "step_block"
+    s.output_dir = str(tmp_path / "scans")
+    assert bpy.ops.scanner.scan(frames="0:100:25") == {"FINISHED"}
+    for target, words in (("/proc/scanner-out/x.ply", "nothing written"), (str(tmp_path), "needs a file name")):
+        with pytest.raises(RuntimeError, match=words) as caught:
+            bpy.ops.scanner.export_ply(filepath=target)
+        assert "Traceback" not in str(caught.value)
+    assert bpy.ops.scanner.export_ply(filepath=str(tmp_path / "cloud")) == {"FINISHED"}
+    assert (tmp_path / "cloud.ply").is_file()  # the extension added, as Blender's exporters do
+
+
+def test_while_a_scan_runs_the_operators_that_would_pull_the_scene_from_under_it_are_greyed_out(panel):
+    from addon.ui import ops
+
+    bpy.ops.scanner.build_cell()
+    assert bpy.ops.scanner.build_cell.poll() and bpy.ops.scanner.go.poll() and bpy.ops.scanner.scan.poll()
+    ops._SCAN_RUNNING[0] = True
+    try:
+        for name in ("build_cell", "load_probe", "go", "render_views", "scan", "adaptive", "calibrate"):
+            assert not getattr(bpy.ops.scanner, name).poll(), name
+    finally:
+        ops._SCAN_RUNNING[0] = False
+    assert bpy.ops.scanner.build_cell.poll()
+    assert ops._error_text({"n": 0, "rms_um": float("nan")}) == "no point on the part (no error to give)"
