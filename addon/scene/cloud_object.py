@@ -67,12 +67,23 @@ def _cloud_material() -> bpy.types.Material:
     return mat
 
 
+# Custom property of an imported cloud's mesh: the error (µm) its colour scale reaches red at.
+ERROR_SCALE_KEY = "error_scale_um"
+
+
+def error_scale_um(obj) -> float | None:
+    """The error (µm) an imported cloud's colours reach red at (blue: 0); None: no error shown."""
+    value = obj.data.get(ERROR_SCALE_KEY) if obj is not None and obj.type == "MESH" else None
+    return float(value) if value is not None else None
+
+
 def import_cloud(collection, cloud: Cloud, parent: bpy.types.Object | None, error_um: np.ndarray | None = None,
                  name: str = "Scan cloud", radius_mm: float = POINT_RADIUS_MM,
                  on_part: np.ndarray | None = None) -> bpy.types.Object:
     """A cloud (table frame, mm) as a points object under ``parent`` (the turntable).
 
-    Points are coloured by ``error_um`` where ``on_part`` (default: all); the rest grey.
+    Points are coloured by ``error_um`` where ``on_part`` (default: all), from blue (0) to red
+    at the part's 95th percentile (kept as the mesh's ``error_scale_um``); the rest grey.
     """
     n = len(cloud)
     me = bpy.data.meshes.new(name)
@@ -91,6 +102,7 @@ def import_cloud(collection, cloud: Cloud, parent: bpy.types.Object | None, erro
         if part.any():
             top = max(float(np.percentile(err[part], 95)), 1e-6)
             colour[part] = _turbo(err[part] / top)
+            me[ERROR_SCALE_KEY] = top  # the colour scale's red end, for the panel's legend
     rgba = np.column_stack([colour, np.ones(n, np.float32)])
     c = me.color_attributes.new("error_colour", "FLOAT_COLOR", "POINT")
     c.data.foreach_set("color", rgba.ravel())

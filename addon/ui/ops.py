@@ -218,6 +218,14 @@ def _error_text(e: dict) -> str:
     return f"RMS {e['rms_um']:.1f} µm" if e.get("n") else "no point on the part (no error to give)"
 
 
+def _colour_text() -> str:
+    """The imported cloud's colour scale for a message ("" where it shows no error)."""
+    from ..scene.cloud_object import error_scale_um
+
+    top = error_scale_um(bpy.data.objects.get(models.CLOUD_NAME))
+    return "" if top is None else f"; colours from 0 µm (blue) to {top:.1f} µm (red)"
+
+
 class SCANNER_OT_scan(bpy.types.Operator):
     """Run the chosen scan: render, detect, triangulate, and bring the cloud into the scene (Esc cancels)"""
 
@@ -300,7 +308,7 @@ class SCANNER_OT_scan(bpy.types.Operator):
             import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
                          result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
         self.report({"INFO"}, f"Scanned {result.report['points']} points, {_error_text(result.report['error_um'])}; "
-                              f"files in {result.files['cloud'].parent}")
+                              f"files in {result.files['cloud'].parent}{_colour_text()}")
 
     def execute(self, context):
         try:
@@ -494,7 +502,7 @@ class SCANNER_OT_adaptive(bpy.types.Operator):
         r = result.report
         views = f"{len(steps)} view{'s' if len(steps) != 1 else ''}"
         self.report({"INFO"}, f"Adaptive scan: {views}, {r['frames']} profiles, {r['points']} points, "
-                              f"{_error_text(r['error_um'])}; files in {result.files['cloud'].parent}")
+                              f"{_error_text(r['error_um'])}; files in {result.files['cloud'].parent}{_colour_text()}")
         return {"FINISHED"}
 
 

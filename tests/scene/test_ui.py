@@ -204,6 +204,12 @@ def test_scan_can_take_the_panels_sensor_and_material(panel, tmp_path):
     assert report["config"]["sensor"] == ["saturate", "speckle"] and report["config"]["material"] == "dark"
 
 
+def _errors(obj):
+    values = np.empty(len(obj.data.vertices), np.float32)
+    obj.data.attributes["error_um"].data.foreach_get("value", values)
+    return values
+
+
 def test_scan_imports_the_cloud_on_the_turntable_and_exports_ply(panel, tmp_path):
     s = panel.scanner
     s.scan_config = "step_block"
@@ -219,6 +225,12 @@ def test_scan_imports_the_cloud_on_the_turntable_and_exports_ply(panel, tmp_path
     points = cloud_from_object(cloud).points  # table frame
     d = builtin_workpiece("step_block").truth.distance(points)
     assert np.median(d) < 0.05  # on the part (or the table top, z = 0)
+    # Its colours run from blue at 0 to red at the part's 95th percentile of error, said in µm.
+    from addon.scene.cloud_object import error_scale_um
+
+    part = cloud_from_object(cloud).points[:, 2] > 0.5  # above the table top: the part's
+    top = error_scale_um(cloud)
+    assert top > 0 and 0.9 < np.mean(_errors(cloud)[part] <= top) < 0.99
     assert {p.name for p in next(tmp_path.iterdir()).iterdir()} == {"cloud.ply", "report.json", "preview.png"}
     out = tmp_path / "exported.ply"
     assert bpy.ops.scanner.export_ply(filepath=str(out)) == {"FINISHED"}
