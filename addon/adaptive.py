@@ -221,9 +221,15 @@ class NextBestView:
         """Scan candidate ``c`` and learn from it: (its profiles, the cells it taught). The
         cells its fans were expected to see and that stayed unknown are marked ``missed``.
         ``progress(stage, done, total)`` after each chunk of its frames."""
+        from .scanner import drain
+
+        return drain(self.scan_steps(scanner, c, progress))
+
+    def scan_steps(self, scanner, c, progress=None):
+        """:meth:`scan` as a generator: yields (frames done, frames in all) after each chunk."""
         before = self.space.counts()["unknown"]
         expected = next_view.new_cells(self.space, self.probe, c.waypoints().probe2table)
-        profiles = scanner.scan_path(c.waypoints(), progress)
+        profiles = yield from scanner.scan_path_steps(c.waypoints(), progress)
         for p in profiles:
             self.learn(p.probe2table[:3, 3], p.points)
         self.frames_seen = max(self.frames_seen, profiles[-1].frame + 1) if profiles else self.frames_seen
@@ -247,7 +253,7 @@ def check_min_gain(min_gain) -> None:
     """The new cells a sweep must promise: a whole number, at least 1."""
     if isinstance(min_gain, bool) or not isinstance(min_gain, (int, np.integer)) or min_gain < 1:
         raise InputError(f"min_gain (the new cells a sweep must promise) must be a whole number ≥ 1, "
-                             f"got {min_gain!r}")
+                         f"got {min_gain!r}")
 
 
 def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 30,
@@ -259,6 +265,19 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
     each chunk of its frames (profiles of this run against ``max_profiles``). ``planner``: one
     to go on with (a second run on the same scanner; it first learns whatever the scanner
     measured since), set up in ``setup_s``; None: a new one over [lo, hi]."""
+    from .scanner import drain
+
+    return drain(adaptive_steps(scanner, lo, hi, max_profiles=max_profiles, min_gain=min_gain,
+                                target_coverage=target_coverage, voxel_mm=voxel_mm, progress=progress, log=log,
+                                planner=planner, setup_s=setup_s))
+
+
+def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 30,
+                   target_coverage: float | None = None, voxel_mm: float = VOXEL_MM, progress=None,
+                   log=None, planner: NextBestView | None = None, setup_s: float = 0.0):
+    """:func:`adaptive_scan` as a generator: yields the profiles taken so far after each chunk
+    of frames and between decisions; returns the decisions. Its arguments are checked when it
+    is first advanced."""
     if isinstance(max_profiles, bool) or not isinstance(max_profiles, (int, np.integer)) \
             or not 1 <= max_profiles <= MAX_PROFILES:
         raise InputError(f"max_profiles must be a whole number from 1 to {MAX_PROFILES}, got {max_profiles!r}")
@@ -280,6 +299,7 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
     say = progress or (lambda stage, done, total: None)
     while taken < max_profiles:
         say("adaptive", taken, max_profiles)  # a stop asked for during the last sweep takes effect here
+        yield taken
         t = time.perf_counter()
         chosen = planner.choose(scanner, max_profiles - taken)
         planning = time.perf_counter() - t
@@ -292,9 +312,11 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
                     f"cells within the budget")
             break
         say("adaptive", taken, max_profiles)  # ... or during the planning
+        yield taken
         before = taken
-        profiles, learnt = planner.scan(scanner, chosen, lambda stage, done, total: say(
-            "adaptive", before + done, max_profiles))
+        chunks = planner.scan_steps(scanner, chosen,
+                                    lambda stage, done, total: say("adaptive", before + done, max_profiles))
+        profiles, learnt = yield from _profiles_taken(chunks, before)
         taken += len(profiles)
         estimate = planner.coverage_estimate()
         step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
@@ -320,6 +342,16 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
     if log and outside > OUTSIDE_WARNING:
         log(f"adaptive: warning: {outside * 100:.0f} % of the points measured above the table lie outside the part's "
             f"box {planner.lo.round(1).tolist()} .. {planner.hi.round(1).tolist()} mm: the part (or something else "
-            f"on the table) reaches beyond the box the planner was told ([adaptive] box_min_mm/box_max_mm or radius_mm/height_mm), which plans and "
-            f"estimates coverage inside it only")
+            f"on the table) reaches beyond the box the planner was told ([adaptive] box_min_mm/box_max_mm or "
+            f"radius_mm/height_mm), which plans and estimates coverage inside it only")
     return steps
+
+
+def _profiles_taken(steps, before: int):
+    """A sweep's chunks as the profiles of the whole run taken so far; returns what it returns."""
+    while True:
+        try:
+            done, _ = next(steps)
+        except StopIteration as end:
+            return end.value
+        yield before + done

@@ -89,6 +89,15 @@ def _workpiece(value) -> Workpiece:
     return builtin_workpiece(value) if value in BUILTINS else load_workpiece(value)
 
 
+
+def drain(steps):
+    """Run a generator of steps (a scan's chunks) to its end; returns what it returns."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
+
 class Scanner:
     """A simulated cell: a robot carrying the probe over a part on the rotary table.
 
@@ -366,11 +375,20 @@ class Scanner:
         e.g. ``core.kinematics.path.turntable``: the probe still while the table turns), solved
         and checked before anything moves; the robot and the table end at the last one.
         ``progress(stage, done, total)`` after each chunk of frames."""
-        return self._scan_waypoints(waypoints, "path", progress)
+        return drain(self.scan_path_steps(waypoints, progress))
+
+    def scan_path_steps(self, waypoints: Waypoints, progress=None):
+        """:meth:`scan_path` as a generator, for callers that must stay responsive (the panel):
+        yields (frames done, frames in all) after each chunk; returns the profiles. The path is
+        solved and checked before the first yield."""
+        return self._waypoints_steps(waypoints, "path", progress)
 
     def _scan_waypoints(self, waypoints: Waypoints, what: str, progress=None) -> list[Profile]:
+        return drain(self._waypoints_steps(waypoints, what, progress))
+
+    def _waypoints_steps(self, waypoints: Waypoints, what: str, progress=None):
         q, table_rad, _ = self._plan_waypoints(waypoints, record=True, what=what)
-        profiles = self._scan_frames(q, table_rad, progress)
+        profiles = yield from self._frames_steps(q, table_rad, progress=progress)
         self._q = np.array(q[-1], dtype=np.float64)
         self._table_rad = float(table_rad[-1])
         return profiles
@@ -429,12 +447,7 @@ class Scanner:
     def _scan_frames(self, q: np.ndarray, table_rad: np.ndarray, progress=None) -> list[Profile]:
         """Render, detect and triangulate the frames at joints q (n, 6) and table angles (n,);
         their points join the cloud under the next frame numbers."""
-        steps = self._frames_steps(q, table_rad, progress=progress)
-        while True:
-            try:
-                next(steps)
-            except StopIteration as done:
-                return done.value
+        return drain(self._frames_steps(q, table_rad, progress=progress))
 
     def _frames_steps(self, q: np.ndarray, table_rad: np.ndarray, plan=None, progress=None):
         """The work of :meth:`_scan_frames` as a generator: yields (done, total) after each
@@ -484,16 +497,26 @@ class Scanner:
         ``max_profiles``, ``min_gain`` and ``target_coverage`` (stop once the planner's own
         coverage estimate reaches this share) default to the config's [adaptive] table. Returns the
         sweeps chosen (``AdaptiveStep``); they join the report under ``adaptive``, and
-        ``save(out_dir)`` writes what a scan writes. ``progress(stage, done, total)`` after each
-        sweep; ``log(line)`` for each decision."""
-        from .adaptive import NextBestView, adaptive_scan, part_box
+        ``save(out_dir)`` writes what a scan writes. ``progress(stage, done, total)`` before each
+        sweep and after each chunk of its frames; ``log(line)`` for each decision. A second call
+        goes on from what the planner learnt."""
+        return drain(self.adaptive_steps(box, max_profiles=max_profiles, min_gain=min_gain,
+                                         target_coverage=target_coverage, progress=progress, log=log))
+
+    def adaptive_steps(self, box=None, *, max_profiles: int | None = None, min_gain: int | None = None,
+                       target_coverage: float | None = None, progress=None, log=None):
+        """:meth:`adaptive` as a generator, for callers that must stay responsive (the panel,
+        which stops it on Esc by dropping it): yields the profiles taken so far after each chunk
+        of frames and between decisions; returns the sweeps. Dropped before its end, it adds
+        nothing to the report (the profiles it took stay in the cloud)."""
+        from .adaptive import NextBestView, adaptive_steps, part_box
 
         settings = self.config.adaptive
         lo, hi = part_box(self.config) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
         budget = settings.max_profiles if max_profiles is None else max_profiles
         target = settings.target_coverage if target_coverage is None else target_coverage
         gain = settings.min_gain if min_gain is None else min_gain
-        # Checked in adaptive_scan; numpy's integers (a training loop's) become Python's for the report.
+        # Checked in adaptive_steps; numpy's integers (a training loop's) become Python's for the report.
         budget = int(budget) if isinstance(budget, np.integer) else budget
         gain = int(gain) if isinstance(gain, np.integer) else gain
         # A second call goes on from what the first learnt (and from anything measured since),
@@ -503,9 +526,9 @@ class Scanner:
             t = time.perf_counter()
             self._planner = NextBestView(self, lo, hi, voxel_mm=settings.voxel_mm)
             setup = time.perf_counter() - t
-        steps = adaptive_scan(self, lo, hi, max_profiles=budget, min_gain=gain, target_coverage=target,
-                              voxel_mm=settings.voxel_mm, progress=progress, log=log, planner=self._planner,
-                              setup_s=setup)
+        steps = yield from adaptive_steps(self, lo, hi, max_profiles=budget, min_gain=gain, target_coverage=target,
+                                          voxel_mm=settings.voxel_mm, progress=progress, log=log,
+                                          planner=self._planner, setup_s=setup)
         done = self._extra.get("adaptive", {}).get("sweeps", [])
         self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": budget,
                                    "target_coverage": target,

@@ -226,12 +226,137 @@ def _colour_text() -> str:
     return "" if top is None else f"; colours from 0 µm (blue) to {top:.1f} µm (red)"
 
 
-class SCANNER_OT_scan(bpy.types.Operator):
+class _SteppedScan:
+    """What Scan and Adaptive Scan share: the work runs as a generator of chunks (about a
+    second each); from the panel (invoke) a timer advances it, Blender stays responsive, the
+    status bar and the progress bar follow it and Esc cancels; from a script (execute) it runs
+    to its end. Either way the scene's render settings come back however it ends, and nothing
+    is written or imported unless it finishes. Subclasses give ``_open`` (the scanner and its
+    generator; raises on a refusal before anything renders), ``_progress_of`` (a yielded value
+    as (done, total)) and ``_finish`` (results, cloud, message)."""
+
+    _timer = None
+    _scanner = None
+    _steps = None
+    _progress = (0, 0)
+    _state = None
+    _what = "Scanning"
+
+    def _start(self, context):
+        self._state = RenderState(context.scene)  # put back when the work ends, however it ends
+        try:
+            self._scanner, self._steps = self._open(context)
+            self._progress = self._progress_of(next(self._steps))  # plans (a refusal raises here)
+            self._value = None
+        except StopIteration as done:  # all done in one go
+            self._value, self._steps = done.value, None
+        except BaseException:
+            self._scanner = self._steps = None
+            self._restore()
+            raise
+
+    def _step(self) -> bool:
+        """The next chunk; True when the work is done."""
+        if self._steps is None:
+            return True
+        try:
+            self._progress = self._progress_of(next(self._steps))
+        except StopIteration as done:
+            self._value = done.value
+            return True
+        return False
+
+    def _restore(self):
+        state, self._state = self._state, None
+        if state is not None:
+            state.restore()
+
+    def _complete(self, context):
+        scanner, self._scanner, self._steps = self._scanner, None, None
+        try:
+            return self._finish(context, scanner, self._value)
+        finally:
+            self._restore()
+
+    def execute(self, context):
+        try:
+            self._start(context)
+            while not self._step():
+                pass
+            return self._complete(context)
+        except Exception as exc:  # any failure: the scene comes back as it was, and the user is told
+            self._scanner = self._steps = None
+            self._restore()
+            self.report({"ERROR"}, _message(exc))
+            return {"CANCELLED"}
+
+    def invoke(self, context, event):
+        try:
+            self._start(context)
+        except Exception as exc:
+            self.report({"ERROR"}, _message(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.01, window=context.window)
+        wm.progress_begin(0, max(self._progress[1], 1))
+        wm.modal_handler_add(self)
+        _SCAN_RUNNING[0] = True
+        models.status(context, f"{self._what}... (Esc to cancel)")
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._stop(context)
+            self._scanner = self._steps = None  # partial results are discarded: nothing was written or imported
+            self.report({"WARNING"}, f"{self.bl_label} cancelled; nothing was kept")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            done = self._step()
+            context.window_manager.progress_update(self._progress[0])
+            models.status(context, f"{self._what}: {self._progress[0]}/{self._progress[1]} {self._unit} "
+                                   f"(Esc to cancel)")
+            if not done:
+                return {"RUNNING_MODAL"}
+            self._stop(context)
+            return self._complete(context)
+        except Exception as exc:  # any failure: timer, progress bar and scene settings are put back
+            self._stop(context)
+            self._scanner = self._steps = None
+            self.report({"ERROR"}, _message(exc))
+            return {"CANCELLED"}
+
+    def _stop(self, context):
+        _SCAN_RUNNING[0] = False
+        self._restore()
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        models.status(context, None)
+
+
+def _import_result(context, scanner, result) -> None:
+    """The scan's cloud into the scene (in place of the last one), where the panel asks for it."""
+    from ..scene.cloud_object import import_cloud
+
+    old = bpy.data.objects.get(models.CLOUD_NAME)
+    if old is not None:
+        bpy.data.objects.remove(old, do_unlink=True)
+    if context.scene.scanner.import_cloud and scanner.scene_cell is not None:
+        import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
+                     result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
+
+
+class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
     """Run the chosen scan: render, detect, triangulate, and bring the cloud into the scene (Esc cancels)"""
 
     bl_idname = "scanner.scan"
     bl_label = "Scan"
     bl_options = {"REGISTER", "UNDO"}
+    _unit = "frames"
 
     @classmethod
     def poll(cls, context):
@@ -246,12 +371,6 @@ class SCANNER_OT_scan(bpy.types.Operator):
     output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
                                description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
 
-    _timer = None
-    _scanner = None
-    _steps = None
-    _progress = (0, 0)
-    _state = None
-
     def _config(self, context):
         from ..core.config.scan import parse_frames
 
@@ -261,114 +380,24 @@ class SCANNER_OT_scan(bpy.types.Operator):
             cfg = cfg.with_realism(models.sensor_from(s), s.material, s.roughness, s.ambient)
         return cfg
 
-    def _output_dir(self, context, name: str):
-        return models.output_dir(self.output_dir or context.scene.scanner.output_dir, name)
-
-    def _start(self, context):
+    def _open(self, context):
         from ..scanner import Scanner
 
         config = self._config(context)
-        _checked_output(self.output_dir or context.scene.scanner.output_dir, config.name)  # before any render
-        self._state = RenderState(context.scene)  # put back when the scan ends, however it ends
-        try:
-            self._scanner = Scanner(config=config, scene=context.scene)
-            self._steps = self._scanner.run_steps()
-            self._progress = next(self._steps)  # plans the path (a refusal raises here), then the first chunk
-        except BaseException:
-            self._scanner = self._steps = None
-            self._restore()
-            raise
+        self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, config.name)
+        scanner = Scanner(config=config, scene=context.scene)
+        return scanner, scanner.run_steps()
 
-    def _step(self) -> bool:
-        """The next chunk of frames; True when the path is done."""
-        try:
-            self._progress = next(self._steps)
-        except StopIteration:
-            return True
-        return False
+    @staticmethod
+    def _progress_of(value):
+        return value  # (frames done, frames in all)
 
-    def _restore(self):
-        state, self._state = self._state, None
-        if state is not None:
-            state.restore()
-
-    def _finish(self, context):
-        from ..scene.cloud_object import import_cloud
-
-        s = context.scene.scanner
-        scanner, self._scanner, self._steps = self._scanner, None, None
-        try:
-            result = scanner.result(self._output_dir(context, scanner.config.name))
-        finally:
-            self._restore()
-        old = bpy.data.objects.get(models.CLOUD_NAME)
-        if old is not None:
-            bpy.data.objects.remove(old, do_unlink=True)
-        if s.import_cloud:
-            import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
-                         result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
+    def _finish(self, context, scanner, _):
+        result = scanner.result(self._folder)
+        _import_result(context, scanner, result)
         self.report({"INFO"}, f"Scanned {result.report['points']} points, {_error_text(result.report['error_um'])}; "
                               f"files in {result.files['cloud'].parent}{_colour_text()}")
-
-    def execute(self, context):
-        try:
-            self._start(context)
-            while not self._step():
-                pass
-            self._finish(context)
-        except Exception as exc:  # any failure: the scene comes back as it was, and the user is told
-            self._scanner = self._steps = None
-            self._restore()
-            self.report({"ERROR"}, _message(exc))
-            return {"CANCELLED"}
         return {"FINISHED"}
-
-    def invoke(self, context, event):
-        try:
-            self._start(context)
-        except Exception as exc:
-            self.report({"ERROR"}, _message(exc))
-            return {"CANCELLED"}
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.01, window=context.window)
-        wm.progress_begin(0, self._progress[1])
-        wm.modal_handler_add(self)
-        _SCAN_RUNNING[0] = True
-        models.status(context, f"Scanning {self._progress[1]} frames... (Esc to cancel)")
-        return {"RUNNING_MODAL"}
-
-    def modal(self, context, event):
-        if event.type == "ESC":
-            self._stop(context)
-            self._scanner = self._steps = None  # partial results are discarded: nothing was written or imported
-            self.report({"WARNING"}, "Scan cancelled; nothing was kept")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
-            return {"PASS_THROUGH"}
-        try:
-            done = self._step()
-            context.window_manager.progress_update(self._progress[0])
-            models.status(context, f"Scanning: {self._progress[0]}/{self._progress[1]} frames (Esc to cancel)")
-            if not done:
-                return {"RUNNING_MODAL"}
-            self._stop(context)
-            self._finish(context)
-        except Exception as exc:  # any failure: timer, progress bar and scene settings are put back
-            self._stop(context)
-            self._scanner = self._steps = None
-            self.report({"ERROR"}, _message(exc))
-            return {"CANCELLED"}
-        return {"FINISHED"}
-
-    def _stop(self, context):
-        _SCAN_RUNNING[0] = False
-        self._restore()
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        models.status(context, None)
 
 
 class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
@@ -447,12 +476,14 @@ class SCANNER_OT_calibrate(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class SCANNER_OT_adaptive(bpy.types.Operator):
-    """Scan the chosen config's part adaptively: the next-best-view planner, told only the part's bounding box, picks sweep after sweep; writes what a scan writes and brings the cloud in"""
+class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
+    """Scan the chosen config's part adaptively: the next-best-view planner, told only the part's bounding box, picks sweep after sweep; writes what a scan writes and brings the cloud in (Esc cancels)"""
 
     bl_idname = "scanner.adaptive"
     bl_label = "Adaptive Scan"
     bl_options = {"REGISTER", "UNDO"}
+    _what = "Adaptive scan"
+    _unit = "profiles of the budget"
 
     @classmethod
     def poll(cls, context):
@@ -468,37 +499,26 @@ class SCANNER_OT_adaptive(bpy.types.Operator):
     output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
                                description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
 
-    def execute(self, context):
+    def _open(self, context):
         from ..scanner import Scanner
-        from ..scene.cloud_object import import_cloud
 
-        s = context.scene.scanner
-        wm = context.window_manager
-        try:
-            cfg = _panel_config(context, self.config)
-            budget = self.max_profiles or cfg.adaptive.max_profiles
-            folder = _checked_output(self.output_dir or s.output_dir, f"{cfg.name} adaptive")  # before any render
-            wm.progress_begin(0, budget)
-            with kept_render_settings(context.scene):
-                scanner = Scanner(config=cfg, scene=context.scene)
-                steps = scanner.adaptive(max_profiles=budget, target_coverage=self.target_coverage or None,
-                                         progress=lambda stage, done, total: wm.progress_update(done))
-                result = scanner.result(folder) if steps else None
-        except Exception as exc:
-            self.report({"ERROR"}, _message(exc))
-            return {"CANCELLED"}
-        finally:
-            wm.progress_end()
+        cfg = _panel_config(context, self.config)
+        self._budget = self.max_profiles or cfg.adaptive.max_profiles
+        self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, f"{cfg.name} adaptive")
+        scanner = Scanner(config=cfg, scene=context.scene)
+        return scanner, scanner.adaptive_steps(max_profiles=self._budget,
+                                               target_coverage=self.target_coverage or None)
+
+    def _progress_of(self, taken):
+        return taken, self._budget
+
+    def _finish(self, context, scanner, steps):
         if not steps:
-            self.report({"WARNING"}, f"Adaptive scan: no reachable sweep fits the budget of {budget} profiles; "
+            self.report({"WARNING"}, f"Adaptive scan: no reachable sweep fits the budget of {self._budget} profiles; "
                                      "nothing was scanned")
             return {"CANCELLED"}
-        old = bpy.data.objects.get(models.CLOUD_NAME)
-        if old is not None:
-            bpy.data.objects.remove(old, do_unlink=True)
-        if s.import_cloud and scanner.scene_cell is not None:
-            import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
-                         result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
+        result = scanner.result(self._folder)
+        _import_result(context, scanner, result)
         r = result.report
         views = f"{len(steps)} view{'s' if len(steps) != 1 else ''}"
         self.report({"INFO"}, f"Adaptive scan: {views}, {r['frames']} profiles, {r['points']} points, "

@@ -254,3 +254,28 @@ def test_min_gain_is_checked(tmp_path):
     for bad in (0, -3, 2.5, "30", True):
         with pytest.raises(InputError, match="min_gain"):
             Scanner(config=config).adaptive(max_profiles=100, min_gain=bad)
+
+
+def test_adaptive_steps_stay_responsive_and_a_dropped_run_adds_no_sweeps():
+    """The generator the panel drives (Esc drops it): it yields often, within a sweep too, the
+    profiles taken so far never fall, and run to its end it gives what adaptive() gives."""
+    from addon import Scanner
+
+    config, _, _ = _raycast_planner("demo")
+    dropped = Scanner(config=config)
+    steps = dropped.adaptive_steps(max_profiles=300)
+    taken = [next(steps) for _ in range(6)]
+    assert taken == sorted(taken) and 0 < taken[-1] < 180  # inside the first sweep (the 180-profile overview)
+    steps.close()  # Esc
+    assert "adaptive" not in dropped.report().to_dict()
+    whole = Scanner(config=config)
+    gen = whole.adaptive_steps(max_profiles=300)
+    seen = []
+    try:
+        while True:
+            seen.append(next(gen))
+    except StopIteration as end:
+        sweeps = end.value
+    again = Scanner(config=config).adaptive(max_profiles=300)
+    assert [s.sweep for s in sweeps] == [s.sweep for s in again] and len(seen) > 2 * len(sweeps)
+    assert whole.report().to_dict()["frames"] == sum(s.profiles for s in sweeps) >= max(seen)

@@ -462,3 +462,73 @@ def test_while_a_scan_runs_the_operators_that_would_pull_the_scene_from_under_it
         ops._SCAN_RUNNING[0] = False
     assert bpy.ops.scanner.build_cell.poll()
     assert ops._error_text({"n": 0, "rms_um": float("nan")}) == "no point on the part (no error to give)"
+
+
+def test_the_stepped_scan_runs_a_chunk_per_timer_tick_and_esc_keeps_nothing(panel):
+    """The panel's Scan and Adaptive Scan (ops._SteppedScan) driven as Blender's event loop
+    would: invoke, timer ticks, Esc; with a stand-in for the window manager and the scanner."""
+    from types import SimpleNamespace
+
+    from addon.ui import ops
+
+    class Wm:
+        def __init__(self):
+            self.calls = []
+
+        def event_timer_add(self, *a, **k):
+            self.calls.append("timer")
+            return object()
+
+        def event_timer_remove(self, timer):
+            self.calls.append("timer off")
+
+        def progress_begin(self, lo, hi):
+            self.calls.append(("begin", hi))
+
+        def progress_update(self, v):
+            self.calls.append(("update", v))
+
+        def progress_end(self):
+            self.calls.append("end")
+
+        def modal_handler_add(self, op):
+            self.calls.append("modal")
+
+    class Stepped(ops._SteppedScan):
+        bl_label = "Stepped"
+        _unit = "frames"
+
+        def __init__(self):
+            self.messages, self.finished = [], []
+
+        def report(self, kind, text):
+            self.messages.append((kind, text))
+
+        def _open(self, context):
+            def chunks():
+                for done in (2, 4, 6):
+                    yield done, 6
+                return "the result"
+            return "scanner", chunks()
+
+        @staticmethod
+        def _progress_of(value):
+            return value
+
+        def _finish(self, context, scanner, value):
+            self.finished.append((scanner, value))
+            return {"FINISHED"}
+
+    context = SimpleNamespace(scene=panel, window=None, window_manager=Wm(), workspace=None)
+    tick, esc = SimpleNamespace(type="TIMER"), SimpleNamespace(type="ESC")
+    op = Stepped()
+    assert op.invoke(context, None) == {"RUNNING_MODAL"} and not ops.idle()  # the first chunk is done
+    assert op.modal(context, SimpleNamespace(type="MOUSEMOVE")) == {"PASS_THROUGH"}
+    assert op.modal(context, tick) == {"RUNNING_MODAL"}
+    assert op.modal(context, tick) == {"RUNNING_MODAL"}
+    assert op.modal(context, tick) == {"FINISHED"} and op.finished == [("scanner", "the result")] and ops.idle()
+    assert ("update", 6) in context.window_manager.calls and context.window_manager.calls[-1] == "end"
+    op = Stepped()
+    op.invoke(context, None)
+    assert op.modal(context, esc) == {"CANCELLED"} and not op.finished and ops.idle()
+    assert op.messages[-1] == ({"WARNING"}, "Stepped cancelled; nothing was kept")
