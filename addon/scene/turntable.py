@@ -48,4 +48,6 @@ def add_workpiece(collection, workpiece: Workpiece, table_obj: bpy.types.Object,
     twin.location = TWIN_OFFSET_M
     twin.hide_viewport = True
     twin.hide_select = True
+    twin["purpose"] = ("a second user of the part's mesh, out of every view: Cycles then builds the part's ray "
+                       "structure once per scan instead of every frame")
     return obj
