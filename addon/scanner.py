@@ -507,8 +507,9 @@ class Scanner:
                        target_coverage: float | None = None, progress=None, log=None):
         """:meth:`adaptive` as a generator, for callers that must stay responsive (the panel,
         which stops it on Esc by dropping it): yields the profiles taken so far after each chunk
-        of frames and between decisions; returns the sweeps. Dropped before its end, it adds
-        nothing to the report (the profiles it took stay in the cloud)."""
+        of frames and between decisions; returns the sweeps. Dropped before its end (Esc), it
+        leaves this Scanner in the middle of a sweep: the panel throws the Scanner away, and so
+        should any caller."""
         from .adaptive import NextBestView, adaptive_steps, part_box
 
         settings = self.config.adaptive

@@ -21,6 +21,9 @@ def register() -> None:
     for cls in _classes():
         bpy.utils.register_class(cls)
     bpy.types.Scene.scanner = bpy.props.PointerProperty(type=props.ScannerSettings)
+    from . import ops
+
+    ops._SCAN_RUNNING[0] = False  # a scan ended without its operator knowing cannot grey out a fresh start
 
 
 def unregister() -> None:

@@ -305,7 +305,7 @@ class _SteppedScan:
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
-        if event.type == "ESC":
+        if event.type == "ESC" and event.value == "PRESS":
             self._stop(context)
             self._scanner = self._steps = None  # partial results are discarded: nothing was written or imported
             self.report({"WARNING"}, f"{self.bl_label} cancelled; nothing was kept")
@@ -326,16 +326,27 @@ class _SteppedScan:
             self._scanner = self._steps = None
             self.report({"ERROR"}, _message(exc))
             return {"CANCELLED"}
+        except BaseException:
+            self._stop(context)
+            self._scanner = self._steps = None
+            raise
+
+    def cancel(self, context):
+        """Blender ends the modal operator itself (a file opened, its window closed)."""
+        self._stop(context)
+        self._scanner = self._steps = None
 
     def _stop(self, context):
         _SCAN_RUNNING[0] = False
-        self._restore()
         wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        models.status(context, None)
+        try:
+            if self._timer is not None:
+                wm.event_timer_remove(self._timer)
+                self._timer = None
+            wm.progress_end()
+            models.status(context, None)
+        finally:
+            self._restore()
 
 
 def _import_result(context, scanner, result) -> None:

@@ -520,10 +520,10 @@ def test_the_stepped_scan_runs_a_chunk_per_timer_tick_and_esc_keeps_nothing(pane
             return {"FINISHED"}
 
     context = SimpleNamespace(scene=panel, window=None, window_manager=Wm(), workspace=None)
-    tick, esc = SimpleNamespace(type="TIMER"), SimpleNamespace(type="ESC")
+    tick, esc = SimpleNamespace(type="TIMER", value="NOTHING"), SimpleNamespace(type="ESC", value="PRESS")
     op = Stepped()
     assert op.invoke(context, None) == {"RUNNING_MODAL"} and not ops.idle()  # the first chunk is done
-    assert op.modal(context, SimpleNamespace(type="MOUSEMOVE")) == {"PASS_THROUGH"}
+    assert op.modal(context, SimpleNamespace(type="MOUSEMOVE", value="NOTHING")) == {"PASS_THROUGH"}
     assert op.modal(context, tick) == {"RUNNING_MODAL"}
     assert op.modal(context, tick) == {"RUNNING_MODAL"}
     assert op.modal(context, tick) == {"FINISHED"} and op.finished == [("scanner", "the result")] and ops.idle()
@@ -532,3 +532,8 @@ def test_the_stepped_scan_runs_a_chunk_per_timer_tick_and_esc_keeps_nothing(pane
     op.invoke(context, None)
     assert op.modal(context, esc) == {"CANCELLED"} and not op.finished and ops.idle()
     assert op.messages[-1] == ({"WARNING"}, "Stepped cancelled; nothing was kept")
+    # Blender ending it (a file opened): the panel is not left greyed out.
+    op = Stepped()
+    op.invoke(context, None)
+    op.cancel(context)
+    assert ops.idle() and context.window_manager.calls[-1] == "end"
