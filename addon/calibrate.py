@@ -113,6 +113,18 @@ def calibrate(config: ScanConfig | str | Path, out_dir: str | Path | None = None
     distortion (default: where the config's sensor has it); ``poses``: the views the user
     chose, (n, 4, 4) probe poses in the table frame (``core.calibration.load_views`` reads
     them from a file), instead of ``views`` proposed ones; ``progress(stage, done, total)``."""
+    from .scanner import drain
+
+    return drain(calibrate_steps(config, out_dir, views=views, board=board, distortion=distortion, poses=poses,
+                                 progress=progress, scene=scene))
+
+
+def calibrate_steps(config: ScanConfig | str | Path, out_dir: str | Path | None = None, *, views: int = 20,
+                    board: ChArUcoBoard | None = None, distortion: bool | None = None, poses=None,
+                    progress=None, scene=None):
+    """:func:`calibrate` as a generator, for the panel (Esc drops it): yields (images rendered,
+    images in all) after planning and after each render call; returns the CalibrationRun.
+    Dropped, it writes nothing and takes the board out of the scene again."""
     t0 = time.perf_counter()
     progress = progress or (lambda stage, done, total: None)
     cfg = config if isinstance(config, ScanConfig) else load_scan_config(config)
@@ -126,8 +138,9 @@ def calibrate(config: ScanConfig | str | Path, out_dir: str | Path | None = None
     distortion = bool(sensor.distortion) if distortion is None else bool(distortion)
     q, poses, dropped = plan_views(cfg, board, views, poses)
     progress("plan", len(q), len(poses) + len(dropped))
+    yield 0, 2 * len(q)
 
-    images, lines = _render(cfg, board, q, progress, scene)
+    images, lines = yield from _render(cfg, board, q, progress, scene)
     flange2base = cfg.cell.robot.fk(q) @ rigid_inverse(truth.mount)  # the controller's flange poses
     found = []
     for i in range(len(q)):
@@ -149,7 +162,8 @@ def calibrate(config: ScanConfig | str | Path, out_dir: str | Path | None = None
 
 def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene):
     """Board images (room light, laser off) and laser lines on the plain plate (dark room) per
-    view: ([view][camera] images, [view][camera] (m, 2) line pixels)."""
+    view: ([view][camera] images, [view][camera] (m, 2) line pixels). A generator: yields
+    (images rendered, images in all) after each render call."""
     from .core.scan.frames import detect_all
     from .pipeline import render_settings
     from .scene.cell import build_cell
@@ -175,24 +189,28 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
     # a second or two of work each on two cores.
     chunk = max(1, min(len(q), CHUNK_PIXELS // (cfg.probe.rows_px * cfg.probe.cols_px)))
 
-    def render_all(settings, stage):
+    def render_all(settings, stage, before):
         images = []
         for a in range(first, last + 1, chunk):
             images += sc.render(a, min(a + chunk, last + 1) - 1, settings)
             progress(stage, len(images), len(q))
+            yield before + len(images), 2 * len(q)
         return images
 
-    show_print(plate, True)
-    try:
-        board_images = render_all(board_settings, "board images")
-    finally:
-        for light in sc.laser:
-            light.hide_render = False
-    show_print(plate, False)
-    laser_images = render_all(replace(laser_settings, ambient=0.0, motion_blur_shutter=0.0), "laser images")
     import bpy
 
-    bpy.data.objects.remove(plate, do_unlink=True)  # the cell is the scan's again
+    try:
+        show_print(plate, True)
+        try:
+            board_images = yield from render_all(board_settings, "board images", 0)
+        finally:
+            for light in sc.laser:
+                light.hide_render = False
+        show_print(plate, False)
+        laser_images = yield from render_all(replace(laser_settings, ambient=0.0, motion_blur_shutter=0.0),
+                                             "laser images", len(q))
+    finally:
+        bpy.data.objects.remove(plate, do_unlink=True)  # the cell is the scan's again (Esc too)
     images, lines = [], []
     for i in range(len(q)):
         pair = board_images[i]

@@ -443,12 +443,14 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
-class SCANNER_OT_calibrate(bpy.types.Operator):
-    """Calibrate the probe of the chosen scan config from rendered ChArUco boards and laser lines; writes probe.toml, calibration.json and calibration.png (rebuilds the cell)"""
+class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
+    """Calibrate the probe of the chosen scan config from rendered ChArUco boards and laser lines; writes probe.toml, calibration.json and calibration.png (rebuilds the cell; Esc cancels)"""
 
     bl_idname = "scanner.calibrate"
     bl_label = "Calibrate Probe"
     bl_options = {"REGISTER"}
+    _what = "Calibrating"
+    _unit = "images"
 
     @classmethod
     def poll(cls, context):
@@ -461,29 +463,24 @@ class SCANNER_OT_calibrate(bpy.types.Operator):
     output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
                                description="Folder for the calibration's files (empty: the panel's)")
 
-    def execute(self, context):
-        from ..calibrate import calibrate
+    def _open(self, context):
+        from ..calibrate import calibrate_steps
 
-        s = context.scene.scanner
-        wm = context.window_manager
-        try:
-            cfg = _panel_config(context, self.config)
-            out = models.output_dir(self.output_dir or s.output_dir, f"{cfg.name} calibration")
-            wm.progress_begin(0, 3)
-            stages = {"plan": 1, "board images": 2, "laser images": 3}
-            with kept_render_settings(context.scene):
-                run = calibrate(cfg, out, views=self.views, scene=context.scene,
-                                progress=lambda stage, done, total: wm.progress_update(stages.get(stage, 0)))
-        except Exception as exc:
-            self.report({"ERROR"}, _message(exc))
-            return {"CANCELLED"}
-        finally:
-            wm.progress_end()
+        cfg = _panel_config(context, self.config)
+        self._folder = models.output_dir(self.output_dir or context.scene.scanner.output_dir,
+                                         f"{cfg.name} calibration")
+        return None, calibrate_steps(cfg, self._folder, views=self.views, scene=context.scene)
+
+    @staticmethod
+    def _progress_of(value):
+        return value  # (images rendered, images in all)
+
+    def _finish(self, context, _, run):
         c0, c1 = run.summary["camera0"], run.summary["camera1"]
         err = run.summary["triangulation_error"]["all"]["rms_mm"] * 1e3
         self.report({"INFO"}, f"Calibrated from {run.summary['views']} poses: reprojection "
                               f"{c0['reprojection_error_px']:.3f}/{c1['reprojection_error_px']:.3f} px, "
-                              f"{err:.0f} um RMS on the laser plane; files in {out}")
+                              f"{err:.0f} µm RMS on the laser plane; files in {self._folder}")
         return {"FINISHED"}
 
 

@@ -537,3 +537,16 @@ def test_the_stepped_scan_runs_a_chunk_per_timer_tick_and_esc_keeps_nothing(pane
     op.invoke(context, None)
     op.cancel(context)
     assert ops.idle() and context.window_manager.calls[-1] == "end"
+
+
+def test_a_calibration_dropped_midway_writes_nothing_and_takes_the_board_away(panel, tmp_path):
+    from addon.calibrate import calibrate_steps
+    from addon.core.config.scan import load_scan_config
+
+    steps = calibrate_steps(load_scan_config("demo"), tmp_path / "cal", views=6, scene=bpy.context.scene)
+    first, second = next(steps), next(steps)
+    assert first == (0, 12) and 0 < second[0] < 12 and second[1] == 12  # the board images under way
+    assert "Calibration board" in bpy.data.objects
+    steps.close()  # Esc
+    assert "Calibration board" not in bpy.data.objects
+    assert not (tmp_path / "cal").exists() or not any((tmp_path / "cal").iterdir())
