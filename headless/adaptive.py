@@ -15,7 +15,6 @@ import statistics
 import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
