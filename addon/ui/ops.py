@@ -242,6 +242,10 @@ class _SteppedScan:
     _state = None
     _what = "Scanning"
 
+    @classmethod
+    def poll(cls, context):
+        return idle()  # not while another scan runs
+
     def _start(self, context):
         self._state = RenderState(context.scene)  # put back when the work ends, however it ends
         try:
@@ -369,10 +373,6 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
     _unit = "frames"
 
-    @classmethod
-    def poll(cls, context):
-        return idle()  # not while a scan runs
-
     # The operator carries its parameters, so that a script can call
     # bpy.ops.scanner.scan(config="step_block", frames="0:100:20", output_dir="/tmp/scans")
     # without touching the panel; an empty value takes the panel's setting.
@@ -452,10 +452,6 @@ class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
     _what = "Calibrating"
     _unit = "images"
 
-    @classmethod
-    def poll(cls, context):
-        return idle()  # not while a scan runs
-
     config: StringProperty(name="Config", default="",
                            description="Scan config whose cell and probe are calibrated (empty: the panel's choice)")
     views: IntProperty(name="Board Poses", default=20, min=4, max=1000,
@@ -492,10 +488,6 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
     _what = "Adaptive scan"
     _unit = "profiles of the budget"
-
-    @classmethod
-    def poll(cls, context):
-        return idle()  # not while a scan runs
 
     config: StringProperty(name="Config", default="",
                            description="Scan config (its [[path]] is ignored; empty: the panel's choice)")
