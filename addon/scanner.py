@@ -137,7 +137,7 @@ class Scanner:
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
         self._clearances: list = []  # the collision check of every move and path (PathClearance)
         self._planner = None  # the adaptive planner of the last adaptive() call, to go on from
-        self._fixture_frames: dict = {}  # {fixture: frames whose laser met it} (moves and sweeps)
+        self._fixture_frames: dict = {}  # {fixture: frames it stood in the way of the laser or a camera}
         if not len(config.waypoints):
             self._look_at_the_table()
 
@@ -266,11 +266,14 @@ class Scanner:
 
     def _check_move(self, q: np.ndarray, table_rad: float) -> None:
         """Collision checks on the motion from the current joints and table angle to these."""
-        self._check_path(q[None, :], np.array([table_rad]), "move")
+        found = self._check_path(q[None, :], np.array([table_rad]), "move")
+        if found is not None:
+            self._clearances.append(found)
 
     def _check_path(self, q: np.ndarray, table_rad: np.ndarray, what: str = "sweep", record: bool = True):
-        """Collision checks on the motion from the current joints and table angle through q (n, 6);
-        the clearance found joins the report when ``record`` (else only collisions are looked for)."""
+        """Collision checks on the motion from the current joints and table angle through q (n, 6):
+        the clearance found where ``record`` (else only collisions are looked for), for the caller
+        to keep once the motion has been made."""
         from .core.scan.plan import check_motion
 
         t = time.perf_counter()
@@ -280,8 +283,6 @@ class Scanner:
             raise CollisionError(f"{what} refused, nothing moved: {exc}") from None
         finally:
             self._timing["plan"] += time.perf_counter() - t
-        if found is not None and record:
-            self._clearances.append(found)
         return found
 
     def clearance(self):
@@ -387,11 +388,8 @@ class Scanner:
         return drain(self._waypoints_steps(waypoints, what, progress))
 
     def _waypoints_steps(self, waypoints: Waypoints, what: str, progress=None):
-        q, table_rad, _ = self._plan_waypoints(waypoints, record=True, what=what)
-        profiles = yield from self._frames_steps(q, table_rad, progress=progress)
-        self._q = np.array(q[-1], dtype=np.float64)
-        self._table_rad = float(table_rad[-1])
-        return profiles
+        q, table_rad, found = self._plan_waypoints(waypoints, record=True, what=what)
+        return (yield from self._frames_steps(q, table_rad, progress=progress, clearance=found))
 
     def run(self, progress=None) -> ScanReport:
         """Scan the configured path ([[path]] entries) from its start joints; the probe ends at
@@ -413,13 +411,8 @@ class Scanner:
         t = time.perf_counter()
         plan = plan_scan(cfg)
         self._timing["plan"] += time.perf_counter() - t
-        self._warnings += plan.warnings
-        self._note_fixtures(plan.fixture_frames, self._frames)
-        if plan.clearance is not None:
-            self._clearances.append(plan.clearance)
-        yield from self._frames_steps(plan.q, plan.table_rad, plan=plan, progress=progress)
-        self._q = np.array(plan.q[-1], dtype=np.float64)
-        self._table_rad = float(plan.table_rad[-1])
+        yield from self._frames_steps(plan.q, plan.table_rad, plan=plan, progress=progress,
+                                      clearance=plan.clearance, warnings=plan.warnings)
 
     def _scene_cell(self):
         if self._sc is None:
@@ -449,9 +442,13 @@ class Scanner:
         their points join the cloud under the next frame numbers."""
         return drain(self._frames_steps(q, table_rad, progress=progress))
 
-    def _frames_steps(self, q: np.ndarray, table_rad: np.ndarray, plan=None, progress=None):
+    def _frames_steps(self, q: np.ndarray, table_rad: np.ndarray, plan=None, progress=None, clearance=None,
+                      warnings=()):
         """The work of :meth:`_scan_frames` as a generator: yields (done, total) after each
-        chunk of frames and returns the profiles."""
+        chunk of frames and returns the profiles. The frames join this Scanner (poses, points,
+        the motion's ``clearance`` and the plan's ``warnings``, the robot and the table at the
+        last frame) only once they have all been measured: a run dropped or interrupted (Esc,
+        Ctrl-C) midway leaves it as it was before, ready for the next measurement."""
         from .pipeline import ScanRun, cell_surfaces, plan_frames
 
         cfg = self.config
@@ -460,16 +457,14 @@ class Scanner:
             if self._surfaces is None:
                 self._surfaces = cell_surfaces(cfg)
             plan = plan_frames(cfg, q, table_rad, allow_blind=True, surfaces=self._surfaces)
-            self._note_fixtures(plan.fixture_frames, self._frames)
             self._timing["plan"] += time.perf_counter() - t
         first = self._frames
         n = len(q)
         probe2table = cfg.cell.probe2table(q, table_rad)
-        self._poses.append((np.array(q, dtype=np.float64), np.array(table_rad, dtype=np.float64)))
         if not plan.cameras:  # the laser meets nothing any camera sees: nothing to render
-            out = [Profile(np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0), probe2table[i], q[i].copy(),
-                           math.degrees(table_rad[i]), {}, first + i) for i in range(n)]
-            return out
+            self._keep_frames(q, table_rad, plan, clearance, warnings)
+            return [Profile(np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0), probe2table[i], q[i].copy(),
+                            math.degrees(table_rad[i]), {}, first + i) for i in range(n)]
         run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, np.zeros(n, int))), None, progress,
                       plan=plan, **self._renderers())
         while not run.step():
@@ -477,17 +472,29 @@ class Scanner:
         yield run.done, run.n
         for stage in ("render", "detect", "triangulate"):
             self._timing[stage] += getattr(run, f"t_{stage}" if stage != "triangulate" else "t_tri")
-        self._stats.append(run.stats)
-        self._cameras |= set(plan.cameras)
         cloud = run.acc.cloud()
-        out = []
+        parts, out = [], []
         for i in range(n):
             part = cloud.select(cloud.frame == i)
-            part = Cloud(part.points, np.full(len(part), first + i), part.camera, part.quality)
-            self._parts.append(part)
+            parts.append(Cloud(part.points, np.full(len(part), first + i), part.camera, part.quality))
             out.append(Profile(part.points, part.camera, part.quality.astype(np.float64), probe2table[i],
                                q[i].copy(), math.degrees(table_rad[i]), run.frame_codes.get(i, {}), first + i))
+        self._stats.append(run.stats)
+        self._cameras |= set(plan.cameras)
+        self._parts += parts
+        self._keep_frames(q, table_rad, plan, clearance, warnings)
         return out
+
+    def _keep_frames(self, q, table_rad, plan, clearance, warnings) -> None:
+        """Frames measured: their poses, the fixtures their laser met, the motion's clearance and
+        the plan's warnings join the scan; the robot and the table stay at the last frame."""
+        self._note_fixtures(plan.fixture_frames, self._frames)
+        self._poses.append((np.array(q, dtype=np.float64), np.array(table_rad, dtype=np.float64)))
+        if clearance is not None:
+            self._clearances.append(clearance)
+        self._warnings += list(warnings)
+        self._q = np.array(q[-1], dtype=np.float64)
+        self._table_rad = float(table_rad[-1])
 
     def adaptive(self, box=None, *, max_profiles: int | None = None, min_gain: int | None = None,
                  target_coverage: float | None = None, progress=None, log=None) -> list:
@@ -508,8 +515,8 @@ class Scanner:
         """:meth:`adaptive` as a generator, for callers that must stay responsive (the panel,
         which stops it on Esc by dropping it): yields the profiles taken so far after each chunk
         of frames and between decisions; returns the sweeps. Dropped before its end (Esc), it
-        leaves this Scanner in the middle of a sweep: the panel throws the Scanner away, and so
-        should any caller."""
+        keeps the sweeps finished until then and nothing of the one under way, so this Scanner
+        (and its planner) can go on."""
         from .adaptive import NextBestView, adaptive_steps, part_box
 
         settings = self.config.adaptive

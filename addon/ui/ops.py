@@ -200,6 +200,19 @@ def _panel_config(context, config: str):
     return load_scan_config(source)
 
 
+def _with_engine(context, cfg, engine: str):
+    """The config rendered with the operator's ``engine``, else the Scan box's where it names
+    one; one line where that engine cannot render this scan."""
+    engine = engine or context.scene.scanner.scan_engine
+    if engine == "CONFIG":
+        return cfg
+    try:
+        return cfg.with_overrides(engine=engine)
+    except InputError as exc:
+        why = str(exc).removeprefix(f"--engine {engine}: ").removeprefix("--engine ")
+        raise InputError(f"Engine {engine}: {why}") from None
+
+
 def _checked_output(folder: str, config_name: str):
     """The output folder a scan will write into, refused before any rendering where it cannot
     be written, or where it is relative (//...) to a .blend never saved (it would land
@@ -378,7 +391,10 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
     # without touching the panel; an empty value takes the panel's setting.
     config: StringProperty(name="Config", default="",
                            description="Scan config: a bundled name or a .toml path (empty: the panel's choice)")
-    frames: StringProperty(name="Frames", default="", description="Part of the path, as A:B or A:B:STEP (empty: all)")
+    frames: StringProperty(name="Frames", default="",
+                           description="Part of the path, as A:B or A:B:STEP (empty: the panel's, else all)")
+    engine: StringProperty(name="Engine", default="",
+                           description="cycles, eevee or raycast (empty: the panel's choice)")
     output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
                                description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
 
@@ -386,10 +402,10 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
         from ..core.config.scan import parse_frames
 
         s = context.scene.scanner
-        cfg = _panel_config(context, self.config).with_overrides(frames=parse_frames(self.frames))
+        cfg = _panel_config(context, self.config).with_overrides(frames=parse_frames(self.frames or s.scan_frames))
         if s.scan_sensor == "PANEL" and not self.config:
             cfg = cfg.with_realism(models.sensor_from(s), s.material, s.roughness, s.ambient)
-        return cfg
+        return _with_engine(context, cfg, self.engine)
 
     def _open(self, context):
         from ..scanner import Scanner
@@ -492,18 +508,22 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
     config: StringProperty(name="Config", default="",
                            description="Scan config (its [[path]] is ignored; empty: the panel's choice)")
     max_profiles: IntProperty(name="Profile Budget", default=0, min=0, max=100_000,
-                              description="Profiles the planner may take (0: the config's [adaptive] budget)")
+                              description="Profiles the planner may take (0: the panel's, else the config's "
+                                          "[adaptive] budget)")
     target_coverage: FloatProperty(name="Target Coverage", default=0.0, min=0.0, max=1.0, subtype="FACTOR",
                                    description="Stop once the planner's own coverage estimate reaches this share "
                                                "(0: the config's [adaptive] target, else none)")
+    engine: StringProperty(name="Engine", default="",
+                           description="cycles, eevee or raycast (empty: the panel's choice)")
     output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
                                description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
 
     def _open(self, context):
         from ..scanner import Scanner
 
-        cfg = _panel_config(context, self.config)
-        self._budget = self.max_profiles or cfg.adaptive.max_profiles
+        s = context.scene.scanner
+        cfg = _with_engine(context, _panel_config(context, self.config), self.engine)
+        self._budget = self.max_profiles or s.adaptive_budget or cfg.adaptive.max_profiles
         self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, f"{cfg.name} adaptive")
         scanner = Scanner(config=cfg, scene=context.scene)
         return scanner, scanner.adaptive_steps(max_profiles=self._budget,

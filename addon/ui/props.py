@@ -143,6 +143,18 @@ class ScannerSettings(bpy.types.PropertyGroup):
         ("PANEL", "From the probe panel", "Use the probe panel's realistic sensor, material and ambient light")],
         default="CONFIG")
     import_cloud: BoolProperty(name="Import cloud", default=True, description="Bring the cloud into the scene")
+    scan_engine: EnumProperty(name="Engine", items=[
+        ("CONFIG", "From the scan config", "Render with the scan config's [render] engine"),
+        ("cycles", "Cycles", "Path-traced laser line: the reference (slowest)"),
+        ("eevee", "Eevee", "Rasterised laser line (fast with a GPU, software OpenGL without one)"),
+        ("raycast", "Raycast", "Cycles' ideal image by Embree without Blender's renderer: fastest, ideal sensor "
+                               "and grey or white surfaces only")],
+        default="CONFIG")
+    scan_frames: StringProperty(name="Frames", default="",
+                                description="Part of the config's path for Scan, as A:B or A:B:STEP "
+                                            "(frames from 0; empty: the whole path)")
+    adaptive_budget: IntProperty(name="Profile Budget", default=0, min=0, max=100_000,
+                                 description="Profiles Adaptive Scan may take (0: the config's [adaptive] budget)")
 
 
 CLASSES = (ScannerSettings,)

@@ -212,18 +212,55 @@ def test_a_fixture_in_the_lasers_way_is_warned_of_on_the_table_or_in_the_world()
     assert not plan_scan(demo).fixture_frames
     # Step by step, the Scanner's report says the same, once per fixture however many moves:
     # of each sweep's 4 frames (y = -40, -13, 13, 40 mm; the line across the motion, along x),
-    # the two over the post's 40 mm.
+    # the laser meets the two over the post's 40 mm, and at the two others the post stands
+    # between the table it lights and a camera (camera 0 sits 60 mm on the +y side of the
+    # line, camera 1 60 mm on the -y side, both at z = 215 mm: from (0, -40, 0) camera 0's
+    # sight line crosses y = -20 at z = 72 mm, inside the 180 mm post).
     cfg = replace(demo, render=replace(demo.render, engine="raycast"),
                   fixtures=(Fixture("fixture post", post, "table"),))
     s = Scanner(config=cfg)
     for _ in range(2):
         s.sweep([-20.0, -40.0, 215.0], [-20.0, 40.0, 215.0], 4)
-    met = [w for w in s.report().to_dict()["warnings"] if "the laser meets" in w]
-    assert len(met) == 1 and "at 4 of 8 frames (1-2, 5-6)" in met[0], met
+    met = [w for w in s.report().to_dict()["warnings"] if "stands in the laser's way" in w]
+    assert len(met) == 1 and "at 8 of 8 frames (0-7)" in met[0], met
     # A configured path run after them counts on from there, in the same one warning.
     path = replace(cfg, waypoints=cfg.waypoints.select(np.arange(10)))
     s2 = Scanner(config=path)
-    s2.sweep([-20.0, -40.0, 215.0], [-20.0, 40.0, 215.0], 4)
+    s2.sweep([-20.0, -140.0, 215.0], [-20.0, -100.0, 215.0], 4)  # well clear of the post, laser and cameras
     s2.run()
-    met = [w for w in s2.report().to_dict()["warnings"] if "the laser meets" in w]
-    assert len(met) == 1 and "of 14 frames (1-2, 4-" in met[0], met
+    met = [w for w in s2.report().to_dict()["warnings"] if "stands in the laser's way" in w]
+    assert len(met) == 1 and "of 14 frames (4-" in met[0], met
+
+
+def test_a_fixture_that_hides_the_line_from_a_camera_only_is_warned_of_too():
+    """A small cube halfway along camera 0's sight line to the spot the laser's centre lights
+    on the table (30 mm off the laser plane, so the fan never meets it) hides that spot from
+    the camera: warned, as a table fixture and as the same cube given in the world. The same
+    cube beyond the camera, or mirrored off the sight line, hides nothing: no warning."""
+    from addon.core.kinematics.path import sweep
+    from addon.core.safety import Fixture
+    from addon.core.scan.plan import cell_surfaces, fixtures_in_the_way
+
+    demo = load_scan_config("demo")
+    # one pose of a sweep along y: the line along x, the beam straight down from (-20, -140, 215)
+    probe2table = sweep(2, [-20.0, -140.0, 215.0], [-20.0, -100.0, 215.0], [0.0, 0.0, -1.0], None,
+                        table_rad=0.0).probe2table[:1]
+    spot = np.array([-20.0, -140.0, 0.0])  # the beam straight down onto the table top (z = 0)
+    camera = (probe2table[0] @ demo.probe.cam2probe(0))[:3, 3]
+    assert abs(camera[1] - spot[1]) > 30  # the camera's sight line leaves the laser plane (y = -140)
+
+    def cube(at):
+        c = trimesh.creation.box([4.0, 4.0, 4.0])
+        c.apply_translation(at)
+        return c
+
+    halfway = cube(spot + 0.5 * (camera - spot))
+    beyond = cube(spot + 1.3 * (camera - spot))  # above the probe, past the camera
+    aside = cube(spot + 0.5 * (camera - spot) + [30.0, 0.0, 0.0])
+    world = halfway.copy()
+    world.apply_transform(demo.cell.table.table2base(0.0))
+    surfaces = cell_surfaces(demo)
+    fixtures = (Fixture("fixture halfway", halfway, "table"), Fixture("fixture beyond", beyond, "table"),
+                Fixture("fixture aside", aside, "table"), Fixture("fixture world", world, "world"))
+    found = fixtures_in_the_way(replace(demo, fixtures=fixtures), probe2table, np.zeros(1), surfaces)
+    assert {k: v.tolist() for k, v in found.items()} == {"fixture halfway": [0], "fixture world": [0]}

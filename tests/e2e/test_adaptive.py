@@ -268,6 +268,10 @@ def test_adaptive_steps_stay_responsive_and_a_dropped_run_adds_no_sweeps():
     assert taken == sorted(taken) and 0 < taken[-1] < 180  # inside the first sweep (the 180-profile overview)
     steps.close()  # Esc
     assert "adaptive" not in dropped.report().to_dict()
+    # nothing of the sweep under way was kept: the scanner is where it started, ready to go on
+    assert dropped.report().to_dict()["frames"] == 0 and len(dropped.cloud) == 0
+    start = Scanner(config=config)
+    assert np.array_equal(dropped.q, start.q) and dropped.table_deg == start.table_deg
     whole = Scanner(config=config)
     gen = whole.adaptive_steps(max_profiles=300)
     seen = []
@@ -278,4 +282,8 @@ def test_adaptive_steps_stay_responsive_and_a_dropped_run_adds_no_sweeps():
         sweeps = end.value
     again = Scanner(config=config).adaptive(max_profiles=300)
     assert [s.sweep for s in sweeps] == [s.sweep for s in again] and len(seen) > 2 * len(sweeps)
+    after_esc = dropped.adaptive(max_profiles=300)  # the dropped scanner goes on as a fresh one would
+    assert [(s.sweep, s.profiles) for s in after_esc] == [(s.sweep, s.profiles) for s in again]
+    frames = [frame for frame, _, _ in dropped.measurements()]  # the stopped sweep left no frame behind
+    assert frames == list(range(sum(s.profiles for s in after_esc))) == list(range(dropped.report().frames))
     assert whole.report().to_dict()["frames"] == sum(s.profiles for s in sweeps) >= max(seen)

@@ -111,6 +111,35 @@ def test_run_gives_the_chunk_engines_cloud_point_for_point():
     assert report.error_um.rms_um == pytest.approx(direct.report["error_um"]["rms_um"])
 
 
+def test_a_path_stopped_midway_keeps_nothing_of_it_and_the_scanner_goes_on():
+    """Ctrl-C (here raised by the progress callback after the first chunk) during a path leaves
+    the scanner as it was: no frame, point, pose or warning of the unfinished path; a path
+    after it scans and numbers its frames as if the stopped one had never begun."""
+    from addon.core.kinematics.path import sweep
+
+    scanner = Scanner.from_config("demo")  # its own cell: the module's may have been replaced by now
+    next_frame = scanner.measure().frame + 1
+    before = (scanner.report().frames, len(scanner.cloud), scanner.q.copy(), scanner.table_deg)
+    path = sweep(24, [-40.0, 10.0, 210.0], [40.0, 10.0, 210.0], [0.0, 0.0, -1.0], None,
+                 table_rad=math.radians(scanner.table_deg))
+
+    def ctrl_c(stage, done, total):
+        assert 0 < done < total  # stopped inside the path
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        scanner.scan_path(path, progress=ctrl_c)
+    frames, points, q, table_deg = before
+    assert scanner.report().frames == frames and len(scanner.cloud) == points
+    assert np.array_equal(scanner.q, q) and scanner.table_deg == table_deg
+    profiles = scanner.scan_path(path)
+    assert [p.frame for p in profiles] == list(range(next_frame, next_frame + 24))
+    assert scanner.report().frames == frames + 24 and len(scanner.cloud) == points + sum(len(p) for p in profiles)
+    points = np.concatenate([p.points for p in profiles])
+    on_sphere = points[points[:, 2] > 1.0]  # the rest lie on the table top
+    assert len(on_sphere) > 500 and np.abs(sphere_error_um(on_sphere)).max() < 60
+
+
 def test_report_json_is_strict():
     text = report_json({"rms_um": float("nan"), "nested": [float("inf"), 1.0]})
     assert json.loads(text) == {"rms_um": None, "nested": [None, 1.0]}

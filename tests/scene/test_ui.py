@@ -400,6 +400,31 @@ def test_the_calibrate_operator_writes_a_calibrated_probe_and_keeps_the_scene(pa
     assert (scene.render.resolution_x, scene.cycles.samples) == (777, 9)
 
 
+def test_the_scan_box_sets_engine_frames_and_budget_and_the_operators_own_values_win(panel, tmp_path):
+    """The Scan box's Engine, Frames and Profile Budget reach Scan and Adaptive Scan; a value
+    given to the operator (a script's) wins over the box's; an engine that cannot render the
+    scan is refused in one line before anything renders."""
+    import json
+
+    s = panel.scanner
+    s.output_dir = str(tmp_path / "box")
+    s.scan_engine, s.scan_frames = "raycast", "0:100:25"
+    assert bpy.ops.scanner.scan() == {"FINISHED"}
+    report = json.loads(next((tmp_path / "box").glob("*/report.json")).read_text())
+    assert report["config"]["engine"] == "raycast" and report["frames"] == 4
+    assert bpy.ops.scanner.scan(frames="0:20:10", engine="cycles", output_dir=str(tmp_path / "call")) == {"FINISHED"}
+    report = json.loads(next((tmp_path / "call").glob("*/report.json")).read_text())
+    assert report["config"]["engine"] == "cycles" and report["frames"] == 2
+    s.adaptive_budget = 2  # fits no sweep: the box's budget is the one used
+    assert bpy.ops.scanner.adaptive(config="demo") == {"CANCELLED"}
+    first = next((tmp_path / "box").glob("*/report.json"))
+    written = first.stat().st_mtime_ns
+    s.scan_sensor, s.sensor_realistic, s.sensor_noise = "PANEL", True, True  # raycast renders ideal sensors only
+    with pytest.raises(RuntimeError, match="Engine raycast: "):
+        bpy.ops.scanner.scan()
+    assert first.stat().st_mtime_ns == written  # the refused scan wrote nothing over the first one
+
+
 def test_the_adaptive_operator_scans_from_the_box_and_brings_the_cloud_in(panel, tmp_path):
     # a budget no sweep fits: told so, nothing written
     assert bpy.ops.scanner.adaptive(config="demo", max_profiles=2, output_dir=str(tmp_path)) == {"CANCELLED"}

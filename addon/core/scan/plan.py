@@ -18,6 +18,7 @@ from ..errors import CollisionError, ScannerError, UnreachablePose
 from ..geometry.footprint import SurfaceCaster, laser_footprint
 from ..kinematics.path import solve_path
 from ..kinematics.turntable import table_top_mesh
+from ..optics.probe import CAMERAS
 from ..safety import CollisionModel, PathClearance
 
 
@@ -130,23 +131,29 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
             simplefilter("ignore", RuntimeWarning)  # frames no camera sees: NaN, as meant
             rows = foot.rows[:, list(cameras)]
             predicted = np.column_stack([np.nanmin(rows[:, :, 0], axis=1), np.nanmax(rows[:, :, 1], axis=1)])
-    fixtures = fixtures_in_the_laser(config, wp_probe2table, table_rad, surfaces)
+    fixtures = fixtures_in_the_way(config, wp_probe2table, table_rad, surfaces)
     return Plan(np.asarray(q, dtype=np.float64), np.asarray(table_rad, dtype=np.float64), cameras, predicted,
                 warnings, fixture_frames=fixtures)
 
 
 # Rays of the laser fan cast per frame against the fixtures.
 FIXTURE_RAYS = 33
+# How far a sight line starts off the lit spot (mm), so that the surface the spot lies on is not
+# met again at distance 0 (Embree's hits are single precision: about 1e-5 mm at this range).
+SIGHT_OFFSET_MM = 1e-2
+
 _FIXTURE_CASTERS: list = []  # (the config's fixtures tuple, {"table"|"world": SurfaceCaster})
 
 
-def fixtures_in_the_laser(config: ScanConfig, probe2table: np.ndarray, table_rad: np.ndarray,
-                          surfaces: SurfaceCaster) -> dict:
-    """{fixture name: frame indices (into probe2table)} where the laser fan meets that fixture
-    inside the probe's range before the part or the table. Fixtures are collision bodies only:
-    no engine renders them, so a fixture in the laser's way would not hide what lies behind
-    it; the scan warns of it instead of passing it over. Table fixtures are cast in the table
-    frame, world fixtures in the robot base's frame (the rays carried there per frame)."""
+def fixtures_in_the_way(config: ScanConfig, probe2table: np.ndarray, table_rad: np.ndarray,
+                        surfaces: SurfaceCaster) -> dict:
+    """{fixture name: frame indices (into probe2table)} where a fixture stands in the laser fan's
+    way inside the probe's range before the part or the table, or on the sight line between a
+    spot the fan lights there and a camera that would see it (the spot inside the camera's image
+    and not hidden by the part or the table). Fixtures are collision bodies only: no engine
+    renders them, so such a fixture would not hide what lies behind it; the scan warns of it
+    instead of passing it over. Table fixtures are cast in the table frame, world fixtures in the
+    robot base's frame (the rays carried there per frame)."""
     if not config.fixtures or not len(probe2table):
         return {}
     casters = next((c for f, c in _FIXTURE_CASTERS if f is config.fixtures), None)
@@ -156,6 +163,7 @@ def fixtures_in_the_laser(config: ScanConfig, probe2table: np.ndarray, table_rad
         _FIXTURE_CASTERS.insert(0, (config.fixtures, casters))
         del _FIXTURE_CASTERS[4:]
     probe = config.probe
+    table_rad = np.asarray(table_rad, dtype=np.float64)
     n, rays = len(probe2table), FIXTURE_RAYS
     alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
     local = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
@@ -165,24 +173,44 @@ def fixtures_in_the_laser(config: ScanConfig, probe2table: np.ndarray, table_rad
     nearest = reach.copy()
     pts, ray, _ = surfaces.caster.intersects_location(origins, dirs, multiple_hits=False)
     nearest[ray] = np.minimum(reach[ray], np.linalg.norm(pts - origins[ray], axis=1))
-    to_base = config.cell.table.table2base(np.repeat(np.asarray(table_rad, dtype=np.float64), rays))
-    world_o = np.einsum("nij,nj->ni", to_base[:, :3, :3], origins) + to_base[:, :3, 3]
-    world_d = np.einsum("nij,nj->ni", to_base[:, :3, :3], dirs)
+    # (origins, unit directions, lengths, frames) of the rays a fixture must not cross: the fan up
+    # to what it lights, and each camera's sight line to a spot it lit.
+    o, d, length, frame = [origins], [dirs], [nearest], [np.arange(n * rays) // rays]
+    lit = np.linalg.norm(pts - origins[ray], axis=1) <= reach[ray]
+    spot, f = pts[lit], ray[lit] // rays
+    if len(spot):
+        R, t = probe2table[f, :3, :3], probe2table[f, :3, 3]
+        spot_probe = np.einsum("nji,nj->ni", R, spot - t)  # Rᵀ (p − t)
+        for camera in CAMERAS:
+            centre = np.einsum("nij,j->ni", R, probe.cam2probe(camera)[:3, 3]) + t
+            to_cam = centre - spot
+            dist = np.linalg.norm(to_cam, axis=1)
+            u = to_cam / dist[:, None]
+            start = spot + SIGHT_OFFSET_MM * u
+            seen = np.isfinite(probe.project(spot_probe, camera)[:, 0])
+            hit, r, _ = surfaces.caster.intersects_location(start, u, multiple_hits=False)
+            hidden = np.zeros(len(spot), bool)
+            hidden[r] = np.linalg.norm(hit - start[r], axis=1) < dist[r] - SIGHT_OFFSET_MM
+            keep = seen & ~hidden
+            o.append(start[keep]), d.append(u[keep]), length.append(dist[keep] - SIGHT_OFFSET_MM)
+            frame.append(f[keep])
+    o, d, length, frame = (np.concatenate(a) for a in (o, d, length, frame))
+    to_base = config.cell.table.table2base(table_rad[frame])
+    world_o = np.einsum("nij,nj->ni", to_base[:, :3, :3], o) + to_base[:, :3, 3]
+    world_d = np.einsum("nij,nj->ni", to_base[:, :3, :3], d)
     out = {}
-    for on, (o, d) in (("table", (origins, dirs)), ("world", (world_o, world_d))):
+    for on, (oo, dd) in (("table", (o, d)), ("world", (world_o, world_d))):
         for name, caster in casters[on]:
-            pts, ray, _ = caster.caster.intersects_location(o, d, multiple_hits=False)
-            if not len(ray):
-                continue
-            met = ray[np.linalg.norm(pts - o[ray], axis=1) < nearest[ray]]
+            pts, ray, _ = caster.caster.intersects_location(oo, dd, multiple_hits=False)
+            met = ray[np.linalg.norm(pts - oo[ray], axis=1) < length[ray]]
             if len(met):
-                out[name] = np.unique(met // rays)
+                out[name] = np.unique(frame[met])
     return out
 
 
 def fixture_warnings(fixture_frames: dict, frames: int) -> list[str]:
-    """One warning per fixture in the laser's way (see :func:`fixtures_in_the_laser`)."""
-    return [f"the laser meets {name} before the part or the table at {len(idx)} of {frames} frames "
+    """One warning per fixture in the way (see :func:`fixtures_in_the_way`)."""
+    return [f"{name} stands in the laser's way or hides its line from a camera at {len(idx)} of {frames} frames "
             f"({frame_ranges(list(idx))}): fixtures are collision bodies only, not rendered, so the cloud shows "
             f"what lies behind {name} as if it were not there" for name, idx in fixture_frames.items()]
 
