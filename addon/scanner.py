@@ -449,6 +449,7 @@ class Scanner:
         the motion's ``clearance`` and the plan's ``warnings``, the robot and the table at the
         last frame) only once they have all been measured: a run dropped or interrupted (Esc,
         Ctrl-C) midway leaves it as it was before, ready for the next measurement."""
+        from .core.scan.frames import new_stats
         from .pipeline import ScanRun, cell_surfaces, plan_frames
 
         cfg = self.config
@@ -462,6 +463,7 @@ class Scanner:
         n = len(q)
         probe2table = cfg.cell.probe2table(q, table_rad)
         if not plan.cameras:  # the laser meets nothing any camera sees: nothing to render
+            self._stats.append({**new_stats(), "band_rows": [0] * n})  # measured all the same: no row rendered
             self._keep_frames(q, table_rad, plan, clearance, warnings)
             return [Profile(np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0), probe2table[i], q[i].copy(),
                             math.degrees(table_rad[i]), {}, first + i) for i in range(n)]

@@ -75,6 +75,10 @@ def test_a_pose_that_sees_nothing_gives_an_empty_profile_without_rendering():
     s.move_to(([12.0, 0.0, 320.0], [90.0, 180.0, 0.0]))  # the table 320 mm away: beyond the 250 mm range
     p = s.measure()
     assert len(p) == 0 and s._sc is None  # Blender was never asked to render
+    # still a measurement: the report counts it, and the next one is numbered after it
+    report = s.report().to_dict()
+    assert report["frames"] == 1 and report["points"] == 0 and s.measure().frame == p.frame + 1 == 1
+    assert s.report().to_dict()["frames"] == 2
 
 
 def test_sweep_report_and_save(scanner, tmp_path):
