@@ -24,6 +24,7 @@ Commands:
   bench ik-bridge      IK from a controller over TCP/IP against the local solver: agreement, latency
   bench adaptive       the adaptive planner against fixed paths on the same budget, part by part
   bench calibration    scans with probes calibrated from 5 to 40 board poses against the true probe
+  bench incidence      the part's error by angle of incidence, beside the line-width floor
   ik-server            serve this project's IK over TCP/IP with the controller protocol
   robot-meshes         install the bundled robots' link meshes where a package ships them (optional)
   overview             a picture of the cell and the two probe camera images
@@ -96,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     from headless.bench import ik_bridge as bench_ik_bridge
     from headless.bench import adaptive as bench_adaptive
     from headless.bench import calibration as bench_calibration
+    from headless.bench import incidence as bench_incidence
     from headless.bench import versions as bench_versions
 
     overview.add_arguments(sub.add_parser("overview", help=_summary(overview.__doc__)))
@@ -114,7 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
                          ("measure", bench_measure), ("metrics", bench_metrics),
                          ("parts", bench_parts), ("collision", bench_collision),
                          ("ik-bridge", bench_ik_bridge), ("adaptive", bench_adaptive),
-                         ("calibration", bench_calibration)):
+                         ("calibration", bench_calibration), ("incidence", bench_incidence)):
         module.add_arguments(bench_sub.add_parser(name, help=_summary(module.__doc__)))
     return parser
 

@@ -3,6 +3,7 @@
 import argparse
 import importlib.util
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -27,6 +28,17 @@ def test_kinematics_prints_poses_and_solves_ik_for_every_robot():
     assert out.stdout.count(" yes ") == 3 and " NO " not in out.stdout
     # The PUMA's zero pose as published for Corke's model (plus the 671.83 mm base height).
     assert "452.10    -150.05    1103.63" in out.stdout
+
+
+@needs_bpy
+def test_the_incidence_bench_bins_every_part_point_and_gives_the_floor_beside_it():
+    out = run_cli("bench", "incidence", "--config", "tilted_plane", "--engine", "raycast")
+    assert out.returncode == 0, out.stderr
+    on_part = int(re.search(r"(\d+) points on the part", out.stdout).group(1))
+    rows = [line.split("|")[1:-1] for line in out.stdout.splitlines() if re.match(r"\| \d+–\d+° \|", line)]
+    assert rows and sum(int(r[1]) for r in rows) == on_part  # the bands share out every point on the part
+    # A flat plate has no curvature for the line's width to act on: the floor stays within a few µm.
+    assert all(abs(float(r[5])) < 3 and float(r[6]) < 3 for r in rows), rows
 
 
 def test_small_kinematics_bench_reports_zero_false_successes():
