@@ -274,10 +274,12 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
 
 def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 30,
                    target_coverage: float | None = None, voxel_mm: float = VOXEL_MM, progress=None,
-                   log=None, planner: NextBestView | None = None, setup_s: float = 0.0):
+                   log=None, planner: NextBestView | None = None, setup_s: float = 0.0,
+                   steps: list | None = None):
     """:func:`adaptive_scan` as a generator: yields the profiles taken so far after each chunk
-    of frames and between decisions; returns the decisions. Its arguments are checked when it
-    is first advanced."""
+    of frames and between decisions; returns the decisions, each also appended to ``steps``
+    (when given) as soon as its sweep is scanned, so a caller that drops the generator still
+    knows what was done. Its arguments are checked when it is first advanced."""
     if isinstance(max_profiles, bool) or not isinstance(max_profiles, (int, np.integer)) \
             or not 1 <= max_profiles <= MAX_PROFILES:
         raise InputError(f"max_profiles must be a whole number from 1 to {MAX_PROFILES}, got {max_profiles!r}")
@@ -294,7 +296,7 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
     caught = planner.catch_up(scanner)
     if log and caught:
         log(f"adaptive: learnt from the {caught} profiles measured before this run")
-    steps: list[AdaptiveStep] = []
+    steps = [] if steps is None else steps
     taken = 0
     say = progress or (lambda stage, done, total: None)
     while taken < max_profiles:

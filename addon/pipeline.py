@@ -76,9 +76,12 @@ def build_raycaster(config: ScanConfig, threads: int | None = None):
     why = config.raycast_refusal()
     if why:
         raise InputError(f"engine raycast: {why}")
+    from .core.scan.plan import table_fixtures
+
     wp = config.workpiece
-    return RaycastRenderer(config.probe, cell_raycast_scene(None if wp is None else wp.mesh, config.material,
-                                                            threads), config.render.laser_peak,
+    scene = cell_raycast_scene(None if wp is None else wp.mesh, config.material, threads,
+                               fixtures=[f.mesh for f in table_fixtures(config)])
+    return RaycastRenderer(config.probe, scene, config.render.laser_peak,
                            windows=config.leave_out.render_band)
 
 
@@ -90,9 +93,11 @@ def build_scan_cell(config: ScanConfig, scene=None):
 
     if scene is None:
         scene = new_scene(config.render.device)
+    from .core.scan.plan import table_fixtures
+
     return build_cell(scene, config.cell, config.probe, config.workpiece, config.render.laser,
                       laser_power_w(config.probe, peak=config.render.laser_peak), material=config.material,
-                      roughness=config.roughness)
+                      roughness=config.roughness, fixtures=table_fixtures(config))
 
 
 class ScanRun:

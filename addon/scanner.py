@@ -536,13 +536,19 @@ class Scanner:
             t = time.perf_counter()
             self._planner = NextBestView(self, lo, hi, voxel_mm=settings.voxel_mm)
             setup = time.perf_counter() - t
-        steps = yield from adaptive_steps(self, lo, hi, max_profiles=budget, min_gain=gain, target_coverage=target,
-                                          voxel_mm=settings.voxel_mm, progress=progress, log=log,
-                                          planner=self._planner, setup_s=setup)
         done = self._extra.get("adaptive", {}).get("sweeps", [])
-        self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": budget,
-                                   "target_coverage": target,
-                                   "sweeps": done + [s.as_dict() for s in steps]}
+        steps: list = []
+        finished = False
+        try:
+            yield from adaptive_steps(self, lo, hi, max_profiles=budget, min_gain=gain, target_coverage=target,
+                                      voxel_mm=settings.voxel_mm, progress=progress, log=log,
+                                      planner=self._planner, setup_s=setup, steps=steps)
+            finished = True
+        finally:  # a run dropped or stopped after some sweeps still lists them beside their frames
+            if finished or steps:
+                self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": budget,
+                                           "target_coverage": target,
+                                           "sweeps": done + [s.as_dict() for s in steps]}
         return steps
 
     # -- results -------------------------------------------------------------------------

@@ -276,7 +276,8 @@ def print_summary(result, wall: float) -> None:
     e = r["error_um"]
     if r["config"].get("calibration"):
         print(f"\n  calibration   triangulated with the calibrated probe in {r['config']['calibration']}", end="")
-    print(f"\n  points        {r['points']} ({r['points_on_part']} on the part, {r['points_on_table']} on the table), "
+    print(f"\n  points        {r['points']} ({r['points_on_part']} on the part, {r['points_on_table']} on the table"
+          f"{', ' + str(r['points_on_fixtures']) + ' on fixtures' if r.get('points_on_fixtures') else ''}), "
           f"{r['valid_fraction'] * 100:.1f} % of sensor columns with a line")
     if e["n"]:
         bias = f"bias {e['bias_um']:+.1f} um" if _finite(e["bias_um"]) else "bias n/a (an open mesh has no inside)"

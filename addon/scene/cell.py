@@ -30,7 +30,7 @@ from .materials import diffuse
 from .meshes import mesh_object
 from ..core.config.render import RenderOptions, laser_engine_mismatch
 from .render import configure, opengl_device, render_animation
-from .turntable import add_turntable, add_workpiece, set_table_angle
+from .turntable import add_fixture, add_turntable, add_workpiece, set_table_angle
 from .units import from_blender
 
 
@@ -297,8 +297,9 @@ def add_probe(collection, probe: Probe, laser: str = "gobo", laser_power_w: floa
 
 def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Workpiece | None = None,
                laser: str = "gobo", laser_power_w: float | None = None, name: str = "Scanner Cell",
-               material: str = "grey", roughness: float = 0.2) -> SceneCell:
-    """Build (or rebuild) the cell in ``scene``. The probe's mount becomes the robot's tool."""
+               material: str = "grey", roughness: float = 0.2, fixtures=()) -> SceneCell:
+    """Build (or rebuild) the cell in ``scene``. The probe's mount becomes the robot's tool;
+    ``fixtures`` (the table's: ``core.safety.Fixture``) turn with the table."""
     remove_cell(scene, name)
     cell = replace(cell, robot=cell.robot.with_tool(probe.mount))
     root = bpy.data.collections.new(name)
@@ -313,6 +314,8 @@ def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Work
 
     table = add_turntable(table_col, cell.table)
     wp = add_workpiece(table_col, workpiece, table, material, roughness) if workpiece is not None else None
+    for fixture in fixtures:
+        add_fixture(table_col, fixture, table)
     bpy.context.view_layer.update()
     return SceneCell(scene, cell, probe, workpiece, laser, root, robot_col, arm, probe_frame, cams, lasers,
                      table, wp)

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..core.kinematics.turntable import Turntable, table_top_mesh
 from ..core.geometry.workpiece import Workpiece
-from ..core.optics.surfaces import TABLE_TOP
+from ..core.optics.surfaces import FIXTURE, TABLE_TOP
 from .materials import diffuse, surface
 from .meshes import mesh_object
 from .units import to_blender
@@ -23,6 +23,17 @@ def add_turntable(collection, table: Turntable) -> bpy.types.Object:
 
 def set_table_angle(obj: bpy.types.Object, theta_rad: float) -> None:
     obj.rotation_euler[2] = float(theta_rad)
+
+
+def add_fixture(collection, fixture, table_obj: bpy.types.Object) -> bpy.types.Object:
+    """A table fixture (``core.safety.Fixture``, mesh in table coordinates) as a child of the
+    table, diffuse grey: rendered with the part, so it hides and shadows it as on a real table."""
+    obj = mesh_object(fixture.name[:1].upper() + fixture.name[1:], fixture.mesh, collection,
+                      diffuse("Fixture", FIXTURE))
+    obj.parent = table_obj
+    obj.matrix_parent_inverse.identity()
+    obj.matrix_basis = to_blender(np.eye(4))
+    return obj
 
 
 TWIN_OFFSET_M = (0.0, 0.0, -1000.0)  # a kilometre below the cell: outside every view

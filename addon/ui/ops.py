@@ -203,9 +203,14 @@ def _panel_config(context, config: str):
 def _with_engine(context, cfg, engine: str):
     """The config rendered with the operator's ``engine``, else the Scan box's where it names
     one; one line where that engine cannot render this scan."""
-    engine = engine or context.scene.scanner.scan_engine
+    from ..core.config.render import ENGINES
+
+    engine = engine.strip() or context.scene.scanner.scan_engine
     if engine == "CONFIG":
         return cfg
+    if engine.lower() not in ENGINES:
+        raise InputError(f"engine {engine!r} is not one of: {', '.join(ENGINES)} (empty: the Scan box's choice)")
+    engine = engine.lower()
     try:
         return cfg.with_overrides(engine=engine)
     except InputError as exc:
@@ -388,14 +393,15 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
 
     # The operator carries its parameters, so that a script can call
     # bpy.ops.scanner.scan(config="step_block", frames="0:100:20", output_dir="/tmp/scans")
-    # without touching the panel; an empty value takes the panel's setting.
-    config: StringProperty(name="Config", default="",
+    # without touching the panel; an empty value takes the panel's setting. SKIP_SAVE: each
+    # press of a panel button starts from the Scan box, not from the last call's values.
+    config: StringProperty(name="Config", default="", options={"SKIP_SAVE"},
                            description="Scan config: a bundled name or a .toml path (empty: the panel's choice)")
-    frames: StringProperty(name="Frames", default="",
+    frames: StringProperty(name="Frames", default="", options={"SKIP_SAVE"},
                            description="Part of the path, as A:B or A:B:STEP (empty: the panel's, else all)")
-    engine: StringProperty(name="Engine", default="",
+    engine: StringProperty(name="Engine", default="", options={"SKIP_SAVE"},
                            description="cycles, eevee or raycast (empty: the panel's choice)")
-    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
+    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH", options={"SKIP_SAVE"},
                                description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
 
     def _config(self, context):
@@ -468,11 +474,11 @@ class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
     _what = "Calibrating"
     _unit = "images"
 
-    config: StringProperty(name="Config", default="",
+    config: StringProperty(name="Config", default="", options={"SKIP_SAVE"},
                            description="Scan config whose cell and probe are calibrated (empty: the panel's choice)")
     views: IntProperty(name="Board Poses", default=20, min=4, max=1000,
                        description="Poses from which the robot shows the board to the probe")
-    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
+    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH", options={"SKIP_SAVE"},
                                description="Folder for the calibration's files (empty: the panel's)")
 
     def _open(self, context):
@@ -505,17 +511,17 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
     _what = "Adaptive scan"
     _unit = "profiles of the budget"
 
-    config: StringProperty(name="Config", default="",
+    config: StringProperty(name="Config", default="", options={"SKIP_SAVE"},
                            description="Scan config (its [[path]] is ignored; empty: the panel's choice)")
-    max_profiles: IntProperty(name="Profile Budget", default=0, min=0, max=100_000,
+    max_profiles: IntProperty(name="Profile Budget", default=0, min=0, max=100_000, options={"SKIP_SAVE"},
                               description="Profiles the planner may take (0: the panel's, else the config's "
                                           "[adaptive] budget)")
     target_coverage: FloatProperty(name="Target Coverage", default=0.0, min=0.0, max=1.0, subtype="FACTOR",
                                    description="Stop once the planner's own coverage estimate reaches this share "
                                                "(0: the config's [adaptive] target, else none)")
-    engine: StringProperty(name="Engine", default="",
+    engine: StringProperty(name="Engine", default="", options={"SKIP_SAVE"},
                            description="cycles, eevee or raycast (empty: the panel's choice)")
-    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH",
+    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH", options={"SKIP_SAVE"},
                                description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
 
     def _open(self, context):

@@ -187,11 +187,12 @@ def test_neighbouring_links_are_not_pairs_but_distant_ones_are():
     assert ("link 1", "link 4") in names and ("probe", "table") in names and ("link 3", "workpiece") in names
 
 
-def test_a_fixture_in_the_lasers_way_is_warned_of_on_the_table_or_in_the_world():
-    """Fixtures are collision bodies only (no engine renders them), so a fixture the laser
+def test_a_world_fixture_in_the_lasers_way_is_warned_of_and_a_table_fixture_is_not():
+    """World fixtures are collision bodies only (no engine renders them), so one the laser
     meets before the part would not hide it: the plan says so, naming the fixture and the
-    frames. A post over the sphere's top (table frame), the same post given in the robot
-    base's frame at the table's axis, and one out of the laser's reach."""
+    frames. A post over the sphere's top given in the robot base's frame at the table's axis,
+    and one out of the laser's reach. The same post on the table is rendered with the part:
+    nothing to warn of."""
     from addon.core.safety import Fixture
     from addon.core.scan.plan import fixture_warnings
 
@@ -201,15 +202,18 @@ def test_a_fixture_in_the_lasers_way_is_warned_of_on_the_table_or_in_the_world()
     axis = demo.cell.table.table2base(0.0)
     world_post = post.copy()
     world_post.apply_transform(axis)
-    aside = post.copy()
+    aside = world_post.copy()
     aside.apply_translation([200.0, 0.0, 0.0])
-    for name, mesh, on in (("fixture post", post, "table"), ("fixture post", world_post, "world")):
-        plan = plan_scan(replace(demo, fixtures=(Fixture(name, mesh, on), Fixture("fixture aside", aside, "table"))))
-        met = fixture_warnings(plan.fixture_frames, len(plan.q))
-        assert len(met) == 1 and "fixture post" in met[0] and "not rendered" in met[0], met
-        # The demo's beam points at the sphere for most of its 180 frames: the post is in its way there.
-        assert set(plan.fixture_frames) == {"fixture post"} and len(plan.fixture_frames["fixture post"]) > 90
+    plan = plan_scan(replace(demo, fixtures=(Fixture("fixture post", world_post, "world"),
+                                             Fixture("fixture aside", aside, "world"))))
+    met = fixture_warnings(plan.fixture_frames, len(plan.q))
+    assert len(met) == 1 and "fixture post" in met[0] and "not rendered" in met[0], met
+    # The demo's beam points at the sphere for most of its 180 frames: the post is in its way there.
+    assert set(plan.fixture_frames) == {"fixture post"} and len(plan.fixture_frames["fixture post"]) > 90
     assert not plan_scan(demo).fixture_frames
+    low = trimesh.creation.box([40.0, 40.0, 100.0])  # on the table: rendered (100 mm tall: inside the range)
+    low.apply_translation([0.0, 0.0, 50.0])
+    assert not plan_scan(replace(demo, fixtures=(Fixture("fixture post", low, "table"),))).fixture_frames
     # Step by step, the Scanner's report says the same, once per fixture however many moves:
     # of each sweep's 4 frames (y = -40, -13, 13, 40 mm; the line across the motion, along x),
     # the laser meets the two over the post's 40 mm, and at the two others the post stands
@@ -217,10 +221,10 @@ def test_a_fixture_in_the_lasers_way_is_warned_of_on_the_table_or_in_the_world()
     # line, camera 1 60 mm on the -y side, both at z = 215 mm: from (0, -40, 0) camera 0's
     # sight line crosses y = -20 at z = 72 mm, inside the 180 mm post).
     cfg = replace(demo, render=replace(demo.render, engine="raycast"),
-                  fixtures=(Fixture("fixture post", post, "table"),))
+                  fixtures=(Fixture("fixture post", world_post, "world"),))
     s = Scanner(config=cfg)
     for _ in range(2):
-        s.sweep([-20.0, -40.0, 215.0], [-20.0, 40.0, 215.0], 4)
+        s.sweep([-20.0, -40.0, 215.0], [-20.0, 40.0, 215.0], 4, table_deg=0.0)
     met = [w for w in s.report().to_dict()["warnings"] if "stands in the laser's way" in w]
     assert len(met) == 1 and "at 8 of 8 frames (0-7)" in met[0], met
     # A configured path run after them counts on from there, in the same one warning.
@@ -233,10 +237,11 @@ def test_a_fixture_in_the_lasers_way_is_warned_of_on_the_table_or_in_the_world()
 
 
 def test_a_fixture_that_hides_the_line_from_a_camera_only_is_warned_of_too():
-    """A small cube halfway along camera 0's sight line to the spot the laser's centre lights
-    on the table (30 mm off the laser plane, so the fan never meets it) hides that spot from
-    the camera: warned, as a table fixture and as the same cube given in the world. The same
-    cube beyond the camera, or mirrored off the sight line, hides nothing: no warning."""
+    """A small world fixture halfway along camera 0's sight line to the spot the laser's centre
+    lights on the table (30 mm off the laser plane, so the fan never meets it) hides that spot
+    from the camera: warned. The same cube beyond the camera, or 15 mm off the plane that every
+    sight line from the line to the camera lies in, hides nothing; nor does it where a table
+    fixture (rendered) already hides the spot from that camera nearer the table."""
     from addon.core.kinematics.path import sweep
     from addon.core.safety import Fixture
     from addon.core.scan.plan import cell_surfaces, fixtures_in_the_way
@@ -248,19 +253,26 @@ def test_a_fixture_that_hides_the_line_from_a_camera_only_is_warned_of_too():
     spot = np.array([-20.0, -140.0, 0.0])  # the beam straight down onto the table top (z = 0)
     camera = (probe2table[0] @ demo.probe.cam2probe(0))[:3, 3]
     assert abs(camera[1] - spot[1]) > 30  # the camera's sight line leaves the laser plane (y = -140)
+    # The plane of camera 0's sight lines: through the lit line (along x) and the camera.
+    off = np.cross([1.0, 0.0, 0.0], camera - spot)
+    off /= np.linalg.norm(off)
 
-    def cube(at):
+    def cube(at, on="world"):
         c = trimesh.creation.box([4.0, 4.0, 4.0])
         c.apply_translation(at)
+        if on == "world":
+            c.apply_transform(demo.cell.table.table2base(0.0))  # given in the robot base's frame
         return c
 
-    halfway = cube(spot + 0.5 * (camera - spot))
-    beyond = cube(spot + 1.3 * (camera - spot))  # above the probe, past the camera
-    aside = cube(spot + 0.5 * (camera - spot) + [30.0, 0.0, 0.0])
-    world = halfway.copy()
-    world.apply_transform(demo.cell.table.table2base(0.0))
-    surfaces = cell_surfaces(demo)
-    fixtures = (Fixture("fixture halfway", halfway, "table"), Fixture("fixture beyond", beyond, "table"),
-                Fixture("fixture aside", aside, "table"), Fixture("fixture world", world, "world"))
-    found = fixtures_in_the_way(replace(demo, fixtures=fixtures), probe2table, np.zeros(1), surfaces)
-    assert {k: v.tolist() for k, v in found.items()} == {"fixture halfway": [0], "fixture world": [0]}
+    def found(*fixtures):
+        cfg = replace(demo, fixtures=fixtures)
+        hits = fixtures_in_the_way(cfg, probe2table, np.zeros(1), cell_surfaces(cfg))
+        return {k: v.tolist() for k, v in hits.items()}
+
+    halfway = Fixture("fixture halfway", cube(spot + 0.5 * (camera - spot)), "world")
+    assert found(halfway, Fixture("fixture beyond", cube(spot + 1.3 * (camera - spot)), "world"),
+                 Fixture("fixture aside", cube(spot + 0.5 * (camera - spot) + 15.0 * off), "world")) \
+        == {"fixture halfway": [0]}
+    # A table fixture a quarter of the way up the same sight line hides the spot already.
+    wall = Fixture("fixture wall", cube(spot + 0.25 * (camera - spot), on="table"), "table")
+    assert found(halfway, wall) == {}

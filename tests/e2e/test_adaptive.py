@@ -286,4 +286,12 @@ def test_adaptive_steps_stay_responsive_and_a_dropped_run_adds_no_sweeps():
     assert [(s.sweep, s.profiles) for s in after_esc] == [(s.sweep, s.profiles) for s in again]
     frames = [frame for frame, _, _ in dropped.measurements()]  # the stopped sweep left no frame behind
     assert frames == list(range(sum(s.profiles for s in after_esc))) == list(range(dropped.report().frames))
+    # Esc after the first sweep: that sweep is listed beside its frames, the one under way is not.
+    later = Scanner(config=config)
+    steps = later.adaptive_steps(max_profiles=300)
+    while next(steps) <= sweeps[0].profiles:
+        pass
+    steps.close()
+    report = later.report().to_dict()
+    assert [s["profiles"] for s in report["adaptive"]["sweeps"]] == [sweeps[0].profiles] == [report["frames"]]
     assert whole.report().to_dict()["frames"] == sum(s.profiles for s in sweeps) >= max(seen)

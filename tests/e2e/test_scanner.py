@@ -124,6 +124,7 @@ def test_a_path_stopped_midway_keeps_nothing_of_it_and_the_scanner_goes_on():
     scanner = Scanner.from_config("demo")  # its own cell: the module's may have been replaced by now
     next_frame = scanner.measure().frame + 1
     before = (scanner.report().frames, len(scanner.cloud), scanner.q.copy(), scanner.table_deg)
+    kept = {k: scanner.report().to_dict()[k] for k in ("clearance", "warnings", "mean_rows_rendered")}
     path = sweep(24, [-40.0, 10.0, 210.0], [40.0, 10.0, 210.0], [0.0, 0.0, -1.0], None,
                  table_rad=math.radians(scanner.table_deg))
 
@@ -136,6 +137,7 @@ def test_a_path_stopped_midway_keeps_nothing_of_it_and_the_scanner_goes_on():
     frames, points, q, table_deg = before
     assert scanner.report().frames == frames and len(scanner.cloud) == points
     assert np.array_equal(scanner.q, q) and scanner.table_deg == table_deg
+    assert {k: scanner.report().to_dict()[k] for k in kept} == kept  # no clearance, warning or stats of it
     profiles = scanner.scan_path(path)
     assert [p.frame for p in profiles] == list(range(next_frame, next_frame + 24))
     assert scanner.report().frames == frames + 24 and len(scanner.cloud) == points + sum(len(p) for p in profiles)

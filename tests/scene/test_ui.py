@@ -412,7 +412,9 @@ def test_the_scan_box_sets_engine_frames_and_budget_and_the_operators_own_values
     assert bpy.ops.scanner.scan() == {"FINISHED"}
     report = json.loads(next((tmp_path / "box").glob("*/report.json")).read_text())
     assert report["config"]["engine"] == "raycast" and report["frames"] == 4
-    assert bpy.ops.scanner.scan(frames="0:20:10", engine="cycles", output_dir=str(tmp_path / "call")) == {"FINISHED"}
+    with pytest.raises(RuntimeError, match="engine 'foo' is not one of: cycles, eevee, raycast"):
+        bpy.ops.scanner.scan(engine="foo")
+    assert bpy.ops.scanner.scan(frames="0:20:10", engine="Cycles", output_dir=str(tmp_path / "call")) == {"FINISHED"}
     report = json.loads(next((tmp_path / "call").glob("*/report.json")).read_text())
     assert report["config"]["engine"] == "cycles" and report["frames"] == 2
     s.adaptive_budget = 2  # fits no sweep: the box's budget is the one used

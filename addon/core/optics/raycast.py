@@ -43,7 +43,7 @@ import numpy as np
 import trimesh
 
 from ..errors import InputError
-from .surfaces import DIFFUSE_SURFACES, SHARP_EDGE_DEG, TABLE_TOP
+from .surfaces import DIFFUSE_SURFACES, FIXTURE, SHARP_EDGE_DEG, TABLE_TOP
 from .laser_profile import LASER_RGB, angular_sigma_rad, gobo_strength, laser_power_w
 from .probe import Probe
 
@@ -282,14 +282,15 @@ _POOLS: dict = {}
 
 
 def cell_raycast_scene(workpiece_mesh: trimesh.Trimesh | None, surface: str = "grey",
-                       threads: int | None = None) -> RaycastScene:
-    """The ray-cast scene of a scan: the workpiece (of diffuse ``surface``) and the table top."""
+                       threads: int | None = None, fixtures=()) -> RaycastScene:
+    """The ray-cast scene of a scan: the workpiece (of diffuse ``surface``), the table top and
+    the table's ``fixtures`` (meshes, table frame, diffuse grey)."""
     from ..kinematics.turntable import table_top_mesh
 
     if surface not in DIFFUSE_SURFACES:
         raise InputError(f"the raycast engine renders diffuse surfaces ({', '.join(DIFFUSE_SURFACES)}); "
                          f"the {surface!r} surface needs light transport: use engine cycles")
-    parts = [(table_top_mesh(), TABLE_TOP)]
+    parts = [(table_top_mesh(), TABLE_TOP), *((m, FIXTURE) for m in fixtures)]
     if workpiece_mesh is not None:
         parts.insert(0, (workpiece_mesh, DIFFUSE_SURFACES[surface]))
     return RaycastScene(parts, threads)

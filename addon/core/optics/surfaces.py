@@ -11,5 +11,6 @@ from __future__ import annotations
 WORKPIECE_GREY = 0.6  # the paper's grey workpiece
 DIFFUSE_SURFACES = {"grey": (WORKPIECE_GREY,) * 3, "dark": (0.06, 0.06, 0.06)}  # workpiece surfaces, by name
 TABLE_TOP = (0.35, 0.35, 0.37)
+FIXTURE = (0.45, 0.45, 0.45)  # table fixtures (clamps, posts): a diffuse grey apart from the part's
 # Edges where the faces meet at more than this are sharp (Blender's own "auto smooth" angle).
 SHARP_EDGE_DEG = 30.0

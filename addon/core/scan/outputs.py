@@ -18,10 +18,10 @@ from ..config.scan import ScanConfig
 from ..files import png_bytes, write_set
 from ..geometry import metrics
 from ..geometry.cloud import Cloud, ply_bytes
-from ..geometry.footprint import SurfaceCaster, measurable_points
+from ..geometry.footprint import measurable_points
 from ..geometry.surface_fit import across_line
-from ..kinematics.turntable import TABLE_RADIUS_MM, table_top_mesh
-from .plan import Plan, fixture_warnings
+from ..kinematics.turntable import TABLE_RADIUS_MM
+from .plan import Plan, cell_surfaces, fixture_warnings, table_fixtures
 from .preview import render_preview
 from .report import report_json
 
@@ -150,7 +150,7 @@ def measurable_coverage(config: ScanConfig, probe2table: np.ndarray, part_points
     filter's incidence limit, seen by a camera) and that surface's share of the part."""
     if len(probe2table) == 0:
         return {"coverage_measurable": 0.0, "measurable_share": 0.0}
-    surfaces = SurfaceCaster([config.workpiece.mesh, table_top_mesh()])
+    surfaces = cell_surfaces(config)  # the table's fixtures hide the part as rendered
     reachable = measurable_points(config.probe, probe2table, surfaces, len(config.workpiece.mesh.faces),
                                   config.profile_filter.max_incidence_deg)
     cov, share = metrics.coverage_of_measurable(part_points, config.workpiece.mesh, reachable,
@@ -160,7 +160,8 @@ def measurable_coverage(config: ScanConfig, probe2table: np.ndarray, part_points
 
 def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | None = None
                           ) -> tuple[dict, np.ndarray, np.ndarray]:
-    """Error against the truth: points nearer the part count as the part's, the rest as the table's;
+    """Error against the truth: points nearer the part count as the part's, those nearer one of
+    the table's fixtures (rendered with the part) as the fixtures', the rest as the table's;
     coverage of the whole part and (given the frames' probe poses) of what the path can measure.
 
     Returns (report entries, on_part (n,) bool, |error| (n,) µm to the part)."""
@@ -168,18 +169,24 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
     P = cloud.points
     poses = np.zeros((0, 4, 4)) if probe2table is None else probe2table
     if len(P) == 0:
-        return ({"points_on_part": 0, "points_on_table": 0, "error_um": metrics.error_stats([]).as_dict(),
+        return ({"points_on_part": 0, "points_on_table": 0, "points_on_fixtures": 0,
+                 "error_um": metrics.error_stats([]).as_dict(),
                  "table_error_um": metrics.error_stats([]).as_dict(), "coverage": 0.0,
                  **measurable_coverage(config, poses, P),
                  "coverage_tolerance_mm": config.coverage_tolerance_mm}, np.zeros(0, bool), np.zeros(0))
     d_part, s_part = metrics.distances(P, wp.truth)
     radial = np.hypot(P[:, 0], P[:, 1])
     d_table = np.where(radial <= TABLE_RADIUS_MM, np.abs(P[:, 2]), np.inf)
-    on_part = d_part <= d_table
+    on_fixture = np.zeros(len(P), bool)
+    for f in table_fixtures(config):
+        on_fixture |= metrics.distances(P, f.mesh)[0] < np.minimum(d_part, d_table)
+    on_part = (d_part <= d_table) & ~on_fixture
+    on_table = ~on_part & ~on_fixture
     part = metrics.error_stats(d_part[on_part], None if s_part is None else s_part[on_part])
-    table = metrics.error_stats(d_table[~on_part], P[~on_part, 2])
+    table = metrics.error_stats(d_table[on_table], P[on_table, 2])
     coverage = metrics.coverage(P[on_part], wp.mesh, config.coverage_tolerance_mm)
-    return ({"points_on_part": int(on_part.sum()), "points_on_table": int((~on_part).sum()),
+    return ({"points_on_part": int(on_part.sum()), "points_on_table": int(on_table.sum()),
+             "points_on_fixtures": int(on_fixture.sum()),
              "error_um": part.as_dict(), "table_error_um": table.as_dict(), "coverage": coverage,
              **measurable_coverage(config, poses, P[on_part]),
              "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3)

@@ -33,7 +33,8 @@ class Plan:
     predicted_rows: np.ndarray
     warnings: list = field(default_factory=list)
     clearance: PathClearance | None = None
-    # {fixture name: frames (path indices) whose laser meets it before the part or the table}
+    # {world fixture name: frames (path indices) where it stands in the laser's way or hides the
+    # line from a camera (see fixtures_in_the_way)}
     fixture_frames: dict = field(default_factory=dict)
 
 
@@ -142,24 +143,25 @@ FIXTURE_RAYS = 33
 # met again at distance 0 (Embree's hits are single precision: about 1e-5 mm at this range).
 SIGHT_OFFSET_MM = 1e-2
 
-_FIXTURE_CASTERS: list = []  # (the config's fixtures tuple, {"table"|"world": SurfaceCaster})
+_FIXTURE_CASTERS: list = []  # (the config's fixtures tuple, [(world fixture name, SurfaceCaster)])
 
 
 def fixtures_in_the_way(config: ScanConfig, probe2table: np.ndarray, table_rad: np.ndarray,
                         surfaces: SurfaceCaster) -> dict:
-    """{fixture name: frame indices (into probe2table)} where a fixture stands in the laser fan's
-    way inside the probe's range before the part or the table, or on the sight line between a
-    spot the fan lights there and a camera that would see it (the spot inside the camera's image
-    and not hidden by the part or the table). Fixtures are collision bodies only: no engine
-    renders them, so such a fixture would not hide what lies behind it; the scan warns of it
-    instead of passing it over. Table fixtures are cast in the table frame, world fixtures in the
-    robot base's frame (the rays carried there per frame)."""
-    if not config.fixtures or not len(probe2table):
+    """{fixture name: frame indices (into probe2table)} where a world fixture stands in the
+    laser fan's way inside the probe's range before the part, the table or its fixtures, or on
+    the sight line between a spot the fan lights there and a camera that would see it (the spot
+    inside the camera's image and not hidden by what ``surfaces`` holds). World fixtures (walls,
+    posts beside the cell) are collision bodies only: no engine renders them, so such a fixture
+    would not hide what lies behind it; the scan warns of it instead of passing it over. Table
+    fixtures are rendered with the part (see :func:`table_fixtures`) and are never warned of.
+    The rays are carried into the robot base's frame per frame."""
+    world = tuple(f for f in config.fixtures if f.on == "world")
+    if not world or not len(probe2table):
         return {}
     casters = next((c for f, c in _FIXTURE_CASTERS if f is config.fixtures), None)
     if casters is None:
-        casters = {on: [(f.name, SurfaceCaster([f.mesh])) for f in config.fixtures if f.on == on]
-                   for on in ("table", "world")}
+        casters = [(f.name, SurfaceCaster([f.mesh])) for f in world]
         _FIXTURE_CASTERS.insert(0, (config.fixtures, casters))
         del _FIXTURE_CASTERS[4:]
     probe = config.probe
@@ -199,22 +201,28 @@ def fixtures_in_the_way(config: ScanConfig, probe2table: np.ndarray, table_rad: 
     world_o = np.einsum("nij,nj->ni", to_base[:, :3, :3], o) + to_base[:, :3, 3]
     world_d = np.einsum("nij,nj->ni", to_base[:, :3, :3], d)
     out = {}
-    for on, (oo, dd) in (("table", (o, d)), ("world", (world_o, world_d))):
-        for name, caster in casters[on]:
-            pts, ray, _ = caster.caster.intersects_location(oo, dd, multiple_hits=False)
-            met = ray[np.linalg.norm(pts - oo[ray], axis=1) < length[ray]]
-            if len(met):
-                out[name] = np.unique(frame[met])
+    for name, caster in casters:
+        pts, ray, _ = caster.caster.intersects_location(world_o, world_d, multiple_hits=False)
+        met = ray[np.linalg.norm(pts - world_o[ray], axis=1) < length[ray]]
+        if len(met):
+            out[name] = np.unique(frame[met])
     return out
 
 
 def fixture_warnings(fixture_frames: dict, frames: int) -> list[str]:
     """One warning per fixture in the way (see :func:`fixtures_in_the_way`)."""
     return [f"{name} stands in the laser's way or hides its line from a camera at {len(idx)} of {frames} frames "
-            f"({frame_ranges(list(idx))}): fixtures are collision bodies only, not rendered, so the cloud shows "
+            f"({frame_ranges(list(idx))}): fixtures on = \"world\" are collision bodies only, not rendered, so the cloud shows "
             f"what lies behind {name} as if it were not there" for name, idx in fixture_frames.items()]
 
 
+def table_fixtures(config: ScanConfig) -> tuple:
+    """The fixtures that turn with the table: every engine renders them with the part, so they
+    hide and shadow it and their points join the cloud (counted apart from the part's)."""
+    return tuple(f for f in config.fixtures if f.on == "table")
+
+
 def cell_surfaces(config: ScanConfig) -> SurfaceCaster:
-    """What the laser can meet in a scan: the part and the table top, ready for ray casts."""
-    return SurfaceCaster([config.workpiece.mesh, table_top_mesh()])
+    """What the laser can meet in a scan: the part (its faces first), the table top and the
+    table's fixtures, ready for ray casts."""
+    return SurfaceCaster([config.workpiece.mesh, table_top_mesh(), *(f.mesh for f in table_fixtures(config))])

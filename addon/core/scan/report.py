@@ -39,7 +39,8 @@ def _nan(value) -> float:
 class ScanReport:
     """What a scan measured and what it cost.
 
-    frames: profiles taken; points: in the cloud (on the part / on the table); error_um: of the
+    frames: profiles taken; points: in the cloud (on the part / on the table / on the table's
+    fixtures, nearer a fixture than the part and the table top); error_um: of the
     part's points against its exact shape; table_error_um: of the table's points against its
     top; coverage: share of the part's whole surface within coverage_tolerance_mm of a point;
     coverage_measurable: the same share of the surface the path's laser can measure (in range,
@@ -75,6 +76,7 @@ class ScanReport:
     warnings: list = field(default_factory=list)
     clearance: dict | None = None
     software: dict = field(default_factory=dict)
+    points_on_fixtures: int = 0
     render_device: str | None = None
     extra: dict = field(default_factory=dict)  # anything else a run adds (a farm's shard counts)
 
