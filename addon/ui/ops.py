@@ -218,6 +218,17 @@ def _with_engine(context, cfg, engine: str):
         raise InputError(f"Engine {engine}: {why}") from None
 
 
+def _report_warnings(op, report: dict) -> str:
+    """Each of a scan's warnings as a warning report of ``op`` (the Info editor lists them);
+    a note for its summary line saying how many there were."""
+    warnings = report.get("warnings", [])
+    for w in warnings:
+        op.report({"WARNING"}, w)
+    if not warnings:
+        return ""
+    return f" ({len(warnings)} warning{'s' if len(warnings) != 1 else ''}: see the Info editor or report.json)"
+
+
 def _checked_output(folder: str, config_name: str):
     """The output folder a scan will write into, refused before any rendering where it cannot
     be written, or where it is relative (//...) to a .blend never saved (it would land
@@ -428,8 +439,9 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
     def _finish(self, context, scanner, _):
         result = scanner.result(self._folder)
         _import_result(context, scanner, result)
+        warned = _report_warnings(self, result.report)
         self.report({"INFO"}, f"Scanned {result.report['points']} points, {_error_text(result.report['error_um'])}; "
-                              f"files in {result.files['cloud'].parent}{_colour_text()}")
+                              f"files in {result.files['cloud'].parent}{_colour_text()}{warned}")
         return {"FINISHED"}
 
 
@@ -547,8 +559,10 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
         _import_result(context, scanner, result)
         r = result.report
         views = f"{len(steps)} view{'s' if len(steps) != 1 else ''}"
+        warned = _report_warnings(self, r)
         self.report({"INFO"}, f"Adaptive scan: {views}, {r['frames']} profiles, {r['points']} points, "
-                              f"{_error_text(r['error_um'])}; files in {result.files['cloud'].parent}{_colour_text()}")
+                              f"{_error_text(r['error_um'])}; files in {result.files['cloud'].parent}{_colour_text()}"
+                              f"{warned}")
         return {"FINISHED"}
 
 

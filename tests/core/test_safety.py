@@ -114,7 +114,7 @@ def test_a_pose_with_a_link_in_the_table_is_refused_naming_that_link():
         pts.append(world @ base2table[:3, :3].T + base2table[:3, 3])
     assert _inside_the_table(np.vstack(pts)).any()
     # The pose itself is refused naming the link.
-    with pytest.raises(CollisionError, match="at frame 0: the link 4 touches the table"):
+    with pytest.raises(CollisionError, match="at frame 0: link 4 touches the table"):
         check_motion(cfg, q[None, :], np.zeros(1))
     # A scanner refuses to move there (the probe sweeps through the table on the way first) and
     # stays where it was, clear.

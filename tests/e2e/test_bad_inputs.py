@@ -379,6 +379,18 @@ CASES = [
                                     f'file = "{good_cube_stl(t)}"\nscale = 0'))], 2, "allowed > 0"),
     ("fixture: scale zero",
      lambda t: ["scan", scene(t, DEMO + f'\n[[fixture]]\nfile = "{good_cube_stl(t)}"\nscale = 0\n')], 2, "allowed > 0"),
+    ("fixture: scale far too large",
+     lambda t: ["scan", scene(t, DEMO + f'\n[[fixture]]\nfile = "{good_cube_stl(t)}"\nscale = 1e6\n')], 2,
+     "the fixture is 4e+07 mm across"),
+    ("fixture: two of one name", lambda t: ["scan", scene(t, DEMO + 2 * (
+        f'\n[[fixture]]\nname = "c"\nfile = "{good_cube_stl(t)}"\n[fixture.pose]\nxyz_mm = [100, 0, 0]\n'))],
+     2, "fixture[2].name: 'fixture c' names an earlier fixture too"),
+    ("fixture: empty name",
+     lambda t: ["scan", scene(t, DEMO + f'\n[[fixture]]\nname = " "\nfile = "{good_cube_stl(t)}"\n')], 2,
+     "fixture[1].name: is empty"),
+    ("fixture: on the table but wholly beyond it", lambda t: ["scan", scene(t, DEMO + (
+        f'\n[[fixture]]\nname = "far"\nfile = "{good_cube_stl(t)}"\n[fixture.pose]\nxyz_mm = [400, 0, 0]\n'))],
+     2, "fixture far lies wholly beyond the table"),
     # options
     ("option: --frames step zero", demo("--frames", "0:4:0"), 2, "--frames"),
     ("option: --frames words", demo("--frames", "a:b"), 2, "--frames"),

@@ -427,6 +427,36 @@ def test_the_scan_box_sets_engine_frames_and_budget_and_the_operators_own_values
     assert first.stat().st_mtime_ns == written  # the refused scan wrote nothing over the first one
 
 
+def test_a_scans_warnings_reach_the_panel_user(panel, tmp_path, capfd):
+    """A world fixture over the sphere (not rendered: warned of in report.json) is said by the
+    Scan operator too, as a warning report, and its summary line counts it."""
+    import json
+    from pathlib import Path
+
+    import trimesh
+
+    post = trimesh.creation.box([40.0, 40.0, 100.0])
+    post.apply_translation([0.0, 0.0, 50.0])
+    post.apply_transform(load_scan_config_table2base())
+    post.export(tmp_path / "post.stl")
+    demo = (Path(__file__).parents[2] / "rigs/scenes/demo.toml").read_text()
+    (tmp_path / "post.toml").write_text(demo + '\n[[fixture]]\nname = "post"\nfile = "post.stl"\non = "world"\n')
+    s = panel.scanner
+    s.scan_config, s.scan_file, s.scan_engine = "FILE", str(tmp_path / "post.toml"), "raycast"
+    capfd.readouterr()
+    assert bpy.ops.scanner.scan(frames="0:100:25", output_dir=str(tmp_path / "out")) == {"FINISHED"}
+    said = capfd.readouterr()
+    report = json.loads(next((tmp_path / "out").glob("*/report.json")).read_text())
+    (warning,) = [w for w in report["warnings"] if "fixture post" in w]
+    assert warning in said.out + said.err and "(1 warning: see the Info editor" in said.out + said.err
+
+
+def load_scan_config_table2base():
+    from addon.core.config.scan import load_scan_config
+
+    return load_scan_config("demo").cell.table.table2base(0.0)
+
+
 def test_the_adaptive_operator_scans_from_the_box_and_brings_the_cloud_in(panel, tmp_path):
     # a budget no sweep fits: told so, nothing written
     assert bpy.ops.scanner.adaptive(config="demo", max_profiles=2, output_dir=str(tmp_path)) == {"CANCELLED"}

@@ -71,7 +71,7 @@ from .rigs import load_probe
 from ..optics.sensor import SensorModel
 from ..optics.profile_filter import ProfileFilter
 from ..optics.triangulate import TRIANGULATION_METHODS
-from ..kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, Turntable
+from ..kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, TABLE_RADIUS_MM, Turntable
 from ..geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
 from ..safety import FIXTURE_CARRIERS, Fixture, Safety
 
@@ -417,17 +417,28 @@ def _adaptive(t: Table) -> AdaptiveSettings:
 def _fixtures(top: Table, base: Path) -> tuple:
     out = []
     for i, t in enumerate(top.tables("fixture") if top.has("fixture") else []):
-        name = t.string("name", default=f"fixture {i + 1}")
+        name = t.string("name", default=f"fixture {i + 1}").strip()
+        if not name:
+            raise t.error("name", "is empty: give each fixture a name, or leave the key out (fixture 1, 2, ...)")
         if not name.startswith("fixture"):
             name = f"fixture {name}"
+        if any(f.name == name for f in out):
+            raise t.error("name", f"{name!r} names an earlier fixture too: each needs its own name, which the "
+                                  f"collision messages and warnings use")
         f = Path(t.string("file"))
         scale = t.number("scale", default=None, lo=0.0, lo_open=True)
         on = t.string("on", default="table", choices=list(FIXTURE_CARRIERS))
         pose = t.pose("pose")  # its own errors name its own keys
         try:
-            mesh = load_workpiece(f if f.is_absolute() else base / f, pose, scale).mesh
+            mesh = load_workpiece(f if f.is_absolute() else base / f, pose, scale, role="fixture").mesh
         except (InputError, ConfigError) as exc:
             raise t.error("file", str(exc)) from None
+        nearest = float(np.hypot(mesh.vertices[:, 0], mesh.vertices[:, 1]).min())
+        if on == "table" and nearest > TABLE_RADIUS_MM + 1.0:
+            raise t.error("on", f"{name} lies wholly beyond the table (its nearest point {nearest:.0f} mm from the "
+                                f"axis, the table's radius {TABLE_RADIUS_MM:g} mm), so nothing holds it as the table "
+                                f"turns: place it on the table (pose xyz_mm in the table frame), or give "
+                                f"on = \"world\" for a fixture that stands beside the cell")
         t.finish()
         out.append(Fixture(name, mesh, on))
     return tuple(out)

@@ -89,8 +89,9 @@ def check_mesh(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
     return mesh
 
 
-def load_workpiece(path: str | Path, pose=None, scale: float | None = None) -> Workpiece:
-    """A mesh file (STL/OBJ/PLY/GLB/glTF) placed by ``pose`` in the table frame; its truth is the mesh."""
+def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role: str = "part") -> Workpiece:
+    """A mesh file (STL/OBJ/PLY/GLB/glTF) placed by ``pose`` in the table frame; its truth is the
+    mesh. ``role``: what the mesh is, for the messages (the part, a fixture)."""
     path = Path(path)
     if path.suffix.lower() not in FORMATS:
         raise InputError(f"{path}: unsupported mesh format {path.suffix or '(none)'}; use one of {', '.join(FORMATS)}")
@@ -121,9 +122,10 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None) -> W
     # A file's own, narrower size range first, so every part of the wrong size gets one message.
     extent = float(np.max(mesh.extents))
     if not FILE_MIN_EXTENT_MM <= extent <= FILE_MAX_EXTENT_MM:
-        raise InputError(f"{path}: the part is {extent:.4g} mm across (scale {scale:g}); parts on the table are "
+        key = "the workpiece's" if role == "part" else f"the {role}'s"
+        raise InputError(f"{path}: the {role} is {extent:.4g} mm across (scale {scale:g}); {role}s in the cell are "
                          f"{FILE_MIN_EXTENT_MM:g} to {FILE_MAX_EXTENT_MM:g} mm: is the file in another unit? "
-                         "Set the workpiece's scale key (e.g. scale = 1000 for metres, 25.4 for inches)")
+                         f"Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches)")
     check_mesh(mesh, str(path))
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)

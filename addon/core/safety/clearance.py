@@ -109,7 +109,7 @@ class PathClearance:
         how = ("touches" if worst.distance_mm <= 0 else f"comes within {worst.distance_mm:.2f} mm of")
         allowed = ("they must not touch" if _robot_pair(first) else
                    f"at least {self.min_clearance_mm:g} mm allowed ([safety] min_clearance_mm)")
-        return f"{where}: the {first.body_a} {how} the {first.body_b}; {allowed}"
+        return f"{where}: {_the(first.body_a)} {how} {_the(first.body_b)}; {allowed}"
 
     @staticmethod
     def merge(parts: list["PathClearance"]) -> "PathClearance":
@@ -404,3 +404,6 @@ class CollisionModel:
         return self.check(np.asarray(q, dtype=np.float64).reshape(1, 6), np.array([float(table_rad)]))
 
 
+def _the(body: str) -> str:
+    """A body's name in a sentence: "link 3" and "fixture clamp" as they are, "the probe"."""
+    return body if body.startswith(("link ", "fixture ")) else f"the {body}"

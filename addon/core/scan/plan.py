@@ -122,7 +122,8 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
         z0, z1 = config.probe.z_range_mm
         raise ScannerError(f"{len(foot.empty_frames)} of {n} waypoints put no surface inside the probe's "
                            f"range {z0:.0f}-{z1:.0f} mm (frames {frame_ranges(foot.empty_frames)}): "
-                           "move the path closer to or farther from the part")
+                           "move the path closer to or farther from the part (or from whatever the laser meets "
+                           "first there: the table, a fixture)")
     cameras = foot.cameras_needed() if config.leave_out.skip_blind_cameras or allow_blind else (0, 1)
     if not cameras and not allow_blind:
         raise ScannerError("neither camera sees the laser line anywhere on the path (hidden or off the sensors)")
