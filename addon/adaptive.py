@@ -22,7 +22,9 @@ import numpy as np
 from .core.config.scan import MAX_PROFILES
 from .core.errors import CollisionError, InputError, UnreachablePose
 from .core.geometry.known_space import UNKNOWN, KnownSpace
+from .core.geometry.metrics import distances
 from .core.scan import next_view
+from .core.scan.plan import table_fixtures
 
 VOXEL_MM = 2.0
 OVERVIEW_MAX_TILT_DEG = 45.0  # steeper turns look at the sides and miss the top: not an overview
@@ -30,6 +32,7 @@ MARGIN_MM = 6.0   # the model's box around the part's
 TRIES = 12        # candidates asked for reachability per decision, best first
 TABLE_CLEARANCE_MM = 0.2  # a point this far above the table top is the part's (see part_radius)
 OUTSIDE_WARNING = 0.05  # a share of the points outside the part's box that says the box is too small
+FIXTURE_NEAR_MM = 0.5  # a point this near one of the table's fixtures is the fixture's
 
 
 @dataclass(frozen=True)
@@ -92,6 +95,9 @@ class NextBestView:
         self.refused: list[str] = []  # why, for the last decision
         self.looked = False  # the overview pass has been chosen (or there was none to choose)
         self.frames_seen = 0  # the scanner's frames learnt from (catch_up)
+        # The table's fixtures are the cell's, known as the table is (never the part's mesh):
+        # their points are left out of the part's reach and of the box check.
+        self.fixtures = [f.mesh for f in table_fixtures(scanner.config)]
         self.points_seen = 0  # points above the table top learnt from ...
         self.points_outside = 0  # ... and of them, farther than a cell outside the part's box
         # Cells a view scanned was expected to see (its fan met the cell first, unknown, in
@@ -174,13 +180,16 @@ class NextBestView:
         if not len(P):
             return
         self.space.add_points(origin, P)
-        above = P[P[:, 2] > TABLE_CLEARANCE_MM]
+        fixture = np.zeros(len(P), bool)
+        for mesh in self.fixtures:
+            fixture |= distances(P, mesh)[0] < FIXTURE_NEAR_MM
+        above = P[(P[:, 2] > TABLE_CLEARANCE_MM) & ~fixture]
         self.points_seen += len(above)
         pad = self.space.voxel
         self.points_outside += int(np.sum(np.any((above < self.lo - pad) | (above > self.hi + pad), axis=1)))
         floor = max(self.lo[2], 0.0) + TABLE_CLEARANCE_MM  # the table top is z = 0 in the table frame
         part = np.all((P[:, :2] >= self.lo[:2]) & (P[:, :2] <= self.hi[:2]), axis=1) & (P[:, 2] > floor) \
-            & (P[:, 2] <= self.hi[2])
+            & (P[:, 2] <= self.hi[2]) & ~fixture
         if part.any():
             r = float(np.max(np.hypot(P[part, 0], P[part, 1])))
             self.reach = r if self.reach is None else max(self.reach, r)

@@ -244,6 +244,21 @@ def test_a_box_told_too_small_for_the_part_is_warned_about(capsys):
     Scanner(config=config).adaptive(([-12.0, -12.0, 0.0], [12.0, 12.0, 20.0]), max_profiles=150,
                                     log=lines.append)
     assert any("warning" in line and "outside the part's box" in line for line in lines), lines[-3:]
+    # A block on the table beside the sphere (a fixture of the cell, known as the table is)
+    # lies outside the box: its points are the fixture's, not a part too big for its box.
+    from dataclasses import replace
+
+    import trimesh
+
+    from addon.core.safety import Fixture
+
+    bar = trimesh.creation.box([20.0, 80.0, 40.0])
+    bar.apply_translation([45.0, 0.0, 20.0])
+    lines = []
+    with_bar = Scanner(config=replace(config, fixtures=(Fixture("fixture bar", bar, "table"),)))
+    with_bar.adaptive(max_profiles=200, log=lines.append)
+    assert with_bar.report().to_dict()["points_on_fixtures"] > 1000
+    assert not any("outside the part's box" in line for line in lines), lines
 
 
 def test_min_gain_is_checked(tmp_path):
