@@ -257,8 +257,8 @@ def test_a_fixture_that_hides_the_line_from_a_camera_only_is_warned_of_too():
     off = np.cross([1.0, 0.0, 0.0], camera - spot)
     off /= np.linalg.norm(off)
 
-    def cube(at, on="world"):
-        c = trimesh.creation.box([4.0, 4.0, 4.0])
+    def cube(at, on="world", size=(4.0, 4.0, 4.0)):
+        c = trimesh.creation.box(size)
         c.apply_translation(at)
         if on == "world":
             c.apply_transform(demo.cell.table.table2base(0.0))  # given in the robot base's frame
@@ -273,6 +273,7 @@ def test_a_fixture_that_hides_the_line_from_a_camera_only_is_warned_of_too():
     assert found(halfway, Fixture("fixture beyond", cube(spot + 1.3 * (camera - spot)), "world"),
                  Fixture("fixture aside", cube(spot + 0.5 * (camera - spot) + 15.0 * off), "world")) \
         == {"fixture halfway": [0]}
-    # A table fixture a quarter of the way up the same sight line hides the spot already.
-    wall = Fixture("fixture wall", cube(spot + 0.25 * (camera - spot), on="table"), "table")
+    # A table fixture a quarter of the way up the same sight line, 12 mm long along the line
+    # (so it covers every sight line the cube halfway up crosses), hides those spots already.
+    wall = Fixture("fixture wall", cube(spot + 0.25 * (camera - spot), on="table", size=(12.0, 4.0, 4.0)), "table")
     assert found(halfway, wall) == {}

@@ -138,8 +138,10 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
                 warnings, fixture_frames=fixtures)
 
 
-# Rays of the laser fan cast per frame against the fixtures.
-FIXTURE_RAYS = 33
+# Rays of the laser fan cast per frame against the world fixtures: one per sensor column, at
+# most this many (the default probe's 160 put them 1.6 mm apart at 215 mm, so a rod or a
+# fence wire of a few mm is not missed between two rays).
+FIXTURE_RAYS = 256
 # How far a sight line starts off the lit spot (mm), so that the surface the spot lies on is not
 # met again at distance 0 (Embree's hits are single precision: about 1e-5 mm at this range).
 SIGHT_OFFSET_MM = 1e-2
@@ -167,7 +169,7 @@ def fixtures_in_the_way(config: ScanConfig, probe2table: np.ndarray, table_rad: 
         del _FIXTURE_CASTERS[4:]
     probe = config.probe
     table_rad = np.asarray(table_rad, dtype=np.float64)
-    n, rays = len(probe2table), FIXTURE_RAYS
+    n, rays = len(probe2table), min(probe.cols_px, FIXTURE_RAYS)
     alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
     local = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
     origins = np.repeat(probe2table[:, :3, 3], rays, axis=0)
