@@ -22,7 +22,7 @@ import numpy as np
 from .core.config.scan import MAX_PROFILES
 from .core.errors import CollisionError, InputError, UnreachablePose
 from .core.geometry.known_space import UNKNOWN, KnownSpace
-from .core.geometry.metrics import distances
+from .core.geometry.metrics import NearMesh
 from .core.scan import next_view
 from .core.scan.plan import table_fixtures
 
@@ -97,7 +97,7 @@ class NextBestView:
         self.frames_seen = 0  # the scanner's frames learnt from (catch_up)
         # The table's fixtures are the cell's, known as the table is (never the part's mesh):
         # their points are left out of the part's reach and of the box check.
-        self.fixtures = [f.mesh for f in table_fixtures(scanner.config)]
+        self.fixtures = [NearMesh(f.mesh) for f in table_fixtures(scanner.config)]
         self.points_seen = 0  # points above the table top learnt from ...
         self.points_outside = 0  # ... and of them, farther than a cell outside the part's box
         # Cells a view scanned was expected to see (its fan met the cell first, unknown, in
@@ -181,8 +181,8 @@ class NextBestView:
             return
         self.space.add_points(origin, P)
         fixture = np.zeros(len(P), bool)
-        for mesh in self.fixtures:
-            fixture |= distances(P, mesh)[0] < FIXTURE_NEAR_MM
+        for near in self.fixtures:
+            fixture |= near.within(P, FIXTURE_NEAR_MM)
         above = P[(P[:, 2] > TABLE_CLEARANCE_MM) & ~fixture]
         self.points_seen += len(above)
         pad = self.space.voxel

@@ -27,12 +27,14 @@ def set_table_angle(obj: bpy.types.Object, theta_rad: float) -> None:
 
 def add_fixture(collection, fixture, table_obj: bpy.types.Object) -> bpy.types.Object:
     """A table fixture (``core.safety.Fixture``, mesh in table coordinates) as a child of the
-    table, diffuse grey: rendered with the part, so it hides and shadows it as on a real table."""
+    table, diffuse grey: rendered with the part, so it hides and shadows it as on a real table.
+    It has an instance twin, as the part has."""
     obj = mesh_object(fixture.name[:1].upper() + fixture.name[1:], fixture.mesh, collection,
-                      diffuse("Fixture", FIXTURE))
+                      diffuse("Scanner fixture", FIXTURE))
     obj.parent = table_obj
     obj.matrix_parent_inverse.identity()
     obj.matrix_basis = to_blender(np.eye(4))
+    _add_twin(collection, obj)
     return obj
 
 
@@ -54,11 +56,16 @@ def add_workpiece(collection, workpiece: Workpiece, table_obj: bpy.types.Object,
     obj.matrix_parent_inverse.identity()
     obj.matrix_basis = to_blender(np.eye(4))
     obj["source"] = workpiece.source
+    _add_twin(collection, obj)
+    return obj
+
+
+def _add_twin(collection, obj: bpy.types.Object) -> None:
+    """A second user of ``obj``'s mesh, out of every view (see :func:`add_workpiece`)."""
     twin = bpy.data.objects.new(f"{obj.name} (instance twin)", obj.data)
     collection.objects.link(twin)
     twin.location = TWIN_OFFSET_M
     twin.hide_viewport = True
     twin.hide_select = True
-    twin["purpose"] = ("a second user of the part's mesh, out of every view: Cycles then builds the part's ray "
+    twin["purpose"] = (f"a second user of {obj.name}'s mesh, out of every view: Cycles then builds its ray "
                        "structure once per scan instead of every frame")
-    return obj

@@ -106,3 +106,21 @@ def test_cartesian_target_frames():
     np.testing.assert_array_equal(cell.target_in_base(T, "base"), T)
     with pytest.raises(InputError, match="relative_to"):
         cell.target_in_base(T, "world")
+
+
+def test_how_near_a_mesh_comes_to_the_table_axis_counts_its_faces_not_only_its_corners():
+    import math
+
+    import trimesh
+
+    from addon.core.kinematics.turntable import nearest_to_axis_mm
+
+    bar = trimesh.creation.box([400.0, 20.0, 20.0])  # across the table, its ends beyond the rim
+    bar.apply_translation([0.0, 60.0, 10.0])
+    assert nearest_to_axis_mm(bar) == pytest.approx(50.0)  # its near side, y = 50; every corner is > 200 away
+    far = trimesh.creation.box([40.0, 40.0, 40.0])
+    far.apply_translation([400.0, 0.0, 20.0])
+    assert nearest_to_axis_mm(far) == pytest.approx(380.0)
+    assert nearest_to_axis_mm(trimesh.creation.box([40.0, 40.0, 40.0])) == 0.0  # over the axis
+    ring = trimesh.creation.annulus(r_min=50.0, r_max=60.0, height=10.0, sections=64)
+    assert nearest_to_axis_mm(ring) == pytest.approx(50.0 * math.cos(math.pi / 64), abs=1e-6)  # the inner chords

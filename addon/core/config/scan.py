@@ -71,7 +71,7 @@ from .rigs import load_probe
 from ..optics.sensor import SensorModel
 from ..optics.profile_filter import ProfileFilter
 from ..optics.triangulate import TRIANGULATION_METHODS
-from ..kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, TABLE_RADIUS_MM, Turntable
+from ..kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, TABLE_RADIUS_MM, Turntable, nearest_to_axis_mm
 from ..geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
 from ..safety import FIXTURE_CARRIERS, Fixture, Safety
 
@@ -433,7 +433,7 @@ def _fixtures(top: Table, base: Path) -> tuple:
             mesh = load_workpiece(f if f.is_absolute() else base / f, pose, scale, role="fixture").mesh
         except (InputError, ConfigError) as exc:
             raise t.error("file", str(exc)) from None
-        nearest = float(np.hypot(mesh.vertices[:, 0], mesh.vertices[:, 1]).min())
+        nearest = nearest_to_axis_mm(mesh)
         if on == "table" and nearest > TABLE_RADIUS_MM + 1.0:
             raise t.error("on", f"{name} lies wholly beyond the table (its nearest point {nearest:.0f} mm from the "
                                 f"axis, the table's radius {TABLE_RADIUS_MM:g} mm), so nothing holds it as the table "

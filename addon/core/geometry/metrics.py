@@ -107,6 +107,41 @@ def _closest_faces(P: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarray, np
     return np.sqrt(np.maximum(np.asarray(d2), 0.0)), np.asarray(face, dtype=np.int64).ravel()
 
 
+class NearMesh:
+    """Which points lie within a distance of one mesh (a fixture), asked again and again: the
+    mesh's AABB tree (libigl) is built once, and points farther than the distance from the
+    mesh's bounding box are answered without it."""
+
+    def __init__(self, mesh: trimesh.Trimesh):
+        self.mesh = mesh
+        self.lo, self.hi = (np.asarray(b, dtype=np.float64) for b in mesh.bounds)
+        self.V, self.F = _igl_mesh(mesh)
+        try:
+            import igl
+        except ImportError:
+            self.tree = None
+        else:
+            self.tree = igl.AABB()
+            self.tree.init(self.V, self.F)
+
+    def within(self, points, limit_mm) -> np.ndarray:
+        """(n,) bool: points (n, 3) nearer the mesh than ``limit_mm`` (a number or (n,))."""
+        P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        limit = np.broadcast_to(np.asarray(limit_mm, dtype=np.float64), (len(P),))
+        to_box = np.linalg.norm(np.maximum(np.maximum(self.lo - P, P - self.hi), 0.0), axis=1)
+        out = np.zeros(len(P), bool)
+        near = np.flatnonzero(to_box < limit)
+        if not len(near):
+            return out
+        Q = np.ascontiguousarray(P[near])
+        if self.tree is None:
+            d = _closest_faces(Q, self.mesh)[0]
+        else:
+            d = np.sqrt(np.maximum(np.asarray(self.tree.squared_distance(self.V, self.F, Q)[0]), 0.0))
+        out[near] = d < limit[near]
+        return out
+
+
 def evaluate(points, truth) -> ErrorStats:
     d, s = distances(points, truth)
     return error_stats(d, s)

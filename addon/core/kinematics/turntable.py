@@ -64,3 +64,26 @@ def table_top_mesh(radius_mm: float = TABLE_RADIUS_MM, thickness_mm: float = TAB
     disc = trimesh.creation.cylinder(radius=radius_mm, height=thickness_mm, sections=128)
     disc.apply_translation([0.0, 0.0, -thickness_mm / 2])
     return disc
+
+
+def nearest_to_axis_mm(mesh) -> float:
+    """How near any point of ``mesh`` (table frame) comes to the table's axis, seen from above:
+    0 where its outline covers the axis. Exact on the triangles' projections, not only their
+    corners (a bar across the table whose ends lie beyond its rim passes over the axis)."""
+    T = np.asarray(mesh.triangles, dtype=np.float64)[:, :, :2]
+    if not len(T):
+        return float("inf")
+    a, b, c = T[:, 0], T[:, 1], T[:, 2]
+
+    def cross(p, q):
+        return p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]
+
+    s = np.column_stack([cross(b - a, -a), cross(c - b, -b), cross(a - c, -c)])
+    if np.any((s >= 0).all(axis=1) | (s <= 0).all(axis=1)):
+        return 0.0
+    nearest = np.inf
+    for p, q in ((a, b), (b, c), (c, a)):
+        e = q - p
+        t = np.clip(-np.einsum("ij,ij->i", p, e) / np.maximum(np.einsum("ij,ij->i", e, e), 1e-300), 0.0, 1.0)
+        nearest = min(nearest, float(np.linalg.norm(p + t[:, None] * e, axis=1).min()))
+    return nearest

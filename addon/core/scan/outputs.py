@@ -179,7 +179,7 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
     d_table = np.where(radial <= TABLE_RADIUS_MM, np.abs(P[:, 2]), np.inf)
     on_fixture = np.zeros(len(P), bool)
     for f in table_fixtures(config):
-        on_fixture |= metrics.distances(P, f.mesh)[0] < np.minimum(d_part, d_table)
+        on_fixture |= metrics.NearMesh(f.mesh).within(P, np.minimum(d_part, d_table))
     on_part = (d_part <= d_table) & ~on_fixture
     on_table = ~on_part & ~on_fixture
     part = metrics.error_stats(d_part[on_part], None if s_part is None else s_part[on_part])
