@@ -41,3 +41,20 @@ def test_colour_bar_labels_keep_two_figures_however_small_the_scale():
     assert [bar_label(f * 55.0, 55.0) for f in (0.0, 0.5, 1.0)] == ["0", "28", "55"]
     assert bar_label(0.4, 0.4) == "0.40" and bar_label(250.0, 250.0) == "250"
     assert bar_label(0.0, 1e-6) == "0.000" and bar_label(float("nan"), float("nan")) == "nan"
+
+
+def test_the_preview_draws_points_on_fixtures_in_their_own_colour():
+    from addon.core.scan.preview import FIXTURE_BGR, render_preview
+
+    box = trimesh.creation.box([40.0, 40.0, 20.0])
+    box.apply_translation([0.0, 0.0, 10.0])
+    g = np.linspace(-60.0, 60.0, 60)
+    x, y = np.meshgrid(g, g)
+    table = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    fixture = table[:, 0] > 30.0  # say these lie on a clamp
+    err = np.zeros(len(table))
+    off = np.zeros(len(table), bool)
+    without = render_preview(box, table, err, off, "t", size=(400, 300))
+    with_fixture = render_preview(box, table, err, off, "t", size=(400, 300), on_fixture=fixture)
+    assert _count(without, FIXTURE_BGR) == 0 and _count(with_fixture, FIXTURE_BGR) > 100
+    assert _count(with_fixture, (150, 150, 150)) < _count(without, (150, 150, 150))

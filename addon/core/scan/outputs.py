@@ -175,11 +175,8 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
                  **measurable_coverage(config, poses, P),
                  "coverage_tolerance_mm": config.coverage_tolerance_mm}, np.zeros(0, bool), np.zeros(0))
     d_part, s_part = metrics.distances(P, wp.truth)
-    radial = np.hypot(P[:, 0], P[:, 1])
-    d_table = np.where(radial <= TABLE_RADIUS_MM, np.abs(P[:, 2]), np.inf)
-    on_fixture = np.zeros(len(P), bool)
-    for f in table_fixtures(config):
-        on_fixture |= metrics.NearMesh(f.mesh).within(P, np.minimum(d_part, d_table))
+    d_table = table_distance(P)
+    on_fixture = on_fixtures(config, P, d_part, d_table)
     on_part = (d_part <= d_table) & ~on_fixture
     on_table = ~on_part & ~on_fixture
     part = metrics.error_stats(d_part[on_part], None if s_part is None else s_part[on_part])
@@ -192,6 +189,20 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
              "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3)
 
 
+def table_distance(points: np.ndarray) -> np.ndarray:
+    """Distance (n,) mm of points (n, 3), table frame, to the table's top; inf beyond its rim."""
+    return np.where(np.hypot(points[:, 0], points[:, 1]) <= TABLE_RADIUS_MM, np.abs(points[:, 2]), np.inf)
+
+
+def on_fixtures(config: ScanConfig, points: np.ndarray, d_part: np.ndarray, d_table: np.ndarray) -> np.ndarray:
+    """(n,) bool: points nearer one of the table's fixtures than the part (``d_part``, mm) and
+    the table top (``d_table``)."""
+    out = np.zeros(len(points), bool)
+    for f in table_fixtures(config):
+        out |= metrics.NearMesh(f.mesh).within(points, np.minimum(d_part, d_table))
+    return out
+
+
 OUTPUT_FILES = {"cloud": "cloud.ply", "report": "report.json", "preview": "preview.png"}
 
 
@@ -202,7 +213,11 @@ def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, e
     e = report["error_um"]
     title = (f"{config.name}: {len(cloud)} points, RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
              f"coverage {report['coverage'] * 100:.0f} %")
-    picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title)
+    fixture = None
+    if report.get("points_on_fixtures"):
+        title += f", {report['points_on_fixtures']} on fixtures"
+        fixture = on_fixtures(config, cloud.points, np.asarray(err) * 1e-3, table_distance(cloud.points))
+    picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title, on_fixture=fixture)
     contents = {"cloud.ply": ply_bytes(cloud), "preview.png": png_bytes(picture)}
     report["time_s"]["write"] = round(time.perf_counter() - t, 4)
     report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)

@@ -63,9 +63,14 @@ def _canvas(mesh, pts: np.ndarray, W: int, H: int, bar_w: int):
     return img, ij, pz, visible
 
 
+FIXTURE_BGR = (150, 110, 60)  # points on the table's fixtures: a muted blue apart from the table's grey
+
+
 def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: np.ndarray | None,
-                   on_part: np.ndarray, title: str, size=(900, 640), scale_um: float | None = None) -> np.ndarray:
-    """BGR uint8 image. points (n, 3) mm table frame; error_um (n,) or None; on_part (n,) bool."""
+                   on_part: np.ndarray, title: str, size=(900, 640), scale_um: float | None = None,
+                   on_fixture: np.ndarray | None = None) -> np.ndarray:
+    """BGR uint8 image. points (n, 3) mm table frame; error_um (n,) or None; on_part (n,) bool;
+    on_fixture (n,) bool or None: points on the table's fixtures, drawn in their own colour."""
     W, H = size
     bar_w = 90
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -85,7 +90,7 @@ def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: n
             continue
         x, y = ij[k]
         if not on_part[k] or error_um is None:
-            img[y, x] = (150, 150, 150)
+            img[y, x] = FIXTURE_BGR if on_fixture is not None and on_fixture[k] else (150, 150, 150)
             continue
         c = _colour(min(error_um[k] / top, 1.0))
         cv2.circle(img, (int(x), int(y)), 1, c, -1)
