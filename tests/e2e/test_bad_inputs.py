@@ -385,6 +385,10 @@ CASES = [
     ("fixture: two of one name", lambda t: ["scan", scene(t, DEMO + 2 * (
         f'\n[[fixture]]\nname = "c"\nfile = "{good_cube_stl(t)}"\n[fixture.pose]\nxyz_mm = [100, 0, 0]\n'))],
      2, "fixture[2].name: 'fixture c' names an earlier fixture too"),
+    ("fixture: a default name taken", lambda t: ["scan", scene(t, DEMO + (
+        f'\n[[fixture]]\nname = "fixture 2"\nfile = "{good_cube_stl(t)}"\n[fixture.pose]\nxyz_mm = [100, 0, 0]\n'
+        f'\n[[fixture]]\nfile = "{good_cube_stl(t)}"\n[fixture.pose]\nxyz_mm = [-100, 0, 0]\n'))],
+     2, "fixture[2].name: 'fixture 2' (the name it gets without a name key) names an earlier fixture too"),
     ("fixture: empty name",
      lambda t: ["scan", scene(t, DEMO + f'\n[[fixture]]\nname = " "\nfile = "{good_cube_stl(t)}"\n')], 2,
      "fixture[1].name: is empty"),

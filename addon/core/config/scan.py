@@ -423,8 +423,10 @@ def _fixtures(top: Table, base: Path) -> tuple:
         if not name.startswith("fixture"):
             name = f"fixture {name}"
         if any(f.name == name for f in out):
-            raise t.error("name", f"{name!r} names an earlier fixture too: each needs its own name, which the "
-                                  f"collision messages and warnings use")
+            given = t.has("name")
+            raise t.error("name", f"{name!r}{'' if given else ' (the name it gets without a name key)'} names an "
+                                  f"earlier fixture too: each needs its own name, which the collision messages and "
+                                  f"warnings use")
         f = Path(t.string("file"))
         scale = t.number("scale", default=None, lo=0.0, lo_open=True)
         on = t.string("on", default="table", choices=list(FIXTURE_CARRIERS))
