@@ -137,6 +137,10 @@ class Scanner:
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
         self._clearances: list = []  # the collision check of every move and path (PathClearance)
         self._planner = None  # the adaptive planner of the last adaptive() call, to go on from
+        # False: sweeps and paths are still refused where they would collide, but their nearest
+        # clearance is not measured for the report (two thirds of a raycast sweep's time; a
+        # training loop's choice, see headless/scan_env.py).
+        self.keep_clearance = True
         self._fixture_frames: dict = {}  # {fixture: frames it stood in the way of the laser or a camera}
         if not len(config.waypoints):
             self._look_at_the_table()
@@ -388,8 +392,9 @@ class Scanner:
         return drain(self._waypoints_steps(waypoints, what, progress))
 
     def _waypoints_steps(self, waypoints: Waypoints, what: str, progress=None):
-        q, table_rad, found = self._plan_waypoints(waypoints, record=True, what=what)
-        return (yield from self._frames_steps(q, table_rad, progress=progress, clearance=found))
+        q, table_rad, found = self._plan_waypoints(waypoints, record=self.keep_clearance, what=what)
+        return (yield from self._frames_steps(q, table_rad, progress=progress,
+                                              clearance=found if self.keep_clearance else None))
 
     def run(self, progress=None) -> ScanReport:
         """Scan the configured path ([[path]] entries) from its start joints; the probe ends at

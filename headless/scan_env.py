@@ -6,15 +6,25 @@ Scanner over a part that only its bounding box reveals.
   either side) and the kind (0 a sweep at that angle, 1 a full table turn from that view):
   the candidates the reference planner chooses among. Sweeps go no steeper than
   ``next_view.MAX_SWEEP_TILT_DEG``; a steeper one is refused like a sweep the robot cannot do.
+  A table turn covers every angle, so its table step is ignored (each turn has 8 actions), and
+  sweeps tilted beyond ``MAX_SWEEP_TILT_DEG`` (the ±70° views) are always refused.
 - **observation** ``Dict(grid=Box(0, 2, (G, G, G), uint8), probe=Box((7,), float32))``: the
-  known-space model (0 unknown, 1 free, 2 surface) resampled to G³ cells over the part's box,
-  and the probe's position (mm, table frame), beam direction and the table angle / 360.
-- **reward**: the cells the sweep taught, in thousands, minus its time in seconds times
-  ``time_cost``; a sweep the robot cannot do (unreachable, colliding) scans nothing and
-  costs ``refusal_cost``.
+  known-space model (0 unknown, 1 free, 2 surface) pooled to G³ cells over the part's box (a
+  cell of the grid is surface where any model cell in it is, else unknown where any is, else
+  free: no surface found is lost to the pooling), and the probe's position (mm, table frame),
+  beam direction and the table angle / 360.
+- **reward**: the new coverage, the model's surface cells the sweep found, in hundreds, minus
+  its time in seconds times ``time_cost``; a sweep the robot cannot do (unreachable, colliding)
+  scans nothing and costs ``refusal_cost``. (Free air the laser crossed teaches the model too,
+  ``info["learnt"]``, but earns nothing.)
 - the episode ends when the profile budget is spent (terminated) or after ``max_steps``
-  steps (truncated); ``info`` gives the profiles so far, the cells learnt, the surface cells
-  and the model's own coverage estimate (``KnownSpace.coverage_estimate``).
+  steps (truncated); ``info`` has the same keys after ``reset`` and every ``step``: the sweep
+  (None after reset) and why it was refused (None: it was scanned), the profiles so far, the
+  cells learnt and the surface cells found by the last step, the model's surface cells and its
+  own coverage estimate (``KnownSpace.coverage_estimate``, a guide that runs above the truth).
+- ``engine``: the renderer, else the config's; ``"raycast"`` is the fast one for training.
+  The Scanner measures no per-path clearance for its report (``keep_clearance`` off): paths
+  are still refused where they would collide, at a third of the cost.
 
 Scans are deterministic, so equal seeds and actions give equal episodes. Each step renders a
 whole sweep (seconds on a CPU): this is a test bench, not a fast simulator of views.
@@ -32,7 +42,7 @@ from gymnasium import spaces
 from addon.adaptive import NextBestView, part_box
 from addon.core.config.scan import MAX_PROFILES
 from addon.core.errors import InputError, check_whole
-from addon.core.geometry.known_space import SURFACE
+from addon.core.geometry.known_space import FREE, SURFACE, UNKNOWN
 from addon.core.scan import next_view
 
 
@@ -43,7 +53,7 @@ class ScanPlanningEnv(gym.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, config: str = "demo", *, max_profiles: int = 600, grid: int = 16, max_steps: int = 32,
-                 time_cost: float = 0.01, refusal_cost: float = 0.5):
+                 time_cost: float = 0.01, refusal_cost: float = 0.5, engine: str | None = None):
         from addon.core.config.scan import load_scan_config
 
         def whole(v):  # numpy's integers too (a training loop's sweep passes np.int64)
@@ -60,6 +70,12 @@ class ScanPlanningEnv(gym.Env):
         elif not hasattr(config, "adaptive"):
             raise InputError(f"config must be a scan config's name, a path to its .toml file or a loaded ScanConfig, "
                              f"got {config!r}")
+        if engine is not None:
+            from addon.core.config.render import ENGINES
+
+            if engine not in ENGINES:
+                raise InputError(f"engine must be one of {', '.join(ENGINES)} (None: the config's), got {engine!r}")
+            config = config.with_overrides(engine=engine)
         self.config = config
         self.max_profiles, self.grid, self.max_steps = int(max_profiles), int(grid), int(max_steps)
         self.time_cost, self.refusal_cost = float(time_cost), float(refusal_cost)
@@ -79,11 +95,20 @@ class ScanPlanningEnv(gym.Env):
         from addon import Scanner
 
         self.scanner = Scanner(config=self.config)
+        self.scanner.keep_clearance = False  # collisions are still refused; the report's clearance is not measured
         lo, hi = part_box(self.config)
         self.planner = NextBestView(self.scanner, lo, hi)
         self._by_key = {c.key: c for c in self.planner.pool}
         self.profiles, self.steps = 0, 0
-        return self._observation(), {"profiles": 0, "surface_cells": 0, "coverage_estimate": 0.0}
+        return self._observation(), self._info({"sweep": None, "refused": None}, 0, 0)
+
+    def _info(self, info: dict, learnt: int, found: int) -> dict:
+        """The step's ``info``: the same keys after reset and after every step."""
+        return {**info, "profiles": self.profiles, "learnt": int(learnt), "new_surface_cells": int(found),
+                "surface_cells": self._surface_cells(), "coverage_estimate": self.planner.coverage_estimate()}
+
+    def _surface_cells(self) -> int:
+        return int((self.planner.space.state == SURFACE).sum())
 
     def step(self, action):
         if not hasattr(self, "_by_key"):
@@ -100,22 +125,22 @@ class ScanPlanningEnv(gym.Env):
         if c is None:  # a sweep steeper than next_view.MAX_SWEEP_TILT_DEG: only table turns look that low
             info = {"sweep": f"sweep at table {360.0 * table_step / next_view.TABLE_STEPS:.0f} deg, tilt "
                              f"{self.tilts[view]:.0f} deg", "refused": "no sweep is that steep (only table turns)"}
-            reward, learnt = -self.refusal_cost, 0
+            reward, learnt, found = -self.refusal_cost, 0, 0
         elif c.frames > self.max_profiles - self.profiles:
             info = {"sweep": c.describe(), "refused": "over the profile budget"}
-            reward, learnt = -self.refusal_cost, 0
+            reward, learnt, found = -self.refusal_cost, 0, 0
         elif not self.planner.feasible(self.scanner, c):
             info = {"sweep": c.describe(), "refused": self.planner.refused[-1]}
-            reward, learnt = -self.refusal_cost, 0
+            reward, learnt, found = -self.refusal_cost, 0, 0
         else:
             info = {"sweep": c.describe(), "refused": None}
             seconds = next_view.seconds(c, self.scanner.table_deg, self.scanner.pose("table")[:3, 3])
+            before = self._surface_cells()
             profiles, learnt = self.planner.scan(self.scanner, c)
+            found = max(self._surface_cells() - before, 0)
             self.profiles += len(profiles)
-            reward = learnt / 1000.0 - self.time_cost * seconds
-        info.update(profiles=self.profiles, learnt=learnt,
-                    surface_cells=int((self.planner.space.state == SURFACE).sum()),
-                    coverage_estimate=self.planner.coverage_estimate())
+            reward = found / 100.0 - self.time_cost * seconds
+        info = self._info(info, learnt, found)
         frames = next_view.turn_frames(self.planner.part_radius())
         terminated = self.profiles + min(self.planner.sized(c, frames).frames for c in self.planner.pool) \
             > self.max_profiles
@@ -124,9 +149,7 @@ class ScanPlanningEnv(gym.Env):
 
     # -- what the agent sees ----------------------------------------------------------------
     def _observation(self) -> dict:
-        state = self.planner.space.state
-        idx = [np.linspace(0, n - 1, self.grid).round().astype(int) for n in state.shape]
-        grid = state[np.ix_(*idx)].astype(np.uint8)
+        grid = pooled(self.planner.space.state, self.grid)
         pose = self.scanner.pose("table")
         probe = np.r_[np.clip(pose[:3, 3], -PROBE_REACH_MM, PROBE_REACH_MM), pose[:3, 2],
                       self.scanner.table_deg % 360.0 / 360.0].astype(np.float32)
@@ -144,6 +167,26 @@ class ScanPlanningEnv(gym.Env):
         step = int(round(c.table_deg * next_view.TABLE_STEPS / 360.0)) % next_view.TABLE_STEPS
         view = min(range(len(self.tilts)), key=lambda v: abs(self.tilts[v] - c.tilt_deg))
         return np.array([step, view, 1 if c.kind == "turn" else 0])
+
+
+# Pooling order: a grid cell shows the most telling state of the model cells in it.
+_RANK = np.zeros(3, np.uint8)
+_RANK[[FREE, UNKNOWN, SURFACE]] = (0, 1, 2)
+_STATE = np.array([FREE, UNKNOWN, SURFACE], np.uint8)
+
+
+def pooled(state: np.ndarray, cells: int) -> np.ndarray:
+    """The model's states (nx, ny, nz) on ``cells``³ cells: each the surface where any model cell
+    in it is surface, else unknown where any is unknown, else free; axes with fewer model cells
+    than ``cells`` repeat theirs."""
+    ranked = _RANK[state]
+    for axis, n in enumerate(state.shape):
+        if n >= cells:
+            starts = np.floor(np.linspace(0, n, cells + 1)[:-1]).astype(int)
+            ranked = np.maximum.reduceat(ranked, starts, axis=axis)
+        else:
+            ranked = np.take(ranked, np.linspace(0, n - 1, cells).round().astype(int), axis=axis)
+    return _STATE[ranked].astype(np.uint8)
 
 
 def coverage_curve(env: ScanPlanningEnv, policy, seed: int = 0) -> list[tuple[int, float]]:
@@ -178,12 +221,14 @@ def add_arguments(parser) -> None:
     parser.add_argument("--max-profiles", type=int, default=300, help="profile budget per episode (default 300)")
     parser.add_argument("--seed", type=int, default=0,
                         help="seed of the random baseline and the environment (default 0)")
+    parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"), default=None,
+                        help="render engine (default: the config's; raycast is the fast one)")
     parser.set_defaults(run=run)
 
 
 def run(args) -> int:
     """Both baselines through the environment, their coverage curves printed side by side."""
-    env = ScanPlanningEnv(args.config, max_profiles=args.max_profiles)
+    env = ScanPlanningEnv(args.config, max_profiles=args.max_profiles, engine=args.engine)
     print(f"ScanPlanningEnv on {env.config.name}: {args.max_profiles} profiles per episode, seed {args.seed}")
     for name, policy in (("reference planner", reference_policy), ("random sweeps", random_policy)):
         curve = coverage_curve(env, policy, seed=args.seed)

@@ -92,3 +92,45 @@ def test_an_action_outside_the_action_space_is_refused_in_one_line():
         with pytest.raises(ValueError, match="not in the action space"):
             env.step(bad)
     assert env.profiles == 0 and env.steps == 0  # nothing scanned, nothing counted
+
+
+def test_the_reward_pays_for_surface_found_and_info_keeps_its_keys_and_the_grid_its_surface():
+    """The reward counts the model's new surface cells (not free air crossed), so on the same
+    budget the reference planner earns more than random sweeps; info has the same keys after
+    reset and step; the pooled grid shows surface wherever the model has some; the raycast
+    engine is chosen here, and no clearance is measured for the report (collisions still are)."""
+    from headless.scan_env import pooled
+
+    env = ScanPlanningEnv("step_block", max_profiles=300, engine="raycast")
+    assert env.config.render.engine == "raycast"
+    returns = {}
+    for name, policy in (("planner", reference_policy), ("random", random_policy)):
+        _, first = env.reset(seed=2)
+        rng, total = np.random.default_rng(2), 0.0
+        while (action := policy(env, rng)) is not None:
+            before = int((env.planner.space.state == 2).sum())
+            obs, reward, terminated, truncated, info = env.step(action)
+            assert set(info) == set(first)
+            if info["refused"] is None:
+                found = int((env.planner.space.state == 2).sum()) - before
+                assert info["new_surface_cells"] == found and reward <= found / 100.0
+            total += reward
+            if terminated or truncated:
+                break
+        returns[name] = total
+        # every coarse cell holding model surface shows surface
+        assert (obs["grid"] == 2).sum() == (pooled(env.planner.space.state, 16) == 2).sum() > 0
+        assert env.scanner.report().to_dict()["clearance"] is None
+    assert returns["planner"] > returns["random"] + 5.0
+
+
+def test_pooling_keeps_surface_then_unknown_then_free():
+    from headless.scan_env import pooled
+
+    state = np.ones((6, 6, 6), np.uint8)  # free everywhere
+    state[0, 0, 0] = 2  # one surface cell
+    state[5, 5, 5] = 0  # one unknown cell
+    grid = pooled(state, 3)
+    assert grid.shape == (3, 3, 3) and grid[0, 0, 0] == 2 and grid[2, 2, 2] == 0
+    assert (grid == 1).sum() == 27 - 2
+    assert pooled(state, 12).shape == (12, 12, 12)  # a finer grid than the model repeats its cells
