@@ -56,3 +56,21 @@ def test_a_table_fixture_is_rendered_hides_what_lies_under_it_and_its_points_are
     # The part's figures leave the block's points out: its error stays what it was without the block.
     assert r["error_um"]["rms_um"] < bare.report["error_um"]["rms_um"] + 1.0
     assert r["error_um"]["max_um"] < 200  # none of the block's points (5 mm and more from the sphere) is the part's
+
+
+def test_a_jaw_pressed_against_the_part_takes_none_of_the_parts_points_and_gives_it_none_of_its_own():
+    """A clamp jaw pressed 0.5 mm into the sphere's side (raycast): the split by nearest surface
+    sends no point lying on the sphere to the jaw and no point lying on the jaw to the part,
+    judged by the sphere's and the box's own distance functions."""
+    centre, size = np.array([39.5, 0.0, 30.0]), np.array([20.0, 20.0, 20.0])
+    jaw = trimesh.creation.box(size)
+    jaw.apply_translation(centre)
+    result = demo("raycast", (Fixture("fixture jaw", jaw, "table"),))
+    P = result.cloud.points
+    to_sphere = np.abs(np.linalg.norm(P - [0.0, 0.0, 30.0], axis=1) - 30.0)
+    q = np.abs(P - centre) - size / 2
+    to_jaw = np.abs(np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0))
+    on_fixture = ~result.on_part & (P[:, 2] > 0.5)  # not the part's and above the table top
+    assert result.report["points_on_fixtures"] == on_fixture.sum() > 300
+    assert not (on_fixture & (to_sphere < 0.02)).any() and not (result.on_part & (to_jaw < 0.02)).any()
+    assert result.report["error_um"]["rms_um"] < 9.0
