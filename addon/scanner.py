@@ -89,7 +89,6 @@ def _workpiece(value) -> Workpiece:
     return builtin_workpiece(value) if value in BUILTINS else load_workpiece(value)
 
 
-
 def drain(steps):
     """Run a generator of steps (a scan's chunks) to its end; returns what it returns."""
     while True:
@@ -97,6 +96,7 @@ def drain(steps):
             next(steps)
         except StopIteration as done:
             return done.value
+
 
 class Scanner:
     """A simulated cell: a robot carrying the probe over a part on the rotary table.

@@ -394,6 +394,18 @@ def _import_result(context, scanner, result) -> None:
                      result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
 
 
+def _engine_property():
+    """An operator's render engine, empty for the Scan box's (SKIP_SAVE: see SCANNER_OT_scan)."""
+    return StringProperty(name="Engine", default="", options={"SKIP_SAVE"},
+                          description="cycles, eevee or raycast (empty: the panel's choice)")
+
+
+def _output_property(what: str):
+    """An operator's output folder for ``what``, empty for the panel's."""
+    return StringProperty(name="Output", default="", subtype="DIR_PATH", options={"SKIP_SAVE"},
+                          description=f"Folder for {what} (empty: the panel's)")
+
+
 class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
     """Run the chosen scan: render, detect, triangulate, and bring the cloud into the scene (Esc cancels)"""
 
@@ -410,10 +422,8 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
                            description="Scan config: a bundled name or a .toml path (empty: the panel's choice)")
     frames: StringProperty(name="Frames", default="", options={"SKIP_SAVE"},
                            description="Part of the path, as A:B or A:B:STEP (empty: the panel's, else all)")
-    engine: StringProperty(name="Engine", default="", options={"SKIP_SAVE"},
-                           description="cycles, eevee or raycast (empty: the panel's choice)")
-    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH", options={"SKIP_SAVE"},
-                               description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
+    engine: _engine_property()
+    output_dir: _output_property("cloud.ply, report.json, preview.png")
 
     def _config(self, context):
         from ..core.config.scan import parse_frames
@@ -490,8 +500,7 @@ class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
                            description="Scan config whose cell and probe are calibrated (empty: the panel's choice)")
     views: IntProperty(name="Board Poses", default=20, min=4, max=1000,
                        description="Poses from which the robot shows the board to the probe")
-    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH", options={"SKIP_SAVE"},
-                               description="Folder for the calibration's files (empty: the panel's)")
+    output_dir: _output_property("the calibration's files")
 
     def _open(self, context):
         from ..calibrate import calibrate_steps
@@ -531,10 +540,8 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
     target_coverage: FloatProperty(name="Target Coverage", default=0.0, min=0.0, max=1.0, subtype="FACTOR",
                                    description="Stop once the planner's own coverage estimate reaches this share "
                                                "(0: the config's [adaptive] target, else none)")
-    engine: StringProperty(name="Engine", default="", options={"SKIP_SAVE"},
-                           description="cycles, eevee or raycast (empty: the panel's choice)")
-    output_dir: StringProperty(name="Output", default="", subtype="DIR_PATH", options={"SKIP_SAVE"},
-                               description="Folder for cloud.ply, report.json, preview.png (empty: the panel's)")
+    engine: _engine_property()
+    output_dir: _output_property("cloud.ply, report.json, preview.png")
 
     def _open(self, context):
         from ..scanner import Scanner

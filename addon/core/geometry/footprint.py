@@ -72,6 +72,15 @@ class SurfaceCaster:
 RANGE_SLACK_MM = 1e-3
 
 
+def fan_rays(probe: Probe, poses: np.ndarray, rays: int) -> tuple[np.ndarray, np.ndarray]:
+    """(origins, directions) (n·rays, 3) of the laser fan of probe poses (n, 4, 4), ``rays``
+    spread evenly over the fan's angle; frame i's rays are rows i·rays to (i+1)·rays − 1."""
+    alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
+    local = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
+    dirs = np.einsum("nij,kj->nki", poses[:, :3, :3], local).reshape(-1, 3)
+    return np.repeat(poses[:, :3, 3], rays, axis=0), dirs
+
+
 def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.Trimesh] | SurfaceCaster,
                     rays: int = 65) -> Footprint:
     """Cast the laser fan for frames with probe poses ``probe2table`` (n, 4, 4) against ``meshes``
@@ -79,10 +88,8 @@ def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.
     caster = (meshes if isinstance(meshes, SurfaceCaster) else SurfaceCaster(meshes)).caster
     n = len(probe2table)
     alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
-    d_probe = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
     R, t = probe2table[:, :3, :3], probe2table[:, :3, 3]
-    origins = np.repeat(t, rays, axis=0)
-    dirs = np.einsum("nij,kj->nki", R, d_probe).reshape(-1, 3)
+    origins, dirs = fan_rays(probe, probe2table, rays)
     hit_pts, hit_ray = _first_hits(caster, origins, dirs)
     dist = np.full(n * rays, np.nan)
     dist[hit_ray] = np.linalg.norm(hit_pts - origins[hit_ray], axis=1)
@@ -100,7 +107,7 @@ def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.
         Rf, tf = R[frame_of[lit]], t[frame_of[lit]]
         local = np.einsum("nji,nj->ni", Rf, target - tf)  # into the probe frame: Rᵀ (p − t)
         for camera in (0, 1):
-            uv, visible = _seen_by(probe, caster, camera, Rf, tf, target, local)
+            uv, visible = seen_by(probe, caster, camera, Rf, tf, target, local)
             np.add.at(seen[:, camera], frame_of[lit[visible]], 1)
             f, v = frame_of[lit[visible]], uv[visible, 1]
             lo = np.full(n, np.inf)
@@ -112,8 +119,8 @@ def laser_footprint(probe: Probe, probe2table: np.ndarray, meshes: list[trimesh.
     return Footprint(depth, in_range, seen, rows)
 
 
-def _seen_by(probe: Probe, caster, camera: int, Rf: np.ndarray, tf: np.ndarray, target: np.ndarray,
-             local: np.ndarray):
+def seen_by(probe: Probe, caster, camera: int, Rf: np.ndarray, tf: np.ndarray, target: np.ndarray,
+            local: np.ndarray):
     """Sensor coordinates (m, 2) of points ``target`` (table frame; ``local`` in the probe frame
     of poses Rf, tf) in ``camera``, and whether the camera sees each: on its sensor, and the
     first surface along its ray is the point itself."""
@@ -145,8 +152,6 @@ def measurable_hits(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCast
     :func:`measurable_points`, before the cameras are asked: (points (m, 3) mm, table frame;
     frame (m,) index into ``probe2table``; seen (2, m) bool, by camera 0 and camera 1)."""
     rays = rays or probe.cols_px
-    alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
-    d_probe = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
     normals = surfaces.mesh.face_normals
     cos_limit = np.cos(np.radians(min(max_incidence_deg, 90.0)))
     z0, z1 = probe.z_range_mm
@@ -154,8 +159,7 @@ def measurable_hits(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCast
     for start in range(0, len(probe2table), chunk):
         T = probe2table[start:start + chunk]
         R, t = T[:, :3, :3], T[:, :3, 3]
-        origins = np.repeat(t, rays, axis=0)
-        dirs = np.einsum("nij,kj->nki", R, d_probe).reshape(-1, 3)
+        origins, dirs = fan_rays(probe, T, rays)
         if len(origins) == 0:
             continue
         pts, ray, tri = surfaces.caster.intersects_location(origins, dirs, multiple_hits=False)
@@ -170,7 +174,7 @@ def measurable_hits(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCast
         local = np.einsum("nji,nj->ni", R[frame], pts - t[frame])
         out_points.append(pts)
         out_frames.append(frame + start)
-        out_seen.append(np.stack([_seen_by(probe, surfaces.caster, camera, R[frame], t[frame], pts, local)[1]
+        out_seen.append(np.stack([seen_by(probe, surfaces.caster, camera, R[frame], t[frame], pts, local)[1]
                                   for camera in (0, 1)]))
     if not out_points:
         return np.zeros((0, 3)), np.zeros(0, dtype=int), np.zeros((2, 0), bool)

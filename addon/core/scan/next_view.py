@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..geometry.footprint import fan_rays
 from ..geometry.known_space import UNKNOWN, KnownSpace
 from ..kinematics import path as scanpath
 from ..optics.probe import Probe
@@ -150,18 +151,10 @@ def resampled_turn(c: Candidate, frames: int, table) -> Candidate:
                                             np.full(frames, wp.segment[0])))
 
 
-def fan_rays(probe: Probe, poses: np.ndarray, rays: int = SAMPLE_RAYS) -> tuple[np.ndarray, np.ndarray]:
-    """(origins, directions) (n·rays, 3) of the laser fan of probe poses (n, 4, 4)."""
-    alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
-    local = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
-    dirs = np.einsum("nij,kj->nki", poses[:, :3, :3], local).reshape(-1, 3)
-    return np.repeat(poses[:, :3, 3], rays, axis=0), dirs
-
-
 def new_cells(space: KnownSpace, probe: Probe, poses: np.ndarray) -> np.ndarray:
     """Indices (k, 3) of the distinct unknown cells the laser fans of ``poses`` (table frame)
     first meet within the probe's range: what those profiles would newly see."""
-    origins, dirs = fan_rays(probe, poses)
+    origins, dirs = fan_rays(probe, poses, SAMPLE_RAYS)
     z0, z1 = probe.z_range_mm
     dist, state = space.first_hits(origins, dirs, z1 / math.cos(probe.fan_rad / 2))
     depth = dist * np.repeat(np.cos(np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, SAMPLE_RAYS))[None],

@@ -67,7 +67,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     cloud, stats = across_the_lines(cloud, stats, poses, config)
     timing["neighbours"] = time.perf_counter() - t
     t = time.perf_counter()
-    quality, on_part, error_um = measure_against_truth(cloud, config, poses)
+    quality, on_part, error_um, on_fixture = measure_against_truth(cloud, config, poses)
     timing["metrics"] = time.perf_counter() - t
     n = int(len(stats["band_rows"]))
     scan_time = timing.get("render", 0.0) + timing.get("detect", 0.0) + timing.get("triangulate", 0.0)
@@ -111,7 +111,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     }
     files = {}
     if out_dir is not None:
-        files = write_outputs(Path(out_dir), cloud, report, config, on_part, error_um, t_start)
+        files = write_outputs(Path(out_dir), cloud, report, config, on_part, error_um, t_start, on_fixture)
     else:
         report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
     return ScanResult(cloud, report, files, error_um, on_part)
@@ -159,12 +159,12 @@ def measurable_coverage(config: ScanConfig, probe2table: np.ndarray, part_points
 
 
 def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | None = None
-                          ) -> tuple[dict, np.ndarray, np.ndarray]:
+                          ) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray]:
     """Error against the truth: points nearer the part count as the part's, those nearer one of
     the table's fixtures (rendered with the part) as the fixtures', the rest as the table's;
     coverage of the whole part and (given the frames' probe poses) of what the path can measure.
 
-    Returns (report entries, on_part (n,) bool, |error| (n,) µm to the part)."""
+    Returns (report entries, on_part (n,) bool, |error| (n,) µm to the part, on a fixture (n,) bool)."""
     wp = config.workpiece
     P = cloud.points
     poses = np.zeros((0, 4, 4)) if probe2table is None else probe2table
@@ -173,10 +173,12 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
                  "error_um": metrics.error_stats([]).as_dict(),
                  "table_error_um": metrics.error_stats([]).as_dict(), "coverage": 0.0,
                  **measurable_coverage(config, poses, P),
-                 "coverage_tolerance_mm": config.coverage_tolerance_mm}, np.zeros(0, bool), np.zeros(0))
+                 "coverage_tolerance_mm": config.coverage_tolerance_mm}, np.zeros(0, bool), np.zeros(0), np.zeros(0, bool))
     d_part, s_part = metrics.distances(P, wp.truth)
-    d_table = table_distance(P)
-    on_fixture = on_fixtures(config, P, d_part, d_table)
+    d_table = np.where(np.hypot(P[:, 0], P[:, 1]) <= TABLE_RADIUS_MM, np.abs(P[:, 2]), np.inf)
+    on_fixture = np.zeros(len(P), bool)  # nearer one of the table's fixtures than the part and the table top
+    for f in table_fixtures(config):
+        on_fixture |= metrics.NearMesh(f.mesh).within(P, np.minimum(d_part, d_table))
     on_part = (d_part <= d_table) & ~on_fixture
     on_table = ~on_part & ~on_fixture
     part = metrics.error_stats(d_part[on_part], None if s_part is None else s_part[on_part])
@@ -186,38 +188,23 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
              "points_on_fixtures": int(on_fixture.sum()),
              "error_um": part.as_dict(), "table_error_um": table.as_dict(), "coverage": coverage,
              **measurable_coverage(config, poses, P[on_part]),
-             "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3)
-
-
-def table_distance(points: np.ndarray) -> np.ndarray:
-    """Distance (n,) mm of points (n, 3), table frame, to the table's top; inf beyond its rim."""
-    return np.where(np.hypot(points[:, 0], points[:, 1]) <= TABLE_RADIUS_MM, np.abs(points[:, 2]), np.inf)
-
-
-def on_fixtures(config: ScanConfig, points: np.ndarray, d_part: np.ndarray, d_table: np.ndarray) -> np.ndarray:
-    """(n,) bool: points nearer one of the table's fixtures than the part (``d_part``, mm) and
-    the table top (``d_table``)."""
-    out = np.zeros(len(points), bool)
-    for f in table_fixtures(config):
-        out |= metrics.NearMesh(f.mesh).within(points, np.minimum(d_part, d_table))
-    return out
+             "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3, on_fixture)
 
 
 OUTPUT_FILES = {"cloud": "cloud.ply", "report": "report.json", "preview": "preview.png"}
 
 
-def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, err, t_start: float) -> dict:
+def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, err, t_start: float,
+                  on_fixture=None) -> dict:
     """cloud.ply, report.json and preview.png into ``out``, all together or none (files.write_set);
     the report's time_s gains the time taken to make them ("write") and the total."""
     t = time.perf_counter()
     e = report["error_um"]
     title = (f"{config.name}: {len(cloud)} points, RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
              f"coverage {report['coverage'] * 100:.0f} %")
-    fixture = None
     if report.get("points_on_fixtures"):
         title += f", {report['points_on_fixtures']} on fixtures"
-        fixture = on_fixtures(config, cloud.points, np.asarray(err) * 1e-3, table_distance(cloud.points))
-    picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title, on_fixture=fixture)
+    picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title, on_fixture=on_fixture)
     contents = {"cloud.ply": ply_bytes(cloud), "preview.png": png_bytes(picture)}
     report["time_s"]["write"] = round(time.perf_counter() - t, 4)
     report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..config.scan import ScanConfig
 from ..errors import CollisionError, ScannerError, UnreachablePose
-from ..geometry.footprint import SurfaceCaster, laser_footprint
+from ..geometry.footprint import OCCLUSION_EPS_MM, SurfaceCaster, fan_rays, laser_footprint, seen_by
 from ..kinematics.path import solve_path
 from ..kinematics.turntable import table_top_mesh
 from ..optics.probe import CAMERAS
@@ -142,9 +142,6 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
 # most this many (the default probe's 160 put them 1.6 mm apart at 215 mm, so a rod or a
 # fence wire of a few mm is not missed between two rays).
 FIXTURE_RAYS = 256
-# How far a sight line starts off the lit spot (mm), so that the surface the spot lies on is not
-# met again at distance 0 (Embree's hits are single precision: about 1e-5 mm at this range).
-SIGHT_OFFSET_MM = 1e-2
 
 _FIXTURE_CASTERS: list = []  # (the config's fixtures tuple, [(world fixture name, SurfaceCaster)])
 
@@ -171,9 +168,7 @@ def fixtures_in_the_way(config: ScanConfig, probe2table: np.ndarray, table_rad: 
     table_rad = np.asarray(table_rad, dtype=np.float64)
     n, rays = len(probe2table), min(probe.cols_px, FIXTURE_RAYS)
     alpha = np.linspace(-probe.fan_rad / 2, probe.fan_rad / 2, rays)
-    local = np.column_stack([np.zeros(rays), np.sin(alpha), np.cos(alpha)])
-    origins = np.repeat(probe2table[:, :3, 3], rays, axis=0)
-    dirs = np.einsum("nij,kj->nki", probe2table[:, :3, :3], local).reshape(-1, 3)
+    origins, dirs = fan_rays(probe, probe2table, rays)
     reach = np.tile(probe.z_range_mm[1] / np.cos(alpha), n)  # each ray's distance to the range's far end
     nearest = reach.copy()
     pts, ray, _ = surfaces.caster.intersects_location(origins, dirs, multiple_hits=False)
@@ -186,19 +181,13 @@ def fixtures_in_the_way(config: ScanConfig, probe2table: np.ndarray, table_rad: 
     if len(spot):
         R, t = probe2table[f, :3, :3], probe2table[f, :3, 3]
         spot_probe = np.einsum("nji,nj->ni", R, spot - t)  # Rᵀ (p − t)
-        for camera in CAMERAS:
-            centre = np.einsum("nij,j->ni", R, probe.cam2probe(camera)[:3, 3]) + t
-            to_cam = centre - spot
-            dist = np.linalg.norm(to_cam, axis=1)
-            u = to_cam / dist[:, None]
-            start = spot + SIGHT_OFFSET_MM * u
-            seen = np.isfinite(probe.project(spot_probe, camera)[:, 0])
-            hit, r, _ = surfaces.caster.intersects_location(start, u, multiple_hits=False)
-            hidden = np.zeros(len(spot), bool)
-            hidden[r] = np.linalg.norm(hit - start[r], axis=1) < dist[r] - SIGHT_OFFSET_MM
-            keep = seen & ~hidden
-            o.append(start[keep]), d.append(u[keep]), length.append(dist[keep] - SIGHT_OFFSET_MM)
-            frame.append(f[keep])
+        for camera in CAMERAS:  # the sight lines from each camera that sees a spot, up to it
+            _, seen = seen_by(probe, surfaces.caster, camera, R, t, spot, spot_probe)
+            centre = np.einsum("nij,j->ni", R[seen], probe.cam2probe(camera)[:3, 3]) + t[seen]
+            to_spot = spot[seen] - centre
+            dist = np.linalg.norm(to_spot, axis=1)
+            o.append(centre), d.append(to_spot / dist[:, None]), length.append(dist - OCCLUSION_EPS_MM)
+            frame.append(f[seen])
     o, d, length, frame = (np.concatenate(a) for a in (o, d, length, frame))
     to_base = config.cell.table.table2base(table_rad[frame])
     world_o = np.einsum("nij,nj->ni", to_base[:, :3, :3], o) + to_base[:, :3, 3]
