@@ -8,6 +8,13 @@ Scanner over a part that only its bounding box reveals.
   ``next_view.MAX_SWEEP_TILT_DEG``; a steeper one is refused like a sweep the robot cannot do.
   A table turn covers every angle, so its table step is ignored (each turn has 8 actions), and
   sweeps tilted beyond ``MAX_SWEEP_TILT_DEG`` (the ±70° views) are always refused.
+- **action mask** ``env.action_mask()`` and ``info["action_mask"]``: a bool array shaped like
+  the action space's ``nvec`` (table step, view, kind), False for the actions known to earn
+  nothing: sweeps steeper than ``MAX_SWEEP_TILT_DEG``, views over the profile budget left,
+  and views already scanned (scans are deterministic) or refused. What it cannot know
+  without planning the motion (about a second a view) is left True: a view that has not
+  been tried may still be unreachable or collide. ``sample_allowed(rng)`` draws uniformly
+  from the allowed actions; flatten the mask for a ``Discrete`` wrapper or a maskable agent.
 - **observation** ``Dict(grid=Box(0, 2, (G, G, G), uint8), probe=Box((7,), float32))``: the
   known-space model (0 unknown, 1 free, 2 surface) pooled to G³ cells over the part's box (a
   cell of the grid is surface where any model cell in it is, else unknown where any is, else
@@ -17,8 +24,8 @@ Scanner over a part that only its bounding box reveals.
   its time in seconds times ``time_cost``; a sweep the robot cannot do (unreachable, colliding)
   scans nothing and costs ``refusal_cost``. (Free air the laser crossed teaches the model too,
   ``info["learnt"]``, but earns nothing.)
-- the episode ends when the profile budget is spent (terminated) or after ``max_steps``
-  steps (truncated); ``info`` has the same keys after ``reset`` and every ``step``: the sweep
+- the episode ends when the profile budget is spent or every view has been tried (terminated),
+  or after ``max_steps`` steps (truncated); ``info`` has the same keys after ``reset`` and every ``step``: the sweep
   (None after reset) and why it was refused (None: it was scanned), the profiles so far, the
   cells learnt and the surface cells found by the last step, the model's surface cells and its
   own coverage estimate (``KnownSpace.coverage_estimate``, a guide that runs above the truth).
@@ -105,7 +112,27 @@ class ScanPlanningEnv(gym.Env):
     def _info(self, info: dict, learnt: int, found: int) -> dict:
         """The step's ``info``: the same keys after reset and after every step."""
         return {**info, "profiles": self.profiles, "learnt": int(learnt), "new_surface_cells": int(found),
-                "surface_cells": self._surface_cells(), "coverage_estimate": self.planner.coverage_estimate()}
+                "surface_cells": self._surface_cells(), "coverage_estimate": self.planner.coverage_estimate(),
+                "action_mask": self.action_mask()}
+
+    def action_mask(self) -> np.ndarray:
+        """Bool (table steps, views, 2): False where the action is known to earn nothing (see
+        the module's notes); True where it may still scan something."""
+        if not hasattr(self, "_by_key"):
+            raise RuntimeError("call reset() before action_mask()")
+        left = self.max_profiles - self.profiles
+        frames = next_view.turn_frames(self.planner.part_radius())
+        mask = np.zeros(tuple(int(n) for n in self.action_space.nvec), bool)
+        for index in np.ndindex(mask.shape):
+            c = self._by_key.get(self._key(*index))
+            mask[index] = (c is not None and c.key not in self.planner.impossible
+                           and self.planner.sized(c, frames).frames <= left)
+        return mask
+
+    def sample_allowed(self, rng: np.random.Generator) -> np.ndarray | None:
+        """An action drawn uniformly from those :meth:`action_mask` allows (None: none is)."""
+        allowed = np.argwhere(self.action_mask())
+        return None if not len(allowed) else allowed[rng.integers(len(allowed))].astype(np.int64)
 
     def _surface_cells(self) -> int:
         return int((self.planner.space.state == SURFACE).sum())
@@ -143,7 +170,7 @@ class ScanPlanningEnv(gym.Env):
         info = self._info(info, learnt, found)
         frames = next_view.turn_frames(self.planner.part_radius())
         terminated = self.profiles + min(self.planner.sized(c, frames).frames for c in self.planner.pool) \
-            > self.max_profiles
+            > self.max_profiles or not info["action_mask"].any()  # the budget spent, or every view tried
         truncated = self.steps >= self.max_steps
         return self._observation(), float(reward), bool(terminated), bool(truncated), info
 

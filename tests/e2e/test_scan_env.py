@@ -134,3 +134,33 @@ def test_pooling_keeps_surface_then_unknown_then_free():
     assert grid.shape == (3, 3, 3) and grid[0, 0, 0] == 2 and grid[2, 2, 2] == 0
     assert (grid == 1).sum() == 27 - 2
     assert pooled(state, 12).shape == (12, 12, 12)  # a finer grid than the model repeats its cells
+
+
+def test_the_action_mask_rules_out_steep_sweeps_views_scanned_and_views_over_the_budget():
+    """The mask is False exactly where the env itself would refuse or find nothing: sweeps
+    steeper than any the robot sweeps (refused by step), a view already scanned (scans are
+    deterministic: the same view again finds no new surface), a view with more profiles than
+    the budget has left; the allowed draw takes only what the mask allows."""
+    from addon.core.scan import next_view
+
+    env = ScanPlanningEnv("demo", max_profiles=300, engine="raycast")
+    _, info = env.reset(seed=0)
+    mask = info["action_mask"]
+    assert mask.shape == tuple(env.action_space.nvec) and mask.dtype == bool
+    steep = [v for v, t in enumerate(env.tilts) if abs(t) > next_view.MAX_SWEEP_TILT_DEG]
+    assert not mask[:, steep, 0].any() and mask[:, [v for v in range(len(env.tilts)) if v not in steep], 0].all()
+    assert mask[:, :, 1].all()  # every table turn fits 300 profiles (180 before the part's radius is known)
+    _, reward, _, _, info = env.step(np.array([0, steep[0], 0]))
+    assert info["refused"] and np.array_equal(info["action_mask"], mask)  # what was known already
+    _, _, _, _, info = env.step(np.array([2, 0, 0]))
+    assert info["refused"] is None and info["new_surface_cells"] > 0
+    assert not info["action_mask"][2, 0, 0] and info["action_mask"][3, 0, 0]
+    _, _, _, _, again = env.step(np.array([2, 0, 0]))  # what the mask ruled out indeed finds nothing
+    assert again["new_surface_cells"] == 0
+    rng = np.random.default_rng(0)
+    draws = [env.sample_allowed(rng) for _ in range(50)]
+    assert all(env.action_space.contains(a) and env.action_mask()[tuple(a)] for a in draws)
+    # a budget too small for any table turn masks them all, and the sweeps that still fit stay
+    env.max_profiles = env.profiles + next_view.turn_frames(env.planner.part_radius()) - 1
+    small = env.action_mask()
+    assert not small[:, :, 1].any() and small[:, :, 0].any()
