@@ -14,6 +14,7 @@ import bpy
 import numpy as np
 
 from ..core.geometry.cloud import Cloud
+from ..core.scan.preview import FIXTURE_BGR
 from .materials import bare_material
 from .units import M_PER_MM
 
@@ -67,6 +68,9 @@ def _cloud_material() -> bpy.types.Material:
     return mat
 
 
+# Points on the table's fixtures: preview.png's colour for them (BGR there), as linear RGB.
+FIXTURE_RGB = np.array(FIXTURE_BGR[::-1], np.float32) / 255.0
+
 # Custom property of an imported cloud's mesh: the error (µm) its colour scale reaches red at.
 ERROR_SCALE_KEY = "error_scale_um"
 
@@ -79,11 +83,12 @@ def error_scale_um(obj) -> float | None:
 
 def import_cloud(collection, cloud: Cloud, parent: bpy.types.Object | None, error_um: np.ndarray | None = None,
                  name: str = "Scan cloud", radius_mm: float = POINT_RADIUS_MM,
-                 on_part: np.ndarray | None = None) -> bpy.types.Object:
+                 on_part: np.ndarray | None = None, on_fixture: np.ndarray | None = None) -> bpy.types.Object:
     """A cloud (table frame, mm) as a points object under ``parent`` (the turntable).
 
     Points are coloured by ``error_um`` where ``on_part`` (default: all), from blue (0) to red
-    at the part's 95th percentile (kept as the mesh's ``error_scale_um``); the rest grey.
+    at the part's 95th percentile (kept as the mesh's ``error_scale_um``); those ``on_fixture``
+    (the table's clamps and stands) in preview.png's colour for them; the rest (the table) grey.
     """
     n = len(cloud)
     me = bpy.data.meshes.new(name)
@@ -103,6 +108,8 @@ def import_cloud(collection, cloud: Cloud, parent: bpy.types.Object | None, erro
             top = max(float(np.percentile(err[part], 95)), 1e-6)
             colour[part] = _turbo(err[part] / top)
             me[ERROR_SCALE_KEY] = top  # the colour scale's red end, for the panel's legend
+    if on_fixture is not None and n:
+        colour[np.asarray(on_fixture, bool)] = FIXTURE_RGB
     rgba = np.column_stack([colour, np.ones(n, np.float32)])
     c = me.color_attributes.new("error_colour", "FLOAT_COLOR", "POINT")
     c.data.foreach_set("color", rgba.ravel())

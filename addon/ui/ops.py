@@ -391,7 +391,7 @@ def _import_result(context, scanner, result) -> None:
         bpy.data.objects.remove(old, do_unlink=True)
     if context.scene.scanner.import_cloud and scanner.scene_cell is not None:
         import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
-                     result.error_um, name=models.CLOUD_NAME, on_part=result.on_part)
+                     result.error_um, name=models.CLOUD_NAME, on_part=result.on_part, on_fixture=result.on_fixture)
 
 
 def _engine_property():

@@ -607,3 +607,34 @@ def test_a_calibration_dropped_midway_writes_nothing_and_takes_the_board_away(pa
     steps.close()  # Esc
     assert "Calibration board" not in bpy.data.objects
     assert not (tmp_path / "cal").exists() or not any((tmp_path / "cal").iterdir())
+
+
+def test_points_on_a_table_fixture_come_in_with_the_previews_colour_for_them(panel, tmp_path):
+    """A block on the table beside the sphere: the imported cloud colours the block's points
+    (judged by the block's own geometry) as preview.png does, and none of the sphere's."""
+    from pathlib import Path
+
+    import trimesh
+
+    from addon.scene.cloud_object import FIXTURE_RGB, cloud_from_object
+
+    block = trimesh.creation.box([20.0, 60.0, 60.0])
+    block.apply_translation([45.0, 0.0, 30.0])
+    block.export(tmp_path / "block.stl")
+    demo = (Path(__file__).parents[2] / "rigs/scenes/demo.toml").read_text()
+    (tmp_path / "block.toml").write_text(demo + '\n[[fixture]]\nname = "block"\nfile = "block.stl"\non = "table"\n')
+    s = panel.scanner
+    s.scan_config, s.scan_file, s.scan_engine = "FILE", str(tmp_path / "block.toml"), "raycast"
+    assert bpy.ops.scanner.scan(frames="0:180:6", output_dir=str(tmp_path / "out")) == {"FINISHED"}
+    cloud = bpy.data.objects["Scan cloud"]
+    points = cloud_from_object(cloud).points
+    rgba = np.empty(4 * len(points), np.float32)
+    cloud.data.color_attributes["error_colour"].data.foreach_get("color", rgba)
+    fixture_coloured = np.all(np.isclose(rgba.reshape(-1, 4)[:, :3], FIXTURE_RGB, atol=1e-6), axis=1)
+    q = np.abs(points - [45.0, 0.0, 30.0]) - [10.0, 30.0, 30.0]
+    on_block = np.abs(np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)) < 0.2
+    from addon.core.config.scan import load_scan_config
+
+    on_sphere = load_scan_config("demo").workpiece.truth.distance(points) < 0.2
+    assert on_block.sum() > 50 and fixture_coloured[on_block].mean() > 0.98
+    assert on_sphere.sum() > 100 and not fixture_coloured[on_sphere].any()

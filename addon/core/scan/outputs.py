@@ -29,13 +29,15 @@ from .report import report_json
 @dataclass
 class ScanResult:
     """cloud (table frame); report (the report.json content); files written; per point:
-    |error| to the part in µm and whether the point counts as the part's (else the table's)."""
+    |error| to the part in µm, whether the point counts as the part's, and whether as one of
+    the table's fixtures' (neither: the table's)."""
 
     cloud: object
     report: dict
     files: dict
     error_um: np.ndarray | None = None
     on_part: np.ndarray | None = None
+    on_fixture: np.ndarray | None = None
 
 
 # Packages whose version a scan's figures depend on, where installed: the distribution's name.
@@ -114,7 +116,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         files = write_outputs(Path(out_dir), cloud, report, config, on_part, error_um, t_start, on_fixture)
     else:
         report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
-    return ScanResult(cloud, report, files, error_um, on_part)
+    return ScanResult(cloud, report, files, error_um, on_part, on_fixture)
 
 
 def across_the_lines(cloud: Cloud, stats: dict, poses, config: ScanConfig) -> tuple[Cloud, dict]:
