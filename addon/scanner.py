@@ -131,6 +131,7 @@ class Scanner:
         self._timing = {"plan": 0.0, "scene": 0.0, "render": 0.0, "detect": 0.0, "triangulate": 0.0}
         self._cameras: set[int] = set()
         self._warnings: list[str] = []
+        self._empty_frames: list[int] = []  # frames that put no surface inside the probe's range
         self._t0 = time.perf_counter()
         self._cached = None  # (frames measured, ScanResult) of the last result(): report() after save() is free
         self._extra: dict = {}  # what joins the report besides the scan itself (an adaptive scan's sweeps)
@@ -496,6 +497,8 @@ class Scanner:
         """Frames measured: their poses, the fixtures their laser met, the motion's clearance and
         the plan's warnings join the scan; the robot and the table stay at the last frame."""
         self._note_fixtures(plan.fixture_frames, self._frames)
+        # allowed step by step (a sweep may run past the part), never silent: see _range_warning
+        self._empty_frames += [self._frames + int(i) for i in getattr(plan, "empty_frames", ())]
         self._poses.append((np.array(q, dtype=np.float64), np.array(table_rad, dtype=np.float64)))
         if clearance is not None:
             self._clearances.append(clearance)
@@ -574,13 +577,26 @@ class Scanner:
         table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
         from .core.safety import PathClearance
 
-        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), list(self._warnings),
+        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)),
+                    list(self._warnings) + self._range_warning(),
                     PathClearance.merge(self._clearances) if self._clearances else None,
                     fixture_frames=self._fixture_frames)
         result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
                           {"render_device": render_device(self._raycaster, self._sc), **extra})
         self._cached = (key, result)
         return result
+
+    def _range_warning(self) -> list[str]:
+        """One line naming the frames that put no surface inside the probe's range (none: [])."""
+        if not self._empty_frames:
+            return []
+        from .pipeline import frame_ranges
+
+        z0, z1 = self.config.probe.z_range_mm
+        n = len(self._empty_frames)
+        return [f"{'frames' if n > 1 else 'frame'} {frame_ranges(self._empty_frames)} put no surface inside the "
+                f"probe's range {z0:.0f}-{z1:.0f} mm and measured nothing: the probe was too near or too far from "
+                f"the part and the table"]
 
     def report(self) -> ScanReport:
         """The report of everything measured so far: error against the part's exact shape,

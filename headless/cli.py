@@ -42,9 +42,10 @@ import re
 import signal
 import sys
 
-from addon.core.errors import ScannerError
+from addon.core.errors import FolderBusy, ScannerError
 
 EXIT_USER_ERROR = 2
+EXIT_BUSY = 75  # sysexits' EX_TEMPFAIL: the output folder is another scan's for now; try again later
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -172,6 +173,9 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
                   f"finished and wrote its results)", file=sys.stderr, flush=True)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers, not at the interpreter's exit
         return code
+    except FolderBusy as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_BUSY
     except ScannerError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USER_ERROR

@@ -13,7 +13,7 @@ from addon.core.config.rigs import load_probe
 from addon.core.geometry.workpiece import builtin_workpiece
 
 STAND_OFF_MM = 150.0
-READY_DEG = (0.0, 40.0, -100.0, 0.0, -30.0, 0.0)  # elbow up, wrist down: a natural scanning posture
+READY_DEG = (0.0, 40.0, -100.0, 0.0, -30.0, 0.0)  # the IK seed of the sweep below (elbow up)
 
 
 def build(scene, robot: str = "adept_viper_s650", probe: str = "default", workpiece: str = "sphere",

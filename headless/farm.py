@@ -32,6 +32,7 @@ from addon.core.errors import InputError, ScannerError, check_whole
 # Times a shard is submitted again after the cluster cancels it (its scattered inputs lost
 # with a dying worker) before the farm gives up.
 SHARD_RETRIES = 3
+MAX_WORKERS = 1024  # --workers at most
 
 # A worker process's cell, kept between shards of the same scan: {fingerprint: SceneCell}.
 _WORKER_CELL: dict = {}
@@ -132,7 +133,7 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     from addon.core.geometry.cloud import Cloud
     from addon.pipeline import assemble, merge_stats, plan_scan
 
-    check_whole(workers, "--workers", 1, 1024)
+    check_whole(workers, "--workers", 1, MAX_WORKERS)
     if render_threads is not None:
         check_whole(render_threads, "render threads", 1, 1024)
     if scheduler is not None:
@@ -212,6 +213,13 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
                     f"(worker pid {info['pid']}{', cell reused' if info['reused_cell'] else ''})")
     wall = time.perf_counter() - t_farm
     results = [shards.read(folder / s.file_name(), s, fp) for s in parts]  # checked again before merging
+    expected = {s.file_name() for s in parts}
+    others = sorted(p.name for p in folder.glob("shard_*.npz") if p.name not in expected)
+    if others:  # another split's (another scan, or --shard-frames): never read, never removed
+        many = len(others) > 1
+        log(f"farm: {len(others)} shard file{'s' if many else ''} in {folder} {'are' if many else 'is'} another "
+            f"split's (e.g. {others[0]}), not this scan's: left as {'they are' if many else 'it is'}; remove "
+            f"{'them' if many else 'it'} once that scan is done")
     cloud = Cloud.concatenate([r.cloud for r in results])
     stats = merge_stats([r.stats for r in results])
     timing = {"plan": t_plan}

@@ -2,7 +2,8 @@
 
 Exit codes: 0 done; 2 the config or an option is wrong, or a file cannot be written
 (one line on stderr, no files written); 3 the scan ran but its RMS error exceeds
-``--max-rms-um``; 130 stopped by Ctrl-C (143: SIGTERM), nothing written.
+``--max-rms-um`` (or no point lands on the part); 75 another scan holds the output folder
+(try again later); 130 stopped by Ctrl-C (143: SIGTERM), nothing written.
 
 Before the first render: the config, the options, the output folder, the render's
 size against memory and time, the temporary folder's room and the scheduler's
@@ -185,10 +186,22 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
     config = config.with_overrides(engine=args.engine, samples=args.samples,
                                    resolution=parse_resolution(args.resolution), detect=args.detect,
                                    frames=parse_frames(args.frames, "--frames"), device=args.device)
-    if args.max_rms_um is not None and not args.max_rms_um > 0:
+    if args.max_rms_um is not None and not 0 < args.max_rms_um < float("inf"):
         from addon.core.errors import InputError
 
-        raise InputError(f"--max-rms-um must be a positive number of micrometres, got {args.max_rms_um}")
+        raise InputError(f"--max-rms-um must be a positive, finite number of micrometres, got {args.max_rms_um}")
+    if args.workers is not None:
+        from addon.core.errors import check_whole
+        from headless.farm import MAX_WORKERS
+
+        check_whole(args.workers, "--workers", 1, MAX_WORKERS)
+    if args.shard is not None and (args.workers is not None or args.scheduler is not None or args.merge):
+        from addon.core.errors import InputError
+
+        given = next(o for o, v in (("--workers", args.workers), ("--scheduler", args.scheduler),
+                                    ("--merge", args.merge or None)) if v is not None)
+        raise InputError(f"--shard K runs one shard in this process, so {given} has nothing to do with it; "
+                         f"leave {given} out, or run the whole job without --shard")
     if args.shard_frames is not None and not 1 <= args.shard_frames <= len(config.waypoints):
         from addon.core.errors import InputError
 
@@ -264,6 +277,10 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
     wall = time.perf_counter() - t
     print_summary(result, wall)
     e = result.report["error_um"]
+    if args.max_rms_um is not None and not result.report["points_on_part"]:
+        print(f"error: no point landed on the part, so its RMS error cannot be held to --max-rms-um "
+              f"{args.max_rms_um:g}", file=sys.stderr)
+        return EXIT_QUALITY
     if args.max_rms_um is not None and not e["rms_um"] <= args.max_rms_um:
         print(f"error: RMS error {e['rms_um']:.1f} um exceeds --max-rms-um {args.max_rms_um:g}", file=sys.stderr)
         return EXIT_QUALITY

@@ -372,3 +372,37 @@ def test_the_default_output_folder_names_an_engine_the_command_line_changed():
     assert default_out(demo) == default_out(demo, demo.render.engine) == str(Path("out") / "demo")
     assert default_out(demo, "raycast") == str(Path("out") / "demo-raycast")
     assert default_out(demo, "raycast", "adaptive") == str(Path("out") / "demo-adaptive-raycast")
+
+
+@needs_bpy
+def test_a_scan_of_part_of_the_path_says_which_frames_and_sensor_and_its_report_is_the_same_file_twice(tmp_path):
+    """--frames: report.json gives the path's frame number of each frame scanned; --resolution:
+    the probe's name says the sensor used; two equal runs write byte-equal report.json files
+    but for the times taken."""
+    import json
+
+    from addon.core.geometry.cloud import load_ply
+
+    reports = []
+    for k in range(2):
+        out = run_cli("scan", "demo", "--engine", "raycast", "--frames", "150:154", "--resolution", "320x240",
+                      "--quiet", "--out", str(tmp_path / f"out{k}"))
+        assert out.returncode == 0, out.stderr
+        assert "320x240" in out.stdout and "160x160" not in out.stdout
+        reports.append(json.loads((tmp_path / f"out{k}" / "report.json").read_text()))
+    r = reports[0]
+    assert r["config"]["path_frames"] == [150, 151, 152, 153] and r["config"]["sensor_px"] == [320, 240]
+    assert "320x240" in r["config"]["probe"]
+    assert sorted(load_ply(tmp_path / "out0" / "cloud.ply").frame.tolist())[-1] <= 3  # numbered 0.. as picked
+    for a, b in zip(*reports):
+        assert a == b  # the same keys in the same order
+    assert [list(x["points_dropped"]) for x in reports] == [sorted(r["points_dropped"])] * 2
+    timed = ("time_s", "profiles_per_s")
+    texts = [json.dumps({k: v for k, v in x.items() if k not in timed}) for x in reports]
+    assert texts[0] == texts[1]  # as docs/scans.md says: only the times differ
+    from addon.core.config.scan import load_scan_config
+
+    whole = load_scan_config("demo")
+    assert whole.path_frames is None  # null in the report: the whole path, numbered as written
+    picked = whole.with_overrides(frames=slice(150, 160, 2)).with_overrides(frames=slice(1, 3))
+    assert picked.path_frames.tolist() == [152, 154]  # a pick of a pick keeps the path's numbers

@@ -22,6 +22,11 @@ class InputError(ScannerError, ValueError):
     """A value passed to a function is malformed (wrong shape, non-finite, non-rigid)."""
 
 
+class FolderBusy(ScannerError):
+    """Another scan holds the output folder: nothing is wrong with the input, and the same
+    command may work later (the command line exits with its own code for it)."""
+
+
 class CollisionError(ScannerError):
     """A pose or a motion would bring the robot or the probe into (or too near) something."""
 

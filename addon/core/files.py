@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import os
 import shutil
+import socket
 import tempfile
 from pathlib import Path
 
-from .errors import InputError
+from .errors import FolderBusy, InputError
 
 LOCK_NAME = ".scanner.lock"
 
@@ -29,7 +30,7 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
-            _write_synced(fh, data)
+            _write_synced(fh, data, path)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual mode
         os.replace(tmp, path)
     except BaseException:
@@ -48,7 +49,7 @@ def write_set(folder: str | Path, contents: dict[str, bytes]) -> dict[str, Path]
     try:
         for name, data in contents.items():
             with open(staging / name, "wb") as fh:
-                _write_synced(fh, data)
+                _write_synced(fh, data, folder / name)
             os.chmod(staging / name, 0o666 & ~_umask())
         for name in contents:
             os.replace(staging / name, folder / name)
@@ -62,10 +63,16 @@ def write_set(folder: str | Path, contents: dict[str, bytes]) -> dict[str, Path]
     return {name: folder / name for name in contents}
 
 
-def _write_synced(fh, data: bytes) -> None:
-    fh.write(data)
-    fh.flush()
-    os.fsync(fh.fileno())
+def _write_synced(fh, data: bytes, path: Path) -> None:
+    """Write, flush and sync; an error (a full disk) names ``path``, the file it was for."""
+    try:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+    except OSError as exc:
+        if exc.filename is not None:
+            raise
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
 
 
 def png_bytes(bgr) -> bytes:
@@ -129,9 +136,11 @@ def pid_alive(pid: int) -> bool:
 
 class OutputLock:
     """A running scan's claim on its output folder (a ``.scanner.lock`` file with its process
-    id). ``acquire()`` refuses when a live process holds it (a lock left by a dead one is
-    taken over); ``release()`` removes the lock, and the folder too when this scan made it
-    and left it empty (an interrupted or failed scan leaves nothing behind)."""
+    id and host). ``acquire()`` refuses when a live process holds it, or a process on another
+    host (a folder on a shared disk: whether that one still runs cannot be told from here);
+    a lock left by a dead process of this host is taken over. ``release()`` removes the lock,
+    and the folder too when this scan made it and left it empty (an interrupted or failed
+    scan leaves nothing behind)."""
 
     def __init__(self, folder: str | Path):
         self.folder = Path(folder)
@@ -140,27 +149,30 @@ class OutputLock:
         self.held = False
 
     def acquire(self) -> "OutputLock":
+        host = socket.gethostname()
         self.made_folder = not self.folder.exists()
         self.folder.mkdir(parents=True, exist_ok=True)
         for _ in range(3):
             try:
                 fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
             except FileExistsError:
-                try:
-                    owner = int(self.path.read_text().strip() or "0")
-                except (OSError, ValueError):
-                    owner = 0
+                owner, owner_host = _lock_owner(self.path)
+                if owner and owner_host not in (None, host):
+                    self.release()
+                    raise FolderBusy(f"output folder {self.folder}: a scan on host {owner_host} (process {owner}) "
+                                     f"holds it; wait for it to end or choose another folder (if no scan runs "
+                                     f"there any more, remove {self.path})") from None
                 if owner and owner != os.getpid() and pid_alive(owner):
                     self.release()
-                    raise InputError(f"output folder {self.folder}: a running scan (process {owner}) is writing "
+                    raise FolderBusy(f"output folder {self.folder}: a running scan (process {owner}) is writing "
                                      f"there; wait for it to end or choose another folder") from None
                 self.path.unlink(missing_ok=True)  # left by a process that no longer exists
                 continue
             with os.fdopen(fd, "w") as fh:
-                fh.write(f"{os.getpid()}\n")
+                fh.write(f"{os.getpid()} {host}\n")
             self.held = True
             return self
-        raise InputError(f"output folder {self.folder}: could not claim it ({self.path} keeps coming back)")
+        raise FolderBusy(f"output folder {self.folder}: could not claim it ({self.path} keeps coming back)")
 
     def release(self) -> None:
         if self.held:
@@ -177,6 +189,16 @@ class OutputLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def _lock_owner(path: Path) -> tuple[int, str | None]:
+    """(process id, host) written in a lock file; (0, None) where it cannot be read, the
+    host None in locks written before hosts were (this host's, then)."""
+    try:
+        words = path.read_text().split()
+        return int(words[0]), (words[1] if len(words) > 1 else None)
+    except (OSError, ValueError, IndexError):
+        return 0, None
 
 
 def _umask() -> int:

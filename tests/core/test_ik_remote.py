@@ -126,8 +126,8 @@ def test_a_scan_planned_through_the_bridge_gets_the_local_joints(server, tmp_pat
 
     text = open(load_scan_config("demo").source).read()
     f = tmp_path / "bridge.toml"
-    f.write_text(text.replace('start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]   # elbow up, wrist down',
-                              'start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]\nik = "controller"\n'
+    f.write_text(text.replace('start_deg = [0.0, 30.0, -15.0, 0.0, 75.0, 90.0]   # the probe over the table, looking down (the Scanner starts here)',
+                              'start_deg = [0.0, 30.0, -15.0, 0.0, 75.0, 90.0]\nik = "controller"\n'
                               f'[robot.controller]\nport = {server.port}\n'))
     bridged = load_scan_config(f).with_overrides(frames=slice(None, None, 6))
     local = load_scan_config("demo").with_overrides(frames=slice(None, None, 6))

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from addon.core.errors import InputError
+from addon.core.errors import FolderBusy, InputError
 from addon.core.files import OutputLock, check_output_folder, write_set
 from addon.core.scan.report import report_json
 
@@ -43,19 +43,52 @@ def test_output_folder_checks_name_the_problem(tmp_path):
 def test_lock_refuses_a_live_owner_and_takes_over_a_dead_ones(tmp_path):
     out = tmp_path / "out"
     with OutputLock(out):
-        assert (out / ".scanner.lock").read_text().strip() == str(os.getpid())
+        assert (out / ".scanner.lock").read_text().split()[0] == str(os.getpid())
     assert not out.exists()  # made by the lock, left empty: removed with it
     out.mkdir()
     (out / ".scanner.lock").write_text(f"{os.getppid()}\n")  # a live process
-    with pytest.raises(InputError, match="running scan"):
+    with pytest.raises(FolderBusy, match="running scan"):
         OutputLock(out).acquire()
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     (out / ".scanner.lock").write_text(f"{dead.pid}\n")
     lock = OutputLock(out).acquire()
-    assert (out / ".scanner.lock").read_text().strip() == str(os.getpid())
+    assert (out / ".scanner.lock").read_text().split()[0] == str(os.getpid())
     lock.release()
     assert out.is_dir() and not (out / ".scanner.lock").exists()  # the folder was there before: kept
+
+
+def test_a_lock_from_another_host_is_never_taken_over_and_says_whose_it_is(tmp_path):
+    """On a disk shared by render nodes a process id from another host says nothing here:
+    such a lock is refused (naming the host), not taken over as a dead process's."""
+    from addon.core.errors import FolderBusy
+
+    out = tmp_path / "out"
+    out.mkdir()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (out / ".scanner.lock").write_text(f"{dead.pid} node-17\n")  # not alive here; may be there
+    with pytest.raises(FolderBusy, match="host node-17 .process {}".format(dead.pid)):
+        OutputLock(out).acquire()
+    assert (out / ".scanner.lock").read_text().split() == [str(dead.pid), "node-17"]
+    import socket
+
+    (out / ".scanner.lock").write_text(f"{dead.pid} {socket.gethostname()}\n")  # this host's, dead: taken over
+    with OutputLock(out):
+        assert (out / ".scanner.lock").read_text().split() == [str(os.getpid()), socket.gethostname()]
+
+
+def test_a_full_disk_names_the_file_it_stopped_on(tmp_path, monkeypatch):
+    import errno
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(OSError, match="No space left") as err:
+        write_set(tmp_path / "out", {"cloud.ply": b"x", "report.json": b"{}"})
+    assert err.value.filename == str(tmp_path / "out" / "cloud.ply")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == []  # nothing half-written
 
 
 def test_report_json_is_strict():

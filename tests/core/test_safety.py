@@ -277,3 +277,24 @@ def test_a_fixture_that_hides_the_line_from_a_camera_only_is_warned_of_too():
     # (so it covers every sight line the cube halfway up crosses), hides those spots already.
     wall = Fixture("fixture wall", cube(spot + 0.25 * (camera - spot), on="table", size=(12.0, 4.0, 4.0)), "table")
     assert found(halfway, wall) == {}
+
+
+@pytest.mark.parametrize("gap_mm, warned", [(-0.5, True), (-2.0, True), (0.0, False), (1.0, False)])
+def test_a_table_fixture_reaching_into_the_part_is_warned_of_and_one_that_touches_it_is_not(gap_mm, warned):
+    """A 20 mm jaw beside the demo's sphere (radius 30 mm, centre 30 mm up), its face at
+    30 + gap_mm from the axis: pressed into the sphere it is warned of, with the depth (the
+    sphere's mesh vertices inside the jaw, so at most the true 0.5 or 2 mm); touching or
+    standing clear it is not."""
+    from addon.core.safety import Fixture
+    from addon.core.scan.plan import fixtures_in_the_part
+
+    jaw = trimesh.creation.box([20.0, 20.0, 20.0])
+    jaw.apply_translation([40.0 + gap_mm, 0.0, 30.0])
+    cfg = replace(load_scan_config("demo"), fixtures=(Fixture("fixture jaw", jaw, "table"),))
+    said = fixtures_in_the_part(cfg)
+    if not warned:
+        assert said == []
+        return
+    (line,) = said
+    depth = float(line.split(" reaches ")[1].split(" mm")[0])
+    assert line.startswith("fixture jaw reaches") and 0.6 * -gap_mm <= depth <= -gap_mm + 1e-6

@@ -225,6 +225,12 @@ def out_locked_by_live_process(tmp):
     return ["demo", "--out", str(tmp / "out")]
 
 
+def out_locked_on_another_host(tmp):
+    (tmp / "out").mkdir()
+    (tmp / "out" / ".scanner.lock").write_text(f"{os.getpid()} render-node-that-is-not-this-one\n")
+    return ["demo", "--out", str(tmp / "out")]
+
+
 def out_shards_is_file(tmp):
     (tmp / "out").mkdir()
     (tmp / "out" / "shards").write_text("not a folder")
@@ -244,15 +250,15 @@ CASES = [
                                      ["scan", str(t / "latin.toml")])[1], 2, "UTF-8"),
     ("config: missing file", lambda t: ["scan", str(t / "nothing.toml")], 2, "nothing"),
     ("config: unknown bundled name", lambda t: ["scan", "no_such_scene"], 2, "demo"),
-    ("config: folder", lambda t: ["scan", str(t)], 2, str("")),
+    ("config: folder", lambda t: ["scan", str(t)], 2, "a folder, not"),
     ("config: unknown top key", demo_plus("colour = 'red'"), 2, "colour"),
     ("config: unknown robot key", demo_with("[robot]\n", "[robot]\nspeed = 3\n"), 2, "speed"),
     ("config: unknown robot rig", demo_with('rig = "adept_viper_s650"', 'rig = "abb_irb_9999"'), 2, "abb_irb_9999"),
-    ("config: start_deg too short", demo_with("start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]",
+    ("config: start_deg too short", demo_with("start_deg = [0.0, 30.0, -15.0, 0.0, 75.0, 90.0]",
                                               "start_deg = [0.0, 40.0]"), 2, "start_deg"),
-    ("config: start_deg NaN", demo_with("start_deg = [0.0, 40.0,", "start_deg = [nan, 40.0,"), 2, "start_deg"),
-    ("config: start_deg inf", demo_with("start_deg = [0.0, 40.0,", "start_deg = [inf, 40.0,"), 2, "start_deg"),
-    ("config: start_deg a string", demo_with("start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]",
+    ("config: start_deg NaN", demo_with("start_deg = [0.0, 30.0,", "start_deg = [nan, 30.0,"), 2, "start_deg"),
+    ("config: start_deg inf", demo_with("start_deg = [0.0, 30.0,", "start_deg = [inf, 30.0,"), 2, "start_deg"),
+    ("config: start_deg a string", demo_with("start_deg = [0.0, 30.0, -15.0, 0.0, 75.0, 90.0]",
                                              'start_deg = "up"'), 2, "start_deg"),
     ("config: unknown probe rig", demo_with('rig = "default"', 'rig = "laser9000"'), 2, "laser9000"),
     ("config: table a_mm a string", demo_with("a_mm = -500.0", 'a_mm = "far"'), 2, "a_mm"),
@@ -395,6 +401,9 @@ CASES = [
     ("fixture: on the table but wholly beyond it", lambda t: ["scan", scene(t, DEMO + (
         f'\n[[fixture]]\nname = "far"\nfile = "{good_cube_stl(t)}"\n[fixture.pose]\nxyz_mm = [400, 0, 0]\n'))],
      2, "fixture far lies wholly beyond the table"),
+    ("fixture: on the table but wholly below its top", lambda t: ["scan", scene(t, DEMO + (
+        f'\n[[fixture]]\nname = "sunk"\nfile = "{good_cube_stl(t)}"\n[fixture.pose]\nxyz_mm = [60, 0, -40]\n'))],
+     2, "fixture sunk lies wholly below the table top"),
     # options
     ("option: --frames step zero", demo("--frames", "0:4:0"), 2, "--frames"),
     ("option: --frames words", demo("--frames", "a:b"), 2, "--frames"),
@@ -414,6 +423,7 @@ CASES = [
     ("option: --samples words", demo("--samples", "many"), 2, "--samples"),
     ("option: --max-rms-um negative", demo("--max-rms-um", "-1"), 2, "--max-rms-um"),
     ("option: --max-rms-um NaN", demo("--max-rms-um", "nan"), 2, "--max-rms-um"),
+    ("option: --max-rms-um infinite", demo("--max-rms-um", "inf"), 2, "finite"),
     ("option: --engine unknown", demo("--engine", "povray"), 2, "--engine"),
     ("option: --detect unknown", demo("--detect", "magic"), 2, "--detect"),
     ("option: --device unknown", demo("--device", "TPU"), 2, "--device"),
@@ -426,6 +436,8 @@ CASES = [
     ("option: --merge with no shards", lambda t: ["demo", "--merge", "--shard-frames", "60", "--out",
                                                   str(t / "out")], 2, "not ready"),
     ("option: --workers zero", demo("--workers", "0"), 2, "--workers"),
+    ("option: --workers with --shard", demo("--shard", "0", "--shard-frames", "60", "--workers", "2"), 2,
+     "has nothing to do"),
     ("option: --scheduler not an address", demo("--scheduler", "localhost"), 2, "--scheduler"),
     ("option: --scheduler no port", demo("--scheduler", "tcp://127.0.0.1"), 2, "--scheduler"),
     ("option: --scheduler nothing listening", demo("--scheduler", "tcp://127.0.0.1:9"), 2, "--scheduler"),
@@ -469,7 +481,8 @@ CASES = [
     ("out: cloud.ply is a folder", out_holds_folder("cloud.ply"), 2, "cloud.ply"),
     ("out: report.json is a folder", out_holds_folder("report.json"), 2, "report.json"),
     ("out: preview.png is a folder", out_holds_folder("preview.png"), 2, "preview.png"),
-    ("out: a running scan owns it", out_locked_by_live_process, 2, "running scan"),
+    ("out: a running scan owns it", out_locked_by_live_process, 75, "running scan"),
+    ("out: a scan on another host owns it", out_locked_on_another_host, 75, "render-node-that-is-not-this-one"),
     ("out: farm's shards is a file", out_shards_is_file, 2, "shards"),
     ("out: farm into an existing file", lambda t: out_is_file(t) + ["--workers", "2"], 2, "is a file"),
 ]

@@ -117,10 +117,14 @@ def test_damaged_shards_are_found_and_recomputed(config, single, tmp_path):
     assert "recomputing shard 0 (frames 0-4): unreadable" in text
     assert "recomputing shard 2 (frames 10-14)" in text
     same_cloud(res.cloud, single.cloud)
-    # Everything valid now: a third run computes nothing and starts no cluster.
+    # Everything valid now: a third run computes nothing and starts no cluster; a shard file of
+    # another split (another --shard-frames) is named, not read and not removed.
+    (out / "shards" / "shard_000000_000009.npz").write_bytes(b"another split")
     lines = []
     again = farm.run_farm(config, out, workers=1, shard_frames=5, log=lines.append)
     assert "4 valid from an earlier run (skipped), 0 to compute" in lines[0]
+    assert any("1 shard file in" in line and "shard_000000_000009.npz" in line for line in lines)
+    assert (out / "shards" / "shard_000000_000009.npz").exists()
     assert again.report["farm"]["scheduler"] is None
     same_cloud(again.cloud, single.cloud)
 

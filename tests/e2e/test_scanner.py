@@ -79,6 +79,9 @@ def test_a_pose_that_sees_nothing_gives_an_empty_profile_without_rendering():
     report = s.report().to_dict()
     assert report["frames"] == 1 and report["points"] == 0 and s.measure().frame == p.frame + 1 == 1
     assert s.report().to_dict()["frames"] == 2
+    # and it is said, by frame number, with the range: a sweep run past the part is no failure
+    (said,) = [w for w in s.report().to_dict()["warnings"] if "probe's range" in w]
+    assert said.startswith("frames 0-1 put no surface inside the probe's range 70-250 mm")
 
 
 def test_sweep_report_and_save(scanner, tmp_path):
@@ -199,8 +202,8 @@ def test_a_scan_whose_ik_comes_over_the_bridge_gives_the_local_cloud(tmp_path):
     try:
         text = open(load_scan_config("demo").source).read()
         f = tmp_path / "bridge.toml"
-        f.write_text(text.replace("start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]   # elbow up, wrist down",
-                                  "start_deg = [0.0, 40.0, -100.0, 0.0, -30.0, 0.0]\nik = \"controller\"\n"
+        f.write_text(text.replace("start_deg = [0.0, 30.0, -15.0, 0.0, 75.0, 90.0]   # the probe over the table, looking down (the Scanner starts here)",
+                                  "start_deg = [0.0, 30.0, -15.0, 0.0, 75.0, 90.0]\nik = \"controller\"\n"
                                   f"[robot.controller]\nport = {server.port}\n"))
         bridged = Scanner.from_config(f, frames=slice(None, None, 12))
         assert bridged.config.robot.ik_via is not None

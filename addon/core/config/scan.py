@@ -42,7 +42,8 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
     [safety]     check (true), min_clearance_mm (2): the least distance between the robot or the
                  probe and the table, the workpiece or a fixture (see addon.core.safety)
     [[fixture]]  name, file (+ scale), [fixture.pose] xyz_mm, yzz_deg, on = "table" (turns with
-                 it, default) | "world": solids the robot must keep clear of
+                 it, default; the pose in the table frame) | "world" (the pose in the robot's
+                 base frame): solids the robot must keep clear of
     [truth]      coverage_tolerance_mm
 
 Paths in the file (robot/probe rigs, workpiece files) are relative to the file.
@@ -161,6 +162,9 @@ class ScanConfig:
     safety: Safety = field(default_factory=Safety)
     fixtures: tuple = ()
     adaptive: AdaptiveSettings = field(default_factory=AdaptiveSettings)
+    # The path's own frame number of each waypoint where --frames picked some (the scan numbers
+    # its frames from 0 in the order picked); None: the whole path, numbered as written.
+    path_frames: np.ndarray | None = None
 
     @property
     def detect_params(self) -> DetectParams:
@@ -250,7 +254,8 @@ class ScanConfig:
             picked = np.arange(len(cfg.waypoints))[frames]
             if picked.size == 0:
                 raise InputError(f"--frames selects no frames of the {len(cfg.waypoints)} in the path")
-            cfg = replace(cfg, waypoints=cfg.waypoints.select(picked))
+            numbers = np.arange(len(cfg.waypoints)) if cfg.path_frames is None else cfg.path_frames
+            cfg = replace(cfg, waypoints=cfg.waypoints.select(picked), path_frames=numbers[picked])
         return cfg
 
 
@@ -435,6 +440,11 @@ def _fixtures(top: Table, base: Path) -> tuple:
             mesh = load_workpiece(f if f.is_absolute() else base / f, pose, scale, role="fixture").mesh
         except (InputError, ConfigError) as exc:
             raise t.error("file", str(exc)) from None
+        if on == "table" and mesh.bounds[1][2] <= 0.0:
+            raise t.error("pose", f"{name} lies wholly below the table top (its highest point z = "
+                                  f"{mesh.bounds[1][2]:.1f} mm in the table frame, whose top is z = 0), where "
+                                  f"nothing can see or meet it: raise it (pose xyz_mm) so that it stands on the "
+                                  f"table")
         nearest = nearest_to_axis_mm(mesh)
         if on == "table" and nearest > TABLE_RADIUS_MM + 1.0:
             raise t.error("on", f"{name} lies wholly beyond the table (its nearest point {nearest:.0f} mm from the "

@@ -32,6 +32,8 @@ def resolve_rig(kind: str, name_or_path: str | Path) -> Path:
     p = Path(text).expanduser()
     looks_like_path = p.suffix == ".toml" or any(sep in text for sep in ("/", "\\"))
     if looks_like_path:
+        if p.is_dir():
+            raise ConfigError(f"{p}: a folder, not a {kind[:-1] if kind.endswith('s') else kind} file (.toml)")
         if not p.is_file():
             raise ConfigError(f"{p}: no such file")
         return p

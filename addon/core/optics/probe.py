@@ -231,7 +231,13 @@ class Probe:
         if self.calibration is not None and (rows_px, cols_px) != (self.rows_px, self.cols_px):
             raise InputError(f"probe {self.name!r} carries a calibration made on its {self.cols_px}x{self.rows_px} "
                              f"sensor; it cannot measure at {cols_px}x{rows_px} (calibrate at that resolution)")
-        return replace(self, rows_px=rows_px, cols_px=cols_px)
+        if (rows_px, cols_px) == (self.rows_px, self.cols_px):
+            return self
+        # The name says the sensor where the rig's does ("..., 160x160)"), so it says the new one.
+        size = f"{self.cols_px}x{self.rows_px}"
+        name = (self.name.replace(size, f"{cols_px}x{rows_px}") if size in self.name
+                else f"{self.name} at {cols_px}x{rows_px} px")
+        return replace(self, rows_px=rows_px, cols_px=cols_px, name=name)
 
     def measuring_camera(self, camera: int) -> CameraModel:
         """The camera model triangulation uses: the calibration's, else the true one."""

@@ -44,10 +44,25 @@ class ScanResult:
 VERSIONED = {"trimesh": "trimesh", "embreex": "embreex", "libigl": "libigl", "python-fcl": "python-fcl"}
 
 
+# The extension's manifest: beside the addon package, in the repository and in the installed extension alike.
+MANIFEST = Path(__file__).resolve().parents[3] / "blender_manifest.toml"
+
+
+def simulator_version() -> str | None:
+    """This simulator's version, from its manifest (None where the manifest cannot be read)."""
+    import tomllib
+
+    try:
+        return str(tomllib.loads(MANIFEST.read_text(encoding="utf-8"))["version"])
+    except (OSError, ValueError, KeyError):
+        return None
+
+
 def software_versions() -> dict:
-    """What produced a scan: Python, numpy, OpenCV, Blender where it is loaded (this core
-    never imports it), and the geometry packages installed."""
-    out = {"python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__}
+    """What produced a scan: this simulator's version, Python, numpy, OpenCV, Blender where it
+    is loaded (this core never imports it), and the geometry packages installed."""
+    out = {"scanner": simulator_version(), "python": platform.python_version(), "numpy": np.__version__,
+           "opencv": cv2.__version__}
     bpy = sys.modules.get("bpy")
     if bpy is not None and hasattr(bpy, "app"):
         out["blender"] = bpy.app.version_string
@@ -88,15 +103,18 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
                    # The probe model triangulation used: None for the nominal (exact) probe, else
                    # the calibration file it came from.
                    "calibration": None if probe.calibration is None else (probe.calibration.source or "given"),
-                   "fixtures": [{"name": f.name, "on": f.on} for f in config.fixtures]},
+                   "fixtures": [{"name": f.name, "on": f.on} for f in config.fixtures],
+                   # The path's frame number of each frame scanned, where --frames picked some
+                   # (frames are numbered from 0 in the order picked); None: the whole path.
+                   "path_frames": None if config.path_frames is None else [int(i) for i in config.path_frames]},
         "frames": n,
         "points": len(cloud),
         "valid_fraction": stats["valid"] / max(stats["columns"], 1),
-        "column_codes": stats["codes"],
+        "column_codes": dict(sorted(stats["codes"].items())),  # sorted: the same file from the same scan
         # After detection: columns dropped on the way to a point, by reason (no detection, a ray
         # grazing the laser plane, out of the range, steep, a run's edge, the cameras in conflict),
         # and the points both cameras agreed on.
-        "points_dropped": {k: v for k, v in stats.get("points", {}).items() if k != "fused"},
+        "points_dropped": {k: v for k, v in sorted(stats.get("points", {}).items()) if k != "fused"},
         "points_fused": int(stats.get("points", {}).get("fused", 0)),
         "cameras_rendered": list(plan.cameras),
         "frames_rerendered_full": stats["rerendered"],

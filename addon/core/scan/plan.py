@@ -15,6 +15,7 @@ import numpy as np
 
 from ..config.scan import ScanConfig
 from ..errors import CollisionError, ScannerError, UnreachablePose
+from ..geometry import metrics
 from ..geometry.footprint import OCCLUSION_EPS_MM, SurfaceCaster, fan_rays, laser_footprint, seen_by
 from ..kinematics.path import solve_path
 from ..kinematics.turntable import table_top_mesh
@@ -36,6 +37,9 @@ class Plan:
     # {world fixture name: frames (path indices) where it stands in the laser's way or hides the
     # line from a camera (see fixtures_in_the_way)}
     fixture_frames: dict = field(default_factory=dict)
+    # Frames (indices) whose laser puts no surface inside the probe's range: a scan refuses
+    # them, a Scanner's step measures nothing there (and says so).
+    empty_frames: list = field(default_factory=list)
 
 
 def frame_ranges(indices) -> str:
@@ -69,6 +73,7 @@ def plan_scan(config: ScanConfig, allow_blind: bool = False) -> Plan:
     if sol.jumps:
         warnings.append(f"joint jumps over {math.degrees(max(sol.max_step_rad)):.0f}° between neighbouring "
                         f"waypoints at frames {frame_ranges(sol.jumps)} (near a singularity or a limit)")
+    warnings += fixtures_in_the_part(config)
     plan = plan_frames(config, sol.q, wp.table_rad, allow_blind, warnings)
     plan.clearance = clearance
     return plan
@@ -135,7 +140,7 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
             predicted = np.column_stack([np.nanmin(rows[:, :, 0], axis=1), np.nanmax(rows[:, :, 1], axis=1)])
     fixtures = fixtures_in_the_way(config, wp_probe2table, table_rad, surfaces)
     return Plan(np.asarray(q, dtype=np.float64), np.asarray(table_rad, dtype=np.float64), cameras, predicted,
-                warnings, fixture_frames=fixtures)
+                warnings, fixture_frames=fixtures, empty_frames=list(foot.empty_frames))
 
 
 # Rays of the laser fan cast per frame against the world fixtures: one per sensor column, at
@@ -212,6 +217,34 @@ def table_fixtures(config: ScanConfig) -> tuple:
     """The fixtures that turn with the table: every engine renders them with the part, so they
     hide and shadow it and their points join the cloud (counted apart from the part's)."""
     return tuple(f for f in config.fixtures if f.on == "table")
+
+
+FIXTURE_OVERLAP_MM = 0.05  # a table fixture may touch the part; reaching further into it is warned of
+
+
+def fixtures_in_the_part(config: ScanConfig) -> list[str]:
+    """A warning for each table fixture that reaches into the part by more than
+    FIXTURE_OVERLAP_MM (a real clamp touches it at most): the part's vertices inside the
+    fixture and the fixture's inside the part, by signed distance (closed meshes only; where
+    neither side can say inside from outside, nothing is said)."""
+    out = []
+    wp = config.workpiece
+    for f in table_fixtures(config):
+        lo, hi = f.mesh.bounds
+        near = np.all((wp.mesh.vertices >= lo - 1.0) & (wp.mesh.vertices <= hi + 1.0), axis=1)
+        depth = 0.0
+        if near.any():
+            _, signed = metrics.mesh_distances(wp.mesh.vertices[near], f.mesh)
+            if signed is not None:
+                depth = max(depth, float(-signed.min()))
+        _, signed = metrics.distances(f.mesh.vertices, wp.truth)
+        if signed is not None and len(signed):
+            depth = max(depth, float(-signed.min()))
+        if depth > FIXTURE_OVERLAP_MM:
+            out.append(f"{f.name} reaches {depth:.2f} mm into the part, where a real one would touch it at most: "
+                       f"the part's surface inside it is hidden and its points near the contact may count as the "
+                       f"fixture's; move it out until it touches")
+    return out
 
 
 def cell_surfaces(config: ScanConfig) -> SurfaceCaster:
