@@ -201,6 +201,14 @@ class Scanner:
         return self._sc
 
     @property
+    def planner(self):
+        """The adaptive planner of the last :meth:`adaptive` call (``addon.adaptive.NextBestView``),
+        None before one: its model of what is known (``planner.space``, a KnownSpace of unknown,
+        free and surface cells), its candidates (``planner.pool``) and ``planner.feasible(scanner, c)``,
+        for a planner of one's own to read or build on. A later adaptive() call goes on from it."""
+        return self._planner
+
+    @property
     def cloud(self) -> Cloud:
         """Everything measured so far (table frame)."""
         return Cloud.concatenate(self._parts)

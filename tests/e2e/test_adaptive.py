@@ -188,6 +188,7 @@ def test_a_planner_joining_a_scan_under_way_learns_what_was_measured_and_skips_t
     from addon.adaptive import NextBestView, part_box
 
     config, scanner, planner = _raycast_planner("demo")
+    assert scanner.planner is None  # none before the first adaptive() call
     overview = planner.choose(scanner, 450)
     scanner.scan_path(overview.waypoints())
     lines = []
@@ -196,7 +197,7 @@ def test_a_planner_joining_a_scan_under_way_learns_what_was_measured_and_skips_t
     assert steps and steps[0].sweep.split(",")[:2] != overview.describe().split(",")[:2]
     # The model it planned on holds the points measured before it joined.
     fresh = NextBestView(Scanner(config=config), *part_box(config))
-    assert scanner._planner.space.counts()["surface"] > fresh.space.counts()["surface"] + 100
+    assert scanner.planner.space.counts()["surface"] > fresh.space.counts()["surface"] + 100
 
 
 def test_a_stop_asked_for_during_a_sweep_takes_effect_before_the_next_one_renders():
