@@ -132,6 +132,8 @@ class Scanner:
         self._cameras: set[int] = set()
         self._warnings: list[str] = []
         self._empty_frames: list[int] = []  # frames that put no surface inside the probe's range
+        self._fixture_lines: list[str] | None = None  # fixtures_in_the_part, once checked
+        self._off_path = False  # measured anything but the config's path (run())
         self._t0 = time.perf_counter()
         self._cached = None  # (frames measured, ScanResult) of the last result(): report() after save() is free
         self._extra: dict = {}  # what joins the report besides the scan itself (an adaptive scan's sweeps)
@@ -468,6 +470,7 @@ class Scanner:
 
         cfg = self.config
         t = time.perf_counter()
+        own_step = plan is None  # a step of its own (measure, sweep, a path, an adaptive sweep), not run()
         if plan is None:
             if self._surfaces is None:
                 self._surfaces = cell_surfaces(cfg)
@@ -479,6 +482,7 @@ class Scanner:
         if not plan.cameras:  # the laser meets nothing any camera sees: nothing to render
             self._stats.append({**new_stats(), "band_rows": [0] * n})  # measured all the same: no row rendered
             self._keep_frames(q, table_rad, plan, clearance, warnings)
+            self._off_path |= own_step
             return [Profile(np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0), probe2table[i], q[i].copy(),
                             math.degrees(table_rad[i]), {}, first + i) for i in range(n)]
         run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, np.zeros(n, int))), None, progress,
@@ -499,6 +503,7 @@ class Scanner:
         self._cameras |= set(plan.cameras)
         self._parts += parts
         self._keep_frames(q, table_rad, plan, clearance, warnings)
+        self._off_path |= own_step
         return out
 
     def _keep_frames(self, q, table_rad, plan, clearance, warnings) -> None:
@@ -585,14 +590,28 @@ class Scanner:
         table_rad = np.concatenate([p[1] for p in self._poses]) if self._poses else np.zeros(0)
         from .core.safety import PathClearance
 
-        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)),
-                    list(self._warnings) + self._range_warning(),
+        warnings = list(self._warnings) + self._range_warning()
+        warnings += [w for w in self._fixture_check() if w not in warnings]  # run() has it from its plan
+        plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), warnings,
                     PathClearance.merge(self._clearances) if self._clearances else None,
                     fixture_frames=self._fixture_frames)
-        result = assemble(self.config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
+        # The path's frame numbers hold only while this Scanner has run nothing but its path.
+        config = self.config if not self._off_path else replace(self.config, path_frames=None)
+        result = assemble(config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
                           {"render_device": render_device(self._raycaster, self._sc), **extra})
         self._cached = (key, result)
         return result
+
+    def _fixture_check(self) -> list[str]:
+        """The table fixtures that reach into the part (``plan.fixtures_in_the_part``), checked
+        once, when something has been measured."""
+        if not self._frames:
+            return []
+        if self._fixture_lines is None:
+            from .core.scan.plan import fixtures_in_the_part
+
+            self._fixture_lines = fixtures_in_the_part(self.config)
+        return self._fixture_lines
 
     def _range_warning(self) -> list[str]:
         """One line naming the frames that put no surface inside the probe's range (none: [])."""

@@ -31,7 +31,9 @@ Commands:
   realism-figure       one probe frame seen by the ideal and by the realistic sensor
   build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
 
-Errors the user can fix (bad rig file, bad value) print one line and exit 2.
+Errors the user can fix (bad rig file, bad value) print one line and exit 2; an output
+folder another scan holds, one line and exit 75 (try again later); Ctrl-C exits 130
+(SIGTERM 143); scan's exit codes are listed in headless/scan.py.
 """
 
 from __future__ import annotations

@@ -11,10 +11,12 @@ Scanner over a part that only its bounding box reveals.
 - **action mask** ``env.action_mask()`` and ``info["action_mask"]``: a bool array shaped like
   the action space's ``nvec`` (table step, view, kind), False for the actions known to earn
   nothing: sweeps steeper than ``MAX_SWEEP_TILT_DEG``, views over the profile budget left,
-  and views already scanned (scans are deterministic) or refused. What it cannot know
-  without planning the motion (about a second a view) is left True: a view that has not
-  been tried may still be unreachable or collide. ``sample_allowed(rng)`` draws uniformly
-  from the allowed actions; flatten the mask for a ``Discrete`` wrapper or a maskable agent.
+  and views already scanned (scans are deterministic: the same view again finds next to
+  nothing). Whether a view is reachable and collision-free depends on where the robot is
+  and takes planning the motion (about 0.6 s a view), so it is left True: a view refused
+  from one pose is allowed again, as it may be done from the next. ``sample_allowed(rng)``
+  draws uniformly from the allowed actions; flatten the mask for a ``Discrete`` wrapper or
+  a maskable agent.
 - **observation** ``Dict(grid=Box(0, 2, (G, G, G), uint8), probe=Box((7,), float32))``: the
   known-space model (0 unknown, 1 free, 2 surface) pooled to G³ cells over the part's box (a
   cell of the grid is surface where any model cell in it is, else unknown where any is, else
@@ -24,8 +26,8 @@ Scanner over a part that only its bounding box reveals.
   its time in seconds times ``time_cost``; a sweep the robot cannot do (unreachable, colliding)
   scans nothing and costs ``refusal_cost``. (Free air the laser crossed teaches the model too,
   ``info["learnt"]``, but earns nothing.)
-- the episode ends when the profile budget is spent or every view has been tried (terminated),
-  or after ``max_steps`` steps (truncated); ``info`` has the same keys after ``reset`` and every ``step``: the sweep
+- the episode ends when the profile budget is spent or every view has been scanned
+  (terminated), or after ``max_steps`` steps (truncated); ``info`` has the same keys after ``reset`` and every ``step``: the sweep
   (None after reset) and why it was refused (None: it was scanned), the profiles so far, the
   cells learnt and the surface cells found by the last step, the model's surface cells and its
   own coverage estimate (``KnownSpace.coverage_estimate``, a guide that runs above the truth).
@@ -106,6 +108,7 @@ class ScanPlanningEnv(gym.Env):
         lo, hi = part_box(self.config)
         self.planner = NextBestView(self.scanner, lo, hi)
         self._by_key = {c.key: c for c in self.planner.pool}
+        self._scanned: set = set()  # views scanned this episode (their keys)
         self.profiles, self.steps = 0, 0
         return self._observation(), self._info({"sweep": None, "refused": None}, 0, 0)
 
@@ -125,7 +128,7 @@ class ScanPlanningEnv(gym.Env):
         mask = np.zeros(tuple(int(n) for n in self.action_space.nvec), bool)
         for index in np.ndindex(mask.shape):
             c = self._by_key.get(self._key(*index))
-            mask[index] = (c is not None and c.key not in self.planner.impossible
+            mask[index] = (c is not None and c.key not in self._scanned
                            and self.planner.sized(c, frames).frames <= left)
         return mask
 
@@ -164,13 +167,14 @@ class ScanPlanningEnv(gym.Env):
             seconds = next_view.seconds(c, self.scanner.table_deg, self.scanner.pose("table")[:3, 3])
             before = self._surface_cells()
             profiles, learnt = self.planner.scan(self.scanner, c)
+            self._scanned.add(c.key)
             found = max(self._surface_cells() - before, 0)
             self.profiles += len(profiles)
             reward = found / 100.0 - self.time_cost * seconds
         info = self._info(info, learnt, found)
         frames = next_view.turn_frames(self.planner.part_radius())
         terminated = self.profiles + min(self.planner.sized(c, frames).frames for c in self.planner.pool) \
-            > self.max_profiles or not info["action_mask"].any()  # the budget spent, or every view tried
+            > self.max_profiles or not info["action_mask"].any()  # the budget spent, or every view scanned
         truncated = self.steps >= self.max_steps
         return self._observation(), float(reward), bool(terminated), bool(truncated), info
 

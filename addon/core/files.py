@@ -13,11 +13,16 @@ import os
 import shutil
 import socket
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 from .errors import FolderBusy, InputError
 
 LOCK_NAME = ".scanner.lock"
+LOCK_HEARTBEAT_S = 60   # a running scan touches its lock this often
+LOCK_STALE_S = 600      # a lock from another host not touched for this long is a dead scan's
+MAX_PID = 2 ** 22       # the largest process id Linux gives (pid_max's ceiling)
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
@@ -136,9 +141,10 @@ def pid_alive(pid: int) -> bool:
 
 class OutputLock:
     """A running scan's claim on its output folder (a ``.scanner.lock`` file with its process
-    id and host). ``acquire()`` refuses when a live process holds it, or a process on another
-    host (a folder on a shared disk: whether that one still runs cannot be told from here);
-    a lock left by a dead process of this host is taken over. ``release()`` removes the lock,
+    id and host, touched every LOCK_HEARTBEAT_S while the scan runs). ``acquire()`` refuses
+    when a live process of this host holds it, or a process on another host (a folder on a
+    shared disk) whose lock was touched within LOCK_STALE_S; a lock left by a dead process of
+    this host, or not touched for that long, is taken over. ``release()`` removes the lock,
     and the folder too when this scan made it and left it empty (an interrupted or failed
     scan leaves nothing behind)."""
 
@@ -147,6 +153,7 @@ class OutputLock:
         self.path = self.folder / LOCK_NAME
         self.made_folder = False
         self.held = False
+        self._beat: threading.Event | None = None
 
     def acquire(self) -> "OutputLock":
         host = socket.gethostname()
@@ -158,23 +165,45 @@ class OutputLock:
             except FileExistsError:
                 owner, owner_host = _lock_owner(self.path)
                 if owner and owner_host not in (None, host):
-                    self.release()
-                    raise FolderBusy(f"output folder {self.folder}: a scan on host {owner_host} (process {owner}) "
-                                     f"holds it; wait for it to end or choose another folder (if no scan runs "
-                                     f"there any more, remove {self.path})") from None
-                if owner and owner != os.getpid() and pid_alive(owner):
+                    age = _age_s(self.path)
+                    if age < LOCK_STALE_S:
+                        self.release()
+                        raise FolderBusy(f"output folder {self.folder}: a scan on host {owner_host} (process "
+                                         f"{owner}) holds it, its lock touched {age:.0f} s ago; wait for it to end "
+                                         f"or choose another folder (a lock not touched for {LOCK_STALE_S} s is "
+                                         f"taken over)") from None
+                elif owner and owner != os.getpid() and pid_alive(owner):
                     self.release()
                     raise FolderBusy(f"output folder {self.folder}: a running scan (process {owner}) is writing "
                                      f"there; wait for it to end or choose another folder") from None
-                self.path.unlink(missing_ok=True)  # left by a process that no longer exists
+                self.path.unlink(missing_ok=True)  # left by a process that no longer exists (or ran silent)
                 continue
             with os.fdopen(fd, "w") as fh:
                 fh.write(f"{os.getpid()} {host}\n")
             self.held = True
+            self._start_heartbeat()
             return self
         raise FolderBusy(f"output folder {self.folder}: could not claim it ({self.path} keeps coming back)")
 
+    def _start_heartbeat(self) -> None:
+        """Touch the lock every LOCK_HEARTBEAT_S from a daemon thread, so that other hosts can
+        tell a running scan from one that died."""
+        stop = self._beat = threading.Event()
+        path = self.path
+
+        def beat():
+            while not stop.wait(LOCK_HEARTBEAT_S):
+                try:
+                    os.utime(path)
+                except OSError:
+                    return
+
+        threading.Thread(target=beat, name="scanner-lock-heartbeat", daemon=True).start()
+
     def release(self) -> None:
+        if self._beat is not None:
+            self._beat.set()
+            self._beat = None
         if self.held:
             self.path.unlink(missing_ok=True)
             self.held = False
@@ -192,13 +221,25 @@ class OutputLock:
 
 
 def _lock_owner(path: Path) -> tuple[int, str | None]:
-    """(process id, host) written in a lock file; (0, None) where it cannot be read, the
-    host None in locks written before hosts were (this host's, then)."""
+    """(process id, host) written in a lock file; (0, None) where it cannot be read or holds
+    no process id a system gives (1 .. MAX_PID), the host None in locks written before hosts
+    were (this host's, then)."""
     try:
         words = path.read_text().split()
-        return int(words[0]), (words[1] if len(words) > 1 else None)
+        pid = int(words[0])
     except (OSError, ValueError, IndexError):
         return 0, None
+    if not 0 < pid <= MAX_PID:
+        return 0, None
+    return pid, (words[1] if len(words) > 1 else None)
+
+
+def _age_s(path: Path) -> float:
+    """Seconds since ``path`` was last modified (0 where it cannot be read)."""
+    try:
+        return max(0.0, time.time() - path.stat().st_mtime)
+    except OSError:
+        return 0.0
 
 
 def _umask() -> int:

@@ -68,8 +68,9 @@ def _cloud_material() -> bpy.types.Material:
     return mat
 
 
-# Points on the table's fixtures: preview.png's colour for them (BGR there), as linear RGB.
-FIXTURE_RGB = np.array(FIXTURE_BGR[::-1], np.float32) / 255.0
+# Points on the table's fixtures: preview.png's colour for them (sRGB BGR there), made linear
+# as the error colours are (_turbo), so that Blender shows the same colour.
+FIXTURE_RGB = (np.array(FIXTURE_BGR[::-1], np.float32) / 255.0) ** 2.2
 
 # Custom property of an imported cloud's mesh: the error (µm) its colour scale reaches red at.
 ERROR_SCALE_KEY = "error_scale_um"

@@ -71,11 +71,38 @@ def test_a_lock_from_another_host_is_never_taken_over_and_says_whose_it_is(tmp_p
     with pytest.raises(FolderBusy, match="host node-17 .process {}".format(dead.pid)):
         OutputLock(out).acquire()
     assert (out / ".scanner.lock").read_text().split() == [str(dead.pid), "node-17"]
+    # Untouched for longer than a running scan's heartbeat allows: that scan died; taken over.
+    import time
+
+    from addon.core.files import LOCK_STALE_S
+
+    old = time.time() - LOCK_STALE_S - 5
+    os.utime(out / ".scanner.lock", (old, old))
     import socket
 
+    with OutputLock(out):
+        assert (out / ".scanner.lock").read_text().split() == [str(os.getpid()), socket.gethostname()]
     (out / ".scanner.lock").write_text(f"{dead.pid} {socket.gethostname()}\n")  # this host's, dead: taken over
     with OutputLock(out):
         assert (out / ".scanner.lock").read_text().split() == [str(os.getpid()), socket.gethostname()]
+    for junk in ("99999999999999999999 node-17", "-1 node-17", "-1", "x y z", ""):  # no process: taken over
+        (out / ".scanner.lock").write_text(junk)
+        with OutputLock(out):
+            assert (out / ".scanner.lock").read_text().split()[0] == str(os.getpid())
+
+
+def test_a_running_scans_lock_is_touched_while_it_runs(tmp_path, monkeypatch):
+    import time
+
+    import addon.core.files as files
+
+    monkeypatch.setattr(files, "LOCK_HEARTBEAT_S", 0.05)
+    with OutputLock(tmp_path / "out") as lock:
+        old = time.time() - 1000
+        os.utime(lock.path, (old, old))
+        time.sleep(0.3)
+        assert time.time() - lock.path.stat().st_mtime < 5
+    assert not (tmp_path / "out").exists()
 
 
 def test_a_full_disk_names_the_file_it_stopped_on(tmp_path, monkeypatch):

@@ -298,3 +298,30 @@ def test_a_table_fixture_reaching_into_the_part_is_warned_of_and_one_that_touche
     (line,) = said
     depth = float(line.split(" reaches ")[1].split(" mm")[0])
     assert line.startswith("fixture jaw reaches") and 0.6 * -gap_mm <= depth <= -gap_mm + 1e-6
+
+
+def test_the_fixture_check_sees_a_rod_through_the_part_and_names_an_open_mesh_and_turns_an_inside_out_one():
+    """A 4 mm rod pushed through the middle of a 40 mm box part (no vertex of either inside the
+    other): warned of, reaching 20 − √2 mm into it at most (its surface 45° round from the
+    axis, nearest two faces), at least 18 mm, from the box's own geometry; an open
+    fixture is named as unchecked; an inside-out jaw standing 0.5 mm clear is not warned of."""
+    from addon.core.safety import Fixture
+    from addon.core.scan.plan import fixtures_in_the_part
+
+    box = trimesh.creation.box([40.0, 40.0, 40.0])
+    box.apply_translation([0.0, 0.0, 20.0])
+    cfg = replace(load_scan_config("demo"), workpiece=Workpiece("box", box, box, "test:box", np.eye(4)))
+    rod = trimesh.creation.cylinder(radius=2.0, height=80.0, sections=32)
+    rod.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
+    rod.apply_translation([0.0, 0.0, 20.0])
+    (line,) = fixtures_in_the_part(replace(cfg, fixtures=(Fixture("fixture rod", rod, "table"),)))
+    depth = float(line.split(" reaches ")[1].split(" mm")[0])
+    assert 18.0 <= depth <= 20.0 - np.sqrt(2.0) + 1e-3
+    open_plate = trimesh.Trimesh(vertices=[[30, -5, 0], [40, -5, 0], [40, 5, 0]], faces=[[0, 1, 2]])
+    assert fixtures_in_the_part(replace(cfg, fixtures=(Fixture("fixture plate", open_plate, "table"),))) == [
+        "fixture plate is not a closed mesh, so whether it reaches into the part was not checked"]
+    jaw = trimesh.creation.box([20.0, 20.0, 20.0])
+    jaw.apply_translation([30.5, 0.0, 20.0])  # its face 0.5 mm clear of the box's side at x = 20
+    jaw.invert()
+    assert jaw.volume < 0
+    assert fixtures_in_the_part(replace(cfg, fixtures=(Fixture("fixture jaw", jaw, "table"),))) == []

@@ -157,6 +157,10 @@ def test_the_action_mask_rules_out_steep_sweeps_views_scanned_and_views_over_the
     assert not info["action_mask"][2, 0, 0] and info["action_mask"][3, 0, 0]
     _, _, _, _, again = env.step(np.array([2, 0, 0]))  # what the mask ruled out indeed finds nothing
     assert again["new_surface_cells"] == 0
+    # A view refused from one pose (the planner then never proposes it again) stays allowed to
+    # the agent: from the robot's next pose it may be done.
+    env.planner.impossible.add(env._key(5, 0, 0))
+    assert env.action_mask()[5, 0, 0]
     rng = np.random.default_rng(0)
     draws = [env.sample_allowed(rng) for _ in range(50)]
     assert all(env.action_space.contains(a) and env.action_mask()[tuple(a)] for a in draws)

@@ -246,3 +246,31 @@ def test_ctrl_c_while_cycles_renders_stops_a_users_script():
     assert "FINISHED" not in out and proc.returncode != 0, (out, err[-2000:])
     assert err.rstrip().splitlines()[-1].startswith("KeyboardInterrupt"), err[-2000:]
     assert "StructRNA" not in err and "Not freed memory" not in err, err[-2000:]
+
+
+def test_the_report_keeps_the_paths_frame_numbers_only_while_the_scanner_ran_its_path_alone():
+    s = Scanner.from_config("demo", engine="raycast", frames=slice(10, 14))
+    s.run()
+    assert s.report().to_dict()["config"]["path_frames"] == [10, 11, 12, 13]
+    s.measure()  # a frame of its own: no path frame to give it
+    assert s.report().to_dict()["config"]["path_frames"] is None
+
+
+def test_a_fixture_reaching_into_the_part_is_warned_of_step_by_step_too():
+    from dataclasses import replace
+
+    import trimesh
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.safety import Fixture
+
+    jaw = trimesh.creation.box([20.0, 20.0, 20.0])
+    jaw.apply_translation([39.0, 0.0, 30.0])  # 1 mm into the demo's sphere (radius 30 mm)
+    cfg = replace(load_scan_config("demo").with_overrides(engine="raycast"),
+                  fixtures=(Fixture("fixture jaw", jaw, "table"),))
+    s = Scanner(config=cfg)
+    assert s.report().to_dict()["warnings"] == []  # nothing measured: nothing said yet
+    s.measure()
+    s.measure()
+    said = [w for w in s.report().to_dict()["warnings"] if "reaches" in w]
+    assert len(said) == 1 and said[0].startswith("fixture jaw reaches")

@@ -630,6 +630,10 @@ def test_points_on_a_table_fixture_come_in_with_the_previews_colour_for_them(pan
     points = cloud_from_object(cloud).points
     rgba = np.empty(4 * len(points), np.float32)
     cloud.data.color_attributes["error_colour"].data.foreach_get("color", rgba)
+    from addon.core.scan.preview import FIXTURE_BGR
+
+    # preview.png's sRGB colour, seen in Blender's linear colour space
+    np.testing.assert_allclose(FIXTURE_RGB ** (1 / 2.2) * 255, FIXTURE_BGR[::-1], atol=0.5)
     fixture_coloured = np.all(np.isclose(rgba.reshape(-1, 4)[:, :3], FIXTURE_RGB, atol=1e-6), axis=1)
     q = np.abs(points - [45.0, 0.0, 30.0]) - [10.0, 30.0, 30.0]
     on_block = np.abs(np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)) < 0.2

@@ -40,6 +40,9 @@ def resolve_rig(kind: str, name_or_path: str | Path) -> Path:
     candidate = RIGS_DIR / kind / f"{text}.toml"
     if candidate.is_file():
         return candidate
+    if p.is_dir():
+        raise ConfigError(f"{p}: a folder, not a {kind[:-1] if kind.endswith('s') else kind} file (.toml), and not "
+                          f"one of the bundled {kind} ({', '.join(available_rigs(kind)) or 'none'})")
     known = ", ".join(available_rigs(kind)) or "none"
     raise ConfigError(f"unknown {kind[:-1] if kind.endswith('s') else kind} '{text}': "
                       f"not a file, and not one of the bundled {kind} ({known})")

@@ -220,24 +220,34 @@ def table_fixtures(config: ScanConfig) -> tuple:
 
 
 FIXTURE_OVERLAP_MM = 0.05  # a table fixture may touch the part; reaching further into it is warned of
+OVERLAP_SAMPLES = 20000    # surface points drawn from each of the two meshes for the check
 
 
 def fixtures_in_the_part(config: ScanConfig) -> list[str]:
     """A warning for each table fixture that reaches into the part by more than
-    FIXTURE_OVERLAP_MM (a real clamp touches it at most): the part's vertices inside the
-    fixture and the fixture's inside the part, by signed distance (closed meshes only; where
-    neither side can say inside from outside, nothing is said)."""
+    FIXTURE_OVERLAP_MM (a real clamp touches it at most), judged by the signed distance of
+    each mesh's vertices and of points spread over its surface (a rod through a box has no
+    vertex inside it) to the other mesh; a fixture that is not a closed mesh cannot be judged
+    so and is named instead. An inside-out closed mesh is turned right way out first."""
     out = []
     wp = config.workpiece
+    part = wp.mesh
     for f in table_fixtures(config):
-        lo, hi = f.mesh.bounds
-        near = np.all((wp.mesh.vertices >= lo - 1.0) & (wp.mesh.vertices <= hi + 1.0), axis=1)
+        fixture = f.mesh
+        if not (fixture.is_watertight and fixture.is_winding_consistent):
+            out.append(f"{f.name} is not a closed mesh, so whether it reaches into the part was not checked")
+            continue
+        if fixture.volume < 0:  # inside out: its signed distances would call the outside inside
+            fixture = fixture.copy()
+            fixture.invert()
+        lo, hi = fixture.bounds - 1.0, fixture.bounds + 1.0
+        P = _surface_points(part)
+        P = P[np.all((P >= lo[0]) & (P <= hi[1]), axis=1)]
         depth = 0.0
-        if near.any():
-            _, signed = metrics.mesh_distances(wp.mesh.vertices[near], f.mesh)
-            if signed is not None:
-                depth = max(depth, float(-signed.min()))
-        _, signed = metrics.distances(f.mesh.vertices, wp.truth)
+        if len(P):
+            _, signed = metrics.mesh_distances(P, fixture)
+            depth = max(depth, float(-signed.min()))
+        _, signed = metrics.distances(_surface_points(fixture), wp.truth)
         if signed is not None and len(signed):
             depth = max(depth, float(-signed.min()))
         if depth > FIXTURE_OVERLAP_MM:
@@ -245,6 +255,14 @@ def fixtures_in_the_part(config: ScanConfig) -> list[str]:
                        f"the part's surface inside it is hidden and its points near the contact may count as the "
                        f"fixture's; move it out until it touches")
     return out
+
+
+def _surface_points(mesh) -> np.ndarray:
+    """A mesh's vertices and OVERLAP_SAMPLES points spread evenly (seeded) over its faces."""
+    import trimesh
+
+    spread, _ = trimesh.sample.sample_surface(mesh, OVERLAP_SAMPLES, seed=0)
+    return np.vstack([mesh.vertices, spread])
 
 
 def cell_surfaces(config: ScanConfig) -> SurfaceCaster:
