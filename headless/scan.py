@@ -173,11 +173,31 @@ def run_demo(args: argparse.Namespace) -> int:
 def default_out(config, engine: str | None = None, kind: str = "") -> str:
     """The output folder where none is given: out/<config's file name>[-kind], with the engine
     added where --engine changed it (out/demo-raycast), so that a scan with another engine
-    does not overwrite the config's own."""
+    does not overwrite the config's own. Refused where it holds the results of another config
+    file of the same name (a/scan.toml's, for b/scan.toml): those are not overwritten unasked."""
     name = Path(config.source).stem + (f"-{kind}" if kind else "")
     if engine is not None and engine != config.render.engine:
         name += f"-{engine}"
-    return str(Path("out") / name)
+    out = Path("out") / name
+    other = _results_of(out)
+    if other is not None and config.source and other != str(Path(config.source).resolve()):
+        from addon.core.errors import InputError
+
+        raise InputError(f"the default output folder {out} holds the results of {other}; give --out for "
+                         f"{config.source}'s (or move that folder away)")
+    return str(out)
+
+
+def _results_of(folder: Path) -> str | None:
+    """The config file whose results ``folder`` holds (report.json's config.file, resolved);
+    None where it holds none that say."""
+    import json
+
+    try:
+        source = json.loads((folder / "report.json").read_text())["config"]["file"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return str(Path(source).resolve()) if isinstance(source, str) and source else None
 
 
 def _run(args: argparse.Namespace, config, out: str) -> int:

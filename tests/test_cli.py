@@ -406,3 +406,26 @@ def test_a_scan_of_part_of_the_path_says_which_frames_and_sensor_and_its_report_
     assert whole.path_frames is None  # null in the report: the whole path, numbered as written
     picked = whole.with_overrides(frames=slice(150, 160, 2)).with_overrides(frames=slice(1, 3))
     assert picked.path_frames.tolist() == [152, 154]  # a pick of a pick keeps the path's numbers
+
+
+def test_the_default_output_folder_keeps_another_config_files_results(tmp_path, monkeypatch):
+    """a/scan.toml and b/scan.toml share the default folder out/scan: b's scan is refused there
+    (naming a's file and --out) rather than overwriting a's results; a's own runs go on."""
+    import json
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.errors import InputError
+    from headless.scan import default_out
+
+    demo = (REPO / "rigs" / "scenes" / "demo.toml").read_text()
+    for d in ("a", "b"):
+        (tmp_path / d).mkdir()
+        (tmp_path / d / "scan.toml").write_text(demo)
+    monkeypatch.chdir(tmp_path)
+    a, b = load_scan_config("a/scan.toml"), load_scan_config("b/scan.toml")
+    assert default_out(b) == str(Path("out") / "scan")  # nothing there yet
+    (tmp_path / "out" / "scan").mkdir(parents=True)
+    (tmp_path / "out" / "scan" / "report.json").write_text(json.dumps({"config": {"file": a.source}}))
+    assert default_out(a) == str(Path("out") / "scan")
+    with pytest.raises(InputError, match="holds the results of .*a/scan.toml; give --out"):
+        default_out(b)
