@@ -342,6 +342,23 @@ class Scanner:
         return self._plan_waypoints(self._sweep_waypoints(from_mm, to_mm, frames, beam, line, table_deg),
                                     what="sweep")[:2]
 
+    def frames_out_of_range(self, q: np.ndarray, table_rad: np.ndarray) -> np.ndarray:
+        """Indices of the frames at joints q (n, 6) and table angles (n,) rad (what plan_sweep
+        and plan_path give) whose laser puts no surface (part, table, table fixture) inside the
+        probe's range: such frames would measure nothing. Ray casts only, nothing moves."""
+        from .core.geometry.footprint import laser_footprint
+        from .pipeline import cell_surfaces
+
+        q = np.asarray(q, dtype=np.float64).reshape(-1, 6)
+        table_rad = np.asarray(table_rad, dtype=np.float64).reshape(-1)
+        if len(q) != len(table_rad) or not (np.isfinite(q).all() and np.isfinite(table_rad).all()):
+            raise InputError(f"frames_out_of_range needs finite joints (n, 6) and table angles (n,), got "
+                             f"{q.shape[0]} and {table_rad.shape[0]}")
+        if self._surfaces is None:
+            self._surfaces = cell_surfaces(self.config)
+        foot = laser_footprint(self.config.probe, self.config.cell.probe2table(q, table_rad), self._surfaces)
+        return np.asarray(foot.empty_frames, dtype=int)
+
     def _sweep_waypoints(self, from_mm, to_mm, frames, beam, line, table_deg) -> Waypoints:
         """The checked arguments of a sweep as its waypoints (table frame)."""
         check_whole(frames, "sweep frames", 1, MAX_FRAMES)

@@ -79,6 +79,14 @@ def test_a_pose_that_sees_nothing_gives_an_empty_profile_without_rendering():
     report = s.report().to_dict()
     assert report["frames"] == 1 and report["points"] == 0 and s.measure().frame == p.frame + 1 == 1
     assert s.report().to_dict()["frames"] == 2
+    # A planner can ask first, by ray casts alone (nothing moved, nothing measured): a sweep
+    # along y 60-100 mm beside the sphere (the laser line along x, so the sphere is never in its
+    # plane) has only the table, 300 mm away, beyond the 250 mm range; one at 210 mm across
+    # the sphere has it or the table in range in every frame.
+    far = s.frames_out_of_range(*s.plan_sweep([0.0, 60.0, 300.0], [0.0, 100.0, 300.0], 9))
+    near = s.frames_out_of_range(*s.plan_sweep([-40.0, 0.0, 210.0], [40.0, 0.0, 210.0], 9))
+    assert far.tolist() == list(range(9)) and near.tolist() == []
+    assert s.report().to_dict()["frames"] == 2
     # and it is said, by frame number, with the range: a sweep run past the part is no failure
     (said,) = [w for w in s.report().to_dict()["warnings"] if "probe's range" in w]
     assert said.startswith("frames 0-1 put no surface inside the probe's range 70-250 mm")
