@@ -5,7 +5,7 @@ Commands:
   scan CONFIG          a scan described by a config file (rigs/scenes/*.toml)
   adaptive CONFIG      scan the config's part adaptively from its bounding box (next-best-view planner)
   calibrate CONFIG     calibrate the config's probe from rendered ChArUco boards and laser lines (probe.toml)
-  gym-baselines        the Gymnasium environment's two baselines (reference planner, random sweeps): coverage curves
+  gym-baselines        the Gymnasium environment's baselines (reference planner, random, random allowed): coverage
   kinematics           tool poses of the bundled robots and IK solves
   bench kinematics     FK/IK speed, IK success and accuracy, false successes
   bench detect         laser-line detection accuracy and speed on synthetic images
@@ -76,8 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate.add_arguments(sub.add_parser("calibrate", help=_summary(calibrate.__doc__)))
     from headless import scan_env
 
-    scan_env.add_arguments(sub.add_parser("gym-baselines", help="run the Gymnasium environment's two baselines "
-                                          "(reference planner, random sweeps) and print their coverage curves"))
+    scan_env.add_arguments(sub.add_parser("gym-baselines", help="run the Gymnasium environment's baselines "
+                                          "(the reference planner, random actions, random actions the mask "
+                                          "allows) and print their coverage curves"))
     sub.add_parser("kinematics", help="tool poses of the bundled robots and one IK solve each").set_defaults(
         run=_run_kinematics)
 

@@ -243,25 +243,47 @@ def random_policy(env, rng):
     return np.array([rng.integers(n) for n in env.action_space.nvec])
 
 
+def allowed_random_policy(env, rng):
+    """Any action the mask allows, uniformly (seeded by ``rng``): random views that never repeat
+    a view scanned or ask for more profiles than are left."""
+    return env.sample_allowed(rng)
+
+
 def reference_policy(env, rng):
     return env.reference_action()
+
+
+POLICIES = (("reference planner", reference_policy), ("random sweeps", random_policy),
+            ("random allowed", allowed_random_policy))
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--config", default="demo", help="scan config whose cell and part to use (default demo)")
     parser.add_argument("--max-profiles", type=int, default=300, help="profile budget per episode (default 300)")
     parser.add_argument("--seed", type=int, default=0,
-                        help="seed of the random baseline and the environment (default 0)")
+                        help="seed of the random baselines and the environment (default 0)")
+    parser.add_argument("--seeds", type=int, default=1,
+                        help="run the random baselines with this many seeds from --seed on and give their "
+                             "median (default 1: one curve each)")
     parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"), default=None,
                         help="render engine (default: the config's; raycast is the fast one)")
     parser.set_defaults(run=run)
 
 
 def run(args) -> int:
-    """Both baselines through the environment, their coverage curves printed side by side."""
+    """The baselines through the environment (the reference planner, random actions, random
+    actions the mask allows), their coverage curves printed one under the other."""
+    check_whole(args.seeds, "--seeds", 1, 1000)
     env = ScanPlanningEnv(args.config, max_profiles=args.max_profiles, engine=args.engine)
-    print(f"ScanPlanningEnv on {env.config.name}: {args.max_profiles} profiles per episode, seed {args.seed}")
-    for name, policy in (("reference planner", reference_policy), ("random sweeps", random_policy)):
+    seeds = list(range(args.seed, args.seed + args.seeds))
+    print(f"ScanPlanningEnv on {env.config.name}: {args.max_profiles} profiles per episode, "
+          f"seed{'s' if len(seeds) > 1 else ''} {seeds[0]}{f'-{seeds[-1]}' if len(seeds) > 1 else ''}")
+    for name, policy in POLICIES:
+        if len(seeds) > 1 and policy is not reference_policy:  # the planner does not draw: one run says it
+            finals = [(coverage_curve(env, policy, seed=k) or [(0, 0.0)])[-1][1] for k in seeds]
+            print(f"  {name:<18} final coverage {', '.join(f'{c * 100:.1f}' for c in finals)} %: median "
+                  f"{np.median(finals) * 100:.1f} %, {min(finals) * 100:.1f}-{max(finals) * 100:.1f} %")
+            continue
         curve = coverage_curve(env, policy, seed=args.seed)
         points = ", ".join(f"{p} profiles {c * 100:.1f} %" for p, c in curve) or "nothing scanned"
         print(f"  {name:<18} {points}")

@@ -429,3 +429,17 @@ def test_the_default_output_folder_keeps_another_config_files_results(tmp_path, 
     assert default_out(a) == str(Path("out") / "scan")
     with pytest.raises(InputError, match="holds the results of .*a/scan.toml; give --out"):
         default_out(b)
+
+
+@needs_bpy
+def test_gym_baselines_prints_each_policys_curve_and_the_random_ones_over_seeds():
+    out = run_cli("gym-baselines", "--config", "demo", "--engine", "raycast", "--max-profiles", "150", "--seeds", "2")
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = out.stdout.strip().splitlines()
+    assert "seeds 0-1" in lines[0]
+    planner, rnd, allowed = lines[1:4]
+    assert planner.split()[:2] == ["reference", "planner"] and "profiles" in planner
+    for line in (rnd, allowed):
+        finals = [float(v) for v in line.split("final coverage ")[1].split(" %")[0].split(", ")]
+        median = float(line.split("median ")[1].split(" %")[0])
+        assert len(finals) == 2 and abs(median - sum(finals) / 2) < 0.051
