@@ -17,7 +17,7 @@ from ..core.optics.sensor import SensorModel
 from ..core.kinematics.turntable import Turntable
 from ..core.geometry.workpiece import builtin_workpiece, load_workpiece
 from ..scene.cell import CELL_NAME, cell_object
-from .props import FILE
+from .props import CELL, FILE
 
 CLOUD_NAME = "Scan cloud"
 # The extension's own package ("bl_ext.<repo>.<id>"); empty when these modules are used outside one.
@@ -35,11 +35,16 @@ def robot_from(s):
     return load_robot(chosen_file(s.robot_file, "robot") if s.robot == FILE else s.robot)
 
 
+def chosen_probe_rig(s) -> Probe:
+    """The probe rig chosen in the panel's list (or its file), as the rig file has it."""
+    return load_probe(chosen_file(s.probe_file, "probe") if s.probe == FILE else s.probe)
+
+
 def probe_from(s) -> Probe:
-    """The probe rig with the panel's optics (a, b, phi, gamma, sensor size); raises InputError when invalid."""
-    rig = load_probe(chosen_file(s.probe_file, "probe") if s.probe == FILE else s.probe)
-    return replace(rig, a_mm=s.probe_a, b_mm=s.probe_b, phi_rad=s.probe_phi, gamma_rad=s.probe_gamma,
-                   rows_px=s.probe_rows, cols_px=s.probe_cols)
+    """The probe rig with the panel's optics (a, b, phi, gamma, sensor size, which its name then
+    says); raises InputError when invalid."""
+    rig = chosen_probe_rig(s).with_resolution(s.probe_rows, s.probe_cols)
+    return replace(rig, a_mm=s.probe_a, b_mm=s.probe_b, phi_rad=s.probe_phi, gamma_rad=s.probe_gamma)
 
 
 def sensor_from(s) -> SensorModel:
@@ -58,7 +63,7 @@ def sensor_from(s) -> SensorModel:
 
 def workpiece_from(s):
     if s.workpiece == FILE:
-        return load_workpiece(chosen_file(s.workpiece_file, "mesh"))
+        return load_workpiece(chosen_file(s.workpiece_file, "mesh"), scale=s.workpiece_scale or None)
     return builtin_workpiece(s.workpiece)
 
 
@@ -89,7 +94,7 @@ def collision_model(s):
     from ..core.safety import CollisionModel, Safety
 
     key = (s.robot, s.robot_file, s.probe, s.probe_file, s.probe_a, s.probe_b, s.probe_phi, s.probe_gamma,
-           s.workpiece, s.workpiece_file)
+           s.workpiece, s.workpiece_file, s.workpiece_scale)
     model = _CLEARANCE_MODELS.get(key)
     if model is None:
         probe = probe_from(s)

@@ -54,7 +54,8 @@ class SCANNER_OT_build_cell(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         sc.pose(np.zeros(6), s.table_angle)
-        self.report({"INFO"}, f"Built the cell: {sc.cell.robot.name}, {sc.probe.name}, {s.workpiece}")
+        part = s.workpiece if s.workpiece != models.FILE else bpy.path.basename(s.workpiece_file)
+        self.report({"INFO"}, f"Built the cell: {sc.cell.robot.name}, {sc.probe.name}, {part}")
         return {"FINISHED"}
 
 
@@ -195,9 +196,28 @@ def _panel_config(context, config: str):
     s = context.scene.scanner
     if config:
         source = bpy.path.abspath(config) if config.endswith(".toml") else config
+    elif s.scan_config == models.CELL:
+        return _cell_config(s)
     else:
         source = models.chosen_file(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config
     return load_scan_config(source)
+
+
+def _cell_config(s):
+    """The Cell panel's own cell as a scan config: its robot, probe (with the edited optics),
+    workpiece (with its scale) and material, the path laid out for the part from its bounding
+    box (core.kinematics.path.around_part); the rest as the demo config has it."""
+    from dataclasses import replace
+
+    from ..core.config.scan import load_scan_config
+    from ..core.kinematics.path import around_part
+
+    base = load_scan_config("demo")
+    robot, probe, wp = models.robot_from(s), models.probe_from(s), models.workpiece_from(s)
+    return replace(base, name=f"The cell built here, {wp.name}", source="", robot=robot, probe=probe, workpiece=wp,
+                   material=s.material, roughness=s.roughness, fixtures=(),
+                   q_start=base.q_start if robot.name == base.robot.name else None,
+                   waypoints=around_part(wp.mesh, base.table))
 
 
 def _with_engine(context, cfg, engine: str):

@@ -25,6 +25,8 @@ class SCANNER_PT_cell(_ScannerPanel, bpy.types.Panel):
             col.prop(s, prop)
             if getattr(s, prop) == "FILE":
                 col.prop(s, file_prop, text="")
+                if prop == "workpiece":
+                    col.prop(s, "workpiece_scale")
         col.prop(s, "material")
         if s.material == "glossy":
             col.prop(s, "roughness")

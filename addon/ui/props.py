@@ -32,7 +32,11 @@ _SENSOR = SensorModel()  # the panel's defaults are the core's
 # Enum items are built once: Blender keeps pointers to these strings.
 ROBOT_ITEMS = _rig_items("robots", "robot rig")
 PROBE_ITEMS = _rig_items("probes", "probe rig")
+CELL = "CELL"  # the scan source that is the Cell panel's own cell
 SCENE_ITEMS = _rig_items("scenes", "scan config")
+SCENE_ITEMS.insert(0, (CELL, "The Cell Built Here", "The Cell panel's robot, probe, workpiece and material, "
+                       "scanned along a path laid out for the part: a table turn from above, two from 45° at "
+                       "its side, a sweep across it (as bench parts does)"))
 MATERIAL_ITEMS = [(m, m.title(), f"{m.title()} surface") for m in MATERIALS]
 BIT_DEPTH_ITEMS = [(str(b), f"{b} bit", f"{b}-bit analogue-to-digital converter") for b in BIT_DEPTHS]
 WORKPIECE_ITEMS = [(k, k.replace("_", " ").title(), f"Built-in {k.replace('_', ' ')} with exact ground truth")
@@ -47,16 +51,37 @@ def _table_angle_changed(self, context):
         table.rotation_euler[2] = self.table_angle
 
 
+def _probe_changed(self, context):
+    """A probe chosen in the list (or its file) brings its optics into the fields below, as
+    Load from Rig does: the list's choice is what Build Cell then builds. A file that cannot
+    be read leaves them as they were (Build Cell says why)."""
+    from ..core.errors import ScannerError
+    from . import models
+
+    try:
+        p = models.chosen_probe_rig(self)
+    except (ScannerError, OSError):
+        return
+    self.probe_a, self.probe_b, self.probe_phi, self.probe_gamma = p.a_mm, p.b_mm, p.phi_rad, p.gamma_rad
+    self.probe_rows, self.probe_cols = p.rows_px, p.cols_px
+
+
 class ScannerSettings(bpy.types.PropertyGroup):
     # -- cell ----------------------------------------------------------------------
     robot: EnumProperty(name="Robot", items=ROBOT_ITEMS, default=ROBOT_ITEMS[0][0],
                         description="Robot rig: a DH table with joint limits")
     robot_file: StringProperty(name="Robot file", subtype="FILE_PATH", description="Robot rig file (TOML)")
-    probe: EnumProperty(name="Probe", items=PROBE_ITEMS, default="default",
-                        description="Probe rig: laser, cameras and mount; its optics are edited below")
-    probe_file: StringProperty(name="Probe file", subtype="FILE_PATH", description="Probe rig file (TOML)")
+    probe: EnumProperty(name="Probe", items=PROBE_ITEMS, default="default", update=_probe_changed,
+                        description="Probe rig: laser, cameras and mount; choosing one loads its optics into "
+                                    "the fields below, where they can be edited")
+    probe_file: StringProperty(name="Probe file", subtype="FILE_PATH", description="Probe rig file (TOML)",
+                               update=_probe_changed)
     workpiece: EnumProperty(name="Workpiece", items=WORKPIECE_ITEMS, default="sphere")
     workpiece_file: StringProperty(name="Mesh file", subtype="FILE_PATH", description="Workpiece mesh")
+    workpiece_scale: FloatProperty(name="Scale", default=0.0, min=0.0, soft_max=1000.0,
+                                   description="Millimetres per unit of the mesh file: 1 for a file in mm, 1000 "
+                                               "for one in metres (Blender's own STL/OBJ export), 25.4 for "
+                                               "inches; 0: by the format (mm, glTF/GLB in metres)")
     material: EnumProperty(name="Material", items=MATERIAL_ITEMS, default="grey",
                            description="Workpiece surface; glossy and mirror need render bounces to show reflections")
     roughness: FloatProperty(name="Roughness", default=0.2, min=0.0, max=1.0,

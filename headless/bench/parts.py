@@ -16,37 +16,12 @@ import argparse
 import time
 from dataclasses import replace
 
+# The path each part gets (a table turn from above, two at 45° from the side, a sweep) has one
+# home, the core's, where the panel's "cell built here" scan takes it too.
+from addon.core.kinematics.path import AROUND_PART_STANDOFF_MM as STANDOFF_MM
+from addon.core.kinematics.path import around_part as part_path
+
 OUTLIER_MM = 0.2
-
-
-STANDOFF_MM = 160.0  # the probe's mid-range
-TILT_DEG = 45.0
-
-
-def part_path(mesh, table, frames: int = 60):
-    """A path for a part that a scanning engineer would set up from its bounding box: a table
-    turn looking down from above, two table turns looking 45° down at its side (one at the
-    near side's outside, one across the axis at the far side's inside: walls, holes,
-    pockets), and a sweep across its top. The laser plane holds the table axis in the turns."""
-    import numpy as np
-
-    from addon.core.kinematics import path as scanpath
-
-    lo, hi = mesh.bounds
-    radius = float(np.linalg.norm(np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
-    top = float(hi[2])
-    a = np.radians(TILT_DEG)
-    beam = np.array([0.0, -np.sin(a), -np.cos(a)])  # from the +y side, towards the axis
-    near = np.array([0.0, 0.5 * radius, 0.5 * top])
-    far = np.array([0.0, -0.4 * radius, 0.6 * top])
-    passes = [
-        scanpath.turntable(frames, [12.0, 0.0, top + STANDOFF_MM], table=table, segment=0),
-        scanpath.turntable(frames, near - STANDOFF_MM * beam, beam, (0.0, 0.0, 1.0), table=table, segment=1),
-        scanpath.turntable(frames, far - STANDOFF_MM * beam, beam, (0.0, 0.0, 1.0), table=table, segment=2),
-        scanpath.sweep(frames // 2 * 1, [-radius - 5.0, 0.0, top + STANDOFF_MM], [radius + 5.0, 0.0, top + STANDOFF_MM],
-                       segment=3),
-    ]
-    return scanpath.concatenate(passes)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

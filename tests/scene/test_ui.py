@@ -642,3 +642,59 @@ def test_points_on_a_table_fixture_come_in_with_the_previews_colour_for_them(pan
     on_sphere = load_scan_config("demo").workpiece.truth.distance(points) < 0.2
     assert on_block.sum() > 50 and fixture_coloured[on_block].mean() > 0.98
     assert on_sphere.sum() > 100 and not fixture_coloured[on_sphere].any()
+
+
+def test_choosing_a_probe_loads_its_optics_and_a_mesh_in_metres_takes_the_scale_field(panel, tmp_path):
+    """From an artist's trial: the probe list's choice is what Build Cell builds (its optics come
+    into the fields, and the name says the sensor built); a 50 mm box saved in metres is refused
+    naming the Scale field, then built at its size with Scale 1000, the message naming the file."""
+    import trimesh
+
+    from addon.core.config.rigs import load_probe
+
+    s = panel.scanner
+    s.probe = "hires"
+    hires = load_probe("hires")
+    assert (s.probe_rows, s.probe_cols) == (hires.rows_px, hires.cols_px)
+    assert s.probe_phi == pytest.approx(hires.phi_rad)
+    s.probe_rows, s.probe_cols = 200, 320  # edited by hand: built so, and named so
+    box = trimesh.creation.box([0.05, 0.04, 0.03])
+    box.apply_translation([0.0, 0.0, 0.015])
+    box.export(tmp_path / "box_in_metres.stl")
+    s.workpiece, s.workpiece_file = "FILE", str(tmp_path / "box_in_metres.stl")
+    with pytest.raises(RuntimeError, match="0.05 mm across.*Scale field"):
+        bpy.ops.scanner.build_cell()
+    s.workpiece_scale = 1000.0
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    part = next(o for o in bpy.data.objects if o.name.startswith("Workpiece ") and "twin" not in o.name)
+    np.testing.assert_allclose(sorted(part.dimensions), sorted([0.05, 0.04, 0.03]), rtol=1e-6)  # metres in Blender
+    from addon.ui import models
+
+    assert "320x200" in models.probe_from(s).name
+
+
+def test_scan_can_take_the_cell_built_here_with_the_users_own_mesh(panel, tmp_path):
+    """From an artist's trial: Scan used to swap the cell built from the Cell panel for the
+    scan config's. "The Cell Built Here" scans the panel's own cell: a torus of the user's own,
+    measured along a path laid out for it, its points on the torus by the torus's own geometry."""
+    import json
+
+    import trimesh
+
+    torus = trimesh.creation.torus(major_radius=25.0, minor_radius=8.0, major_sections=96, minor_sections=48)
+    torus.apply_translation([0.0, 0.0, 8.0])  # lying on the table
+    torus.export(tmp_path / "torus.stl")
+    s = panel.scanner
+    s.workpiece, s.workpiece_file = "FILE", str(tmp_path / "torus.stl")
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    s.scan_config, s.scan_engine = "CELL", "raycast"
+    assert bpy.ops.scanner.scan(frames="0:210:3", output_dir=str(tmp_path / "out")) == {"FINISHED"}
+    report = json.loads(next((tmp_path / "out").glob("*/report.json")).read_text())
+    assert report["config"]["workpiece"] == str(tmp_path / "torus.stl") and report["points_on_part"] > 500
+    from addon.scene.cloud_object import cloud_from_object
+
+    P = cloud_from_object(bpy.data.objects["Scan cloud"]).points
+    part = P[:, 2] > 0.5
+    ring = np.hypot(np.hypot(P[part, 0], P[part, 1]) - 25.0, P[part, 2] - 8.0)  # distance from the tube's axis
+    assert np.median(np.abs(ring - 8.0)) < 0.05  # on the torus's surface (its facets lie within 0.02 mm)
+    assert bpy.data.objects["Workpiece torus"]  # the user's part is still the cell's

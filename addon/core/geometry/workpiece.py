@@ -25,9 +25,10 @@ FORMATS = (".stl", ".obj", ".ply", ".glb", ".gltf")
 METRE_FORMATS = (".glb", ".gltf")
 MAX_EXTENT_MM = 5000.0   # a workpiece on a rotary table; larger is a unit mistake
 MIN_EXTENT_MM = 0.01
-# A mesh file's part: smaller than a millimetre or larger than a metre on a 300 mm table is a
-# file in another unit (metres, inches, micrometres) far more often than a real part.
-FILE_MIN_EXTENT_MM = 1.0
+# A mesh file's part: smaller than 5 mm (four widths of the default probe's laser line) or
+# larger than a metre on a 300 mm table is a file in another unit far more often than a real
+# part: Blender's own STL export of a 2 m model writes 2 (metres), read as 2 mm here.
+FILE_MIN_EXTENT_MM = 5.0
 FILE_MAX_EXTENT_MM = 1000.0
 MAX_FACES = 10_000_000
 
@@ -125,7 +126,8 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         key = "the workpiece's" if role == "part" else f"the {role}'s"
         raise InputError(f"{path}: the {role} is {extent:.4g} mm across (scale {scale:g}); {role}s in the cell are "
                          f"{FILE_MIN_EXTENT_MM:g} to {FILE_MAX_EXTENT_MM:g} mm: is the file in another unit? "
-                         f"Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches)")
+                         f"Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches; in the "
+                         f"panel, its Scale field)")
     check_mesh(mesh, str(path))
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)

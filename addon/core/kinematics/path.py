@@ -130,6 +130,32 @@ class PathSolution:
         return [int(i) for i in np.nonzero(~self.ok)[0]]
 
 
+AROUND_PART_STANDOFF_MM = 160.0  # the default probe's mid-range
+AROUND_PART_TILT_DEG = 45.0
+
+
+def around_part(mesh, table, frames: int = 60) -> Waypoints:
+    """A path for a part that a scanning engineer would set up from its bounding box (table
+    frame): a table turn looking down from above, two table turns looking 45° down at its side
+    (one at the near side's outside, one across the axis at the far side's inside: walls,
+    holes, pockets), and a sweep across its top with half the frames. The laser plane holds
+    the table axis in the turns."""
+    lo, hi = mesh.bounds
+    radius = float(np.linalg.norm(np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
+    top = float(hi[2])
+    a = np.radians(AROUND_PART_TILT_DEG)
+    beam = np.array([0.0, -np.sin(a), -np.cos(a)])  # from the +y side, towards the axis
+    near = np.array([0.0, 0.5 * radius, 0.5 * top])
+    far = np.array([0.0, -0.4 * radius, 0.6 * top])
+    standoff = AROUND_PART_STANDOFF_MM
+    return concatenate([
+        turntable(frames, [12.0, 0.0, top + standoff], table=table, segment=0),
+        turntable(frames, near - standoff * beam, beam, (0.0, 0.0, 1.0), table=table, segment=1),
+        turntable(frames, far - standoff * beam, beam, (0.0, 0.0, 1.0), table=table, segment=2),
+        sweep(frames // 2, [-radius - 5.0, 0.0, top + standoff], [radius + 5.0, 0.0, top + standoff], segment=3),
+    ])
+
+
 def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
     """Joint vectors for every waypoint, each nearest the previous one (no flips between neighbours)."""
     robot = cell.robot
