@@ -14,6 +14,7 @@ from bpy.props import FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from ..core.errors import InputError, ScannerError
+from ..scene import rig
 from ..scene.render_state import RenderState, kept_render_settings
 from . import models
 
@@ -297,6 +298,8 @@ class _SteppedScan:
 
     def _start(self, context):
         self._state = RenderState(context.scene)  # put back when the work ends, however it ends
+        robot = models.find_robot(context.scene)
+        self._pose = None if robot is None else (robot.get("robot_name"), rig.get_joints(robot).copy())
         try:
             self._scanner, self._steps = self._open(context)
             self._progress = self._progress_of(next(self._steps))  # plans (a refusal raises here)
@@ -319,10 +322,28 @@ class _SteppedScan:
             return True
         return False
 
+    _pose = None
+
     def _restore(self):
         state, self._state = self._state, None
         if state is not None:
             state.restore()
+        self._put_back_pose()
+
+    def _put_back_pose(self):
+        """The robot's joints and the table's angle as the panel had them before the scan (the
+        scan's own cell, where it built one, takes them too when its robot is the same): the
+        Joints and Table boxes keep saying what the scene shows."""
+        pose, self._pose = self._pose, None
+        context = bpy.context
+        robot = models.find_robot(context.scene)
+        if pose is not None and robot is not None and robot.get("robot_name") == pose[0]:
+            rig.set_joints(robot, pose[1])
+        table = models.cell_object("Turntable")
+        if table is not None:
+            if table.animation_data is not None:
+                table.animation_data_clear()
+            table.rotation_euler[2] = context.scene.scanner.table_angle
 
     def _complete(self, context):
         scanner, self._scanner, self._steps = self._scanner, None, None

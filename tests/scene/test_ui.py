@@ -698,3 +698,18 @@ def test_scan_can_take_the_cell_built_here_with_the_users_own_mesh(panel, tmp_pa
     ring = np.hypot(np.hypot(P[part, 0], P[part, 1]) - 25.0, P[part, 2] - 8.0)  # distance from the tube's axis
     assert np.median(np.abs(ring - 8.0)) < 0.05  # on the torus's surface (its facets lie within 0.02 mm)
     assert bpy.data.objects["Workpiece torus"]  # the user's part is still the cell's
+
+
+def test_after_a_scan_the_robot_and_the_table_are_where_the_panel_says(panel, tmp_path):
+    """From an artist's trial: a scan rebuilt the cell from its config and left the robot at
+    zero joints and the table at 0° while the Table box still said 45°."""
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    q = np.radians([20, 50, -70, 10, 40, -30])
+    rig.set_joints(robot_obj(), q)
+    panel.scanner.table_angle = math.radians(45)
+    panel.scanner.scan_engine = "raycast"
+    assert bpy.ops.scanner.scan(frames="0:60:30", output_dir=str(tmp_path / "out")) == {"FINISHED"}
+    np.testing.assert_allclose(rig.get_joints(robot_obj()), q, atol=1e-6)
+    assert bpy.data.objects["Turntable"].rotation_euler[2] == pytest.approx(math.radians(45))
+    panel.frame_set(panel.frame_current + 1)  # no scan keyframe pulls them away
+    assert bpy.data.objects["Turntable"].rotation_euler[2] == pytest.approx(math.radians(45))
