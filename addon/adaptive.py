@@ -146,6 +146,12 @@ class NextBestView:
         frames = next_view.turn_frames(self.part_radius()) if frames is None else frames
         return c if c.frames == frames else next_view.resampled_turn(c, frames, self.table)
 
+    def smallest_view(self) -> int:
+        """The profiles of the planner's smallest view as it would lay it out now: a budget
+        below this scans nothing."""
+        frames = next_view.turn_frames(self.part_radius())
+        return min(self.sized(c, frames).frames for c in self.pool)
+
     def part_radius(self) -> float:
         """How far from the table's axis the part reaches, as measured so far: the farthest
         point inside the part's box and more than TABLE_CLEARANCE_MM above the table top (the

@@ -74,6 +74,11 @@ def run(args: argparse.Namespace) -> int:
         if stops is not None:
             stops.check()
         if not steps:
+            smallest = scanner.planner.smallest_view() if scanner.planner is not None else 0
+            if smallest > settings.max_profiles:
+                raise InputError(f"no view was scanned: the budget of {settings.max_profiles} profiles is below the "
+                                 f"smallest view's {smallest} (raise --max-profiles to at least {smallest}); nothing "
+                                 f"written")
             raise InputError(f"no view was scanned: none the robot can do fits the budget of {settings.max_profiles} "
                              f"profiles and promises {settings.min_gain} new cells (raise --max-profiles, or check "
                              f"that the [adaptive] box {lo.round(1).tolist()} .. {hi.round(1).tolist()} mm is the "
@@ -82,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
         print_summary(result, time.perf_counter() - t)
         plan_s = [s.planning_s for s in steps]
         if plan_s:
-            print(f"  planner       {len(steps)} views, {sum(s.profiles for s in steps)} profiles; planning "
+            views = f"{len(steps)} view{'s' if len(steps) != 1 else ''}"
+            print(f"  planner       {views}, {sum(s.profiles for s in steps)} profiles; planning "
                   f"{max(plan_s):.2f} s at most per decision (median {statistics.median(plan_s):.2f} s); "
                   f"its coverage estimate {steps[-1].coverage_estimate * 100:.1f} %")
         return 0

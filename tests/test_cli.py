@@ -443,3 +443,20 @@ def test_gym_baselines_prints_each_policys_curve_and_the_random_ones_over_seeds(
         finals = [float(v) for v in line.split("final coverage ")[1].split(" %")[0].split(", ")]
         median = float(line.split("median ")[1].split(" %")[0])
         assert len(finals) == 2 and abs(median - sum(finals) / 2) < 0.051
+
+
+@needs_bpy
+def test_an_adaptive_budget_below_every_view_names_the_smallest_and_that_budget_scans(tmp_path):
+    out = run_cli("adaptive", "demo", "--engine", "raycast", "--max-profiles", "40", "--quiet",
+                  "--out", str(tmp_path / "small"))
+    assert out.returncode == 2 and not (tmp_path / "small").exists()
+    (line,) = [ln for ln in out.stderr.splitlines() if ln.startswith("error:")]
+    smallest = int(line.split("at least ")[1].split(")")[0])
+    assert smallest > 40
+    out = run_cli("adaptive", "demo", "--engine", "raycast", "--max-profiles", str(smallest), "--quiet",
+                  "--out", str(tmp_path / "enough"))
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "1 view," in out.stdout  # one view, said so
+    import json
+
+    assert 0 < json.loads((tmp_path / "enough" / "report.json").read_text())["frames"] <= smallest

@@ -273,7 +273,8 @@ def _colour_text() -> str:
     from ..scene.cloud_object import error_scale_um
 
     top = error_scale_um(bpy.data.objects.get(models.CLOUD_NAME))
-    return "" if top is None else f"; colours from 0 µm (blue) to {top:.1f} µm (red)"
+    return "" if top is None else (f"; colours from 0 µm (blue) to {top:.1f} µm (red), seen in the viewport's "
+                                   f"Material Preview or Rendered shading")
 
 
 class _SteppedScan:
@@ -600,8 +601,11 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
 
     def _finish(self, context, scanner, steps):
         if not steps:
-            self.report({"WARNING"}, f"Adaptive scan: no reachable sweep fits the budget of {self._budget} profiles; "
-                                     "nothing was scanned")
+            smallest = scanner.planner.smallest_view() if scanner.planner is not None else None
+            hint = ("" if smallest is None or smallest <= self._budget else
+                    f" (the smallest view takes {smallest} profiles: raise Profile Budget to at least that)")
+            self.report({"WARNING"}, f"Adaptive scan: no reachable sweep fits the budget of {self._budget} profiles"
+                                     f"{hint}; nothing was scanned")
             return {"CANCELLED"}
         result = scanner.result(self._folder)
         _import_result(context, scanner, result)
