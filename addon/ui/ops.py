@@ -301,6 +301,9 @@ class _SteppedScan:
         self._state = RenderState(context.scene)  # put back when the work ends, however it ends
         robot = models.find_robot(context.scene)
         self._pose = None if robot is None else (robot.get("robot_name"), rig.get_joints(robot).copy())
+        s = context.scene.scanner
+        # A cell built here that the scan's config will stand in for: the message says so.
+        self._swapped = robot is not None and (bool(getattr(self, "config", "")) or s.scan_config != models.CELL)
         try:
             self._scanner, self._steps = self._open(context)
             self._progress = self._progress_of(next(self._steps))  # plans (a refusal raises here)
@@ -324,6 +327,7 @@ class _SteppedScan:
         return False
 
     _pose = None
+    _swapped = False
 
     def _restore(self):
         state, self._state = self._state, None
@@ -492,8 +496,10 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
         result = scanner.result(self._folder)
         _import_result(context, scanner, result)
         warned = _report_warnings(self, result.report)
+        swapped = (f"; the cell is the scan config's ({result.report['config']['name']}): choose The Cell Built "
+                   f"Here to scan the Scanner Cell's own" if self._swapped else "")
         self.report({"INFO"}, f"Scanned {result.report['points']} points, {_error_text(result.report['error_um'])}; "
-                              f"files in {result.files['cloud'].parent}{_colour_text()}{warned}")
+                              f"files in {result.files['cloud'].parent}{_colour_text()}{warned}{swapped}")
         return {"FINISHED"}
 
 

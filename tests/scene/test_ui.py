@@ -673,7 +673,7 @@ def test_choosing_a_probe_loads_its_optics_and_a_mesh_in_metres_takes_the_scale_
     assert "320x200" in models.probe_from(s).name
 
 
-def test_scan_can_take_the_cell_built_here_with_the_users_own_mesh(panel, tmp_path):
+def test_scan_can_take_the_cell_built_here_with_the_users_own_mesh(panel, tmp_path, capfd):
     """From an artist's trial: Scan used to swap the cell built from the Cell panel for the
     scan config's. "The Cell Built Here" scans the panel's own cell: a torus of the user's own,
     measured along a path laid out for it, its points on the torus by the torus's own geometry."""
@@ -698,6 +698,10 @@ def test_scan_can_take_the_cell_built_here_with_the_users_own_mesh(panel, tmp_pa
     ring = np.hypot(np.hypot(P[part, 0], P[part, 1]) - 25.0, P[part, 2] - 8.0)  # distance from the tube's axis
     assert np.median(np.abs(ring - 8.0)) < 0.05  # on the torus's surface (its facets lie within 0.02 mm)
     assert bpy.data.objects["Workpiece torus"]  # the user's part is still the cell's
+    assert "the cell is the scan config's" not in "".join(capfd.readouterr())
+    s.scan_config = "demo"  # a config's cell stands in for the one built here: said so
+    assert bpy.ops.scanner.scan(frames="0:180:60", output_dir=str(tmp_path / "out2")) == {"FINISHED"}
+    assert "the cell is the scan config's (Demo: sphere on the turntable)" in "".join(capfd.readouterr())
 
 
 def test_after_a_scan_the_robot_and_the_table_are_where_the_panel_says(panel, tmp_path):

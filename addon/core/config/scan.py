@@ -253,7 +253,10 @@ class ScanConfig:
         if frames is not None:
             picked = np.arange(len(cfg.waypoints))[frames]
             if picked.size == 0:
-                raise InputError(f"--frames selects no frames of the {len(cfg.waypoints)} in the path")
+                asked = frames if not isinstance(frames, slice) else ":".join(
+                    "" if v is None else str(v) for v in (frames.start, frames.stop, frames.step)).rstrip(":")
+                raise InputError(f"frames {asked} select none of the {len(cfg.waypoints)} frames in the path "
+                                 f"(0 to {len(cfg.waypoints) - 1})")
             numbers = np.arange(len(cfg.waypoints)) if cfg.path_frames is None else cfg.path_frames
             cfg = replace(cfg, waypoints=cfg.waypoints.select(picked), path_frames=numbers[picked])
         return cfg
