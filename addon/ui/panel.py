@@ -94,7 +94,7 @@ class SCANNER_PT_probe(_ScannerPanel, bpy.types.Panel):
             return
         z0, z1 = p.z_range_mm
         l0, l1 = p.line_lengths_mm()
-        box.label(text=f"Range (Eq. 7): {z0:.1f} to {z1:.1f} mm")
+        box.label(text=f"Measuring range: {z0:.1f} to {z1:.1f} mm (Eq. 7)")
         box.label(text=f"Line length: {l0:.1f} mm near, {l1:.1f} mm far")
         box.label(text=f"f = {p.f_px:.1f} px; rebuild the cell to apply")
 

@@ -105,13 +105,13 @@ class ScannerSettings(bpy.types.PropertyGroup):
     tool_rotation: FloatVectorProperty(name="Tool angles", size=3, subtype="EULER", default=(0.0, 0.0, 0.0),
                                        description="Tool orientation in the probe frame (YZZ')")
     # -- probe optics ----------------------------------------------------------------
-    probe_a: FloatProperty(name="a (mm)", default=60.0, min=0.001, soft_max=500.0,
+    probe_a: FloatProperty(name="Baseline a (mm)", default=60.0, min=0.001, soft_max=500.0,
                            description="Each camera's distance from the laser plane")
-    probe_b: FloatProperty(name="b (mm)", default=0.0, soft_min=-200.0, soft_max=200.0,
+    probe_b: FloatProperty(name="Offset b (mm)", default=0.0, soft_min=-200.0, soft_max=200.0,
                            description="Camera offset along the beam")
-    probe_phi: FloatProperty(name="phi", subtype="ANGLE", default=math.radians(27.0485), min=0.0,
+    probe_phi: FloatProperty(name="Camera angle φ", subtype="ANGLE", default=math.radians(27.0485), min=0.0,
                              max=math.pi / 2, description="Angle between the beam and each camera's axis")
-    probe_gamma: FloatProperty(name="gamma", subtype="ANGLE", default=math.radians(13.5528), min=0.0,
+    probe_gamma: FloatProperty(name="Half view γ", subtype="ANGLE", default=math.radians(13.5528), min=0.0,
                                max=math.pi / 2, description="Half field of view along the triangulation direction")
     probe_rows: IntProperty(name="Rows", default=160, min=2, max=100000,
                             description="Sensor rows (H), along the triangulation direction")
