@@ -255,8 +255,8 @@ class ScanConfig:
             if picked.size == 0:
                 asked = frames if not isinstance(frames, slice) else ":".join(
                     "" if v is None else str(v) for v in (frames.start, frames.stop, frames.step)).rstrip(":")
-                raise InputError(f"frames {asked} select none of the {len(cfg.waypoints)} frames in the path "
-                                 f"(0 to {len(cfg.waypoints) - 1})")
+                raise InputError(f"--frames (the panel's Frames) {asked} selects no frames of the "
+                                 f"{len(cfg.waypoints)} in the path (0 to {len(cfg.waypoints) - 1})")
             numbers = np.arange(len(cfg.waypoints)) if cfg.path_frames is None else cfg.path_frames
             cfg = replace(cfg, waypoints=cfg.waypoints.select(picked), path_frames=numbers[picked])
         return cfg
