@@ -150,7 +150,8 @@ class NextBestView:
         """The profiles of the planner's smallest view as it would lay it out now: a budget
         below this scans nothing."""
         frames = next_view.turn_frames(self.part_radius())
-        return min(self.sized(c, frames).frames for c in self.pool)
+        live = [c for c in self.pool if c.key not in self.impossible] or self.pool
+        return min(self.sized(c, frames).frames for c in live)
 
     def part_radius(self) -> float:
         """How far from the table's axis the part reaches, as measured so far: the farthest

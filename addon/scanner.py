@@ -349,11 +349,12 @@ class Scanner:
         from .core.geometry.footprint import laser_footprint
         from .pipeline import cell_surfaces
 
-        q = np.asarray(q, dtype=np.float64).reshape(-1, 6)
-        table_rad = np.asarray(table_rad, dtype=np.float64).reshape(-1)
-        if len(q) != len(table_rad) or not (np.isfinite(q).all() and np.isfinite(table_rad).all()):
-            raise InputError(f"frames_out_of_range needs finite joints (n, 6) and table angles (n,), got "
-                             f"{q.shape[0]} and {table_rad.shape[0]}")
+        q = np.asarray(q, dtype=np.float64)
+        table_rad = np.asarray(table_rad, dtype=np.float64)
+        if (q.ndim != 2 or q.shape[1] != 6 or table_rad.shape != (len(q),)
+                or not (np.isfinite(q).all() and np.isfinite(table_rad).all())):
+            raise InputError(f"frames_out_of_range needs finite joints (n, 6) and table angles (n,), got shapes "
+                             f"{q.shape} and {table_rad.shape}")
         if self._surfaces is None:
             self._surfaces = cell_surfaces(self.config)
         foot = laser_footprint(self.config.probe, self.config.cell.probe2table(q, table_rad), self._surfaces)

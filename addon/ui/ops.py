@@ -207,18 +207,22 @@ def _panel_config(context, config: str):
 def _cell_config(s):
     """The Cell panel's own cell as a scan config: its robot, probe (with the edited optics),
     workpiece (with its scale) and material, the path laid out for the part from its bounding
-    box (core.kinematics.path.around_part); the rest as the demo config has it."""
+    box at the middle of the probe's range (core.kinematics.path.around_part), less the frames
+    that would see nothing in range; the rest as the demo config has it."""
     from dataclasses import replace
 
     from ..core.config.scan import load_scan_config
     from ..core.kinematics.path import around_part
 
+    from ..core.scan.plan import frames_in_range
+
     base = load_scan_config("demo")
     robot, probe, wp = models.robot_from(s), models.probe_from(s), models.workpiece_from(s)
-    return replace(base, name=f"The cell built here, {wp.name}", source="", robot=robot, probe=probe, workpiece=wp,
-                   material=s.material, roughness=s.roughness, fixtures=(),
-                   q_start=base.q_start if robot.name == base.robot.name else None,
-                   waypoints=around_part(wp.mesh, base.table))
+    return frames_in_range(replace(
+        base, name=f"The cell built here, {wp.name}", source="", robot=robot, probe=probe, workpiece=wp,
+        material=s.material, roughness=s.roughness, fixtures=(),
+        q_start=base.q_start if robot.name == base.robot.name else None,
+        waypoints=around_part(wp.mesh, base.table, standoff_mm=0.5 * sum(probe.z_range_mm))))
 
 
 def _with_engine(context, cfg, engine: str):
@@ -343,6 +347,8 @@ class _SteppedScan:
         context = bpy.context
         robot = models.find_robot(context.scene)
         if pose is not None and robot is not None and robot.get("robot_name") == pose[0]:
+            if robot.animation_data is not None:  # the scan's keyframed motion would pull it back
+                robot.animation_data_clear()
             rig.set_joints(robot, pose[1])
         table = models.cell_object("Turntable")
         if table is not None:

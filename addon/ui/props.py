@@ -34,7 +34,9 @@ ROBOT_ITEMS = _rig_items("robots", "robot rig")
 PROBE_ITEMS = _rig_items("probes", "probe rig")
 CELL = "CELL"  # the scan source that is the Cell panel's own cell
 SCENE_ITEMS = _rig_items("scenes", "scan config")
-SCENE_ITEMS.insert(0, (CELL, "The Cell Built Here", "The Cell panel's robot, probe, workpiece and material, "
+# Appended, not inserted: Blender saves an enum's choice by its number, so the bundled
+# configs and File... keep theirs in .blend files saved before this item was added.
+SCENE_ITEMS.append((CELL, "The Cell Built Here", "The Cell panel's robot, probe, workpiece and material, "
                        "scanned along a path laid out for the part: a table turn from above, two from 45° at "
                        "its side, a sweep across it (as bench parts does)"))
 MATERIAL_ITEMS = [(m, m.title(), f"{m.title()} surface") for m in MATERIALS]

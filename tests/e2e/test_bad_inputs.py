@@ -406,6 +406,7 @@ CASES = [
      2, "fixture sunk lies wholly below the table top"),
     # options
     ("option: --frames step zero", demo("--frames", "0:4:0"), 2, "--frames"),
+    ("option: --frames open end past the path", demo("--frames", "500:"), 2, "--frames (the panel's Frames) 500: "),
     ("option: --frames words", demo("--frames", "a:b"), 2, "--frames"),
     ("option: --frames empty slice", demo("--frames", "5:2"), 2, "--frames"),
     ("option: --frames beyond the path", demo("--frames", "1000:2000"), 2, "--frames"),

@@ -86,6 +86,11 @@ def test_a_pose_that_sees_nothing_gives_an_empty_profile_without_rendering():
     far = s.frames_out_of_range(*s.plan_sweep([0.0, 60.0, 300.0], [0.0, 100.0, 300.0], 9))
     near = s.frames_out_of_range(*s.plan_sweep([-40.0, 0.0, 210.0], [40.0, 0.0, 210.0], 9))
     assert far.tolist() == list(range(9)) and near.tolist() == []
+    from addon.core.errors import InputError
+
+    for q, t in ((np.zeros((3, 4)), np.zeros(3)), (np.zeros((2, 6)), np.zeros(3)), (np.full((1, 6), np.nan), [0.0])):
+        with pytest.raises(InputError, match="frames_out_of_range needs"):
+            s.frames_out_of_range(q, t)
     assert s.report().to_dict()["frames"] == 2
     # and it is said, by frame number, with the range: a sweep run past the part is no failure
     (said,) = [w for w in s.report().to_dict()["warnings"] if "probe's range" in w]

@@ -711,9 +711,32 @@ def test_after_a_scan_the_robot_and_the_table_are_where_the_panel_says(panel, tm
     q = np.radians([20, 50, -70, 10, 40, -30])
     rig.set_joints(robot_obj(), q)
     panel.scanner.table_angle = math.radians(45)
-    panel.scanner.scan_engine = "raycast"
-    assert bpy.ops.scanner.scan(frames="0:60:30", output_dir=str(tmp_path / "out")) == {"FINISHED"}
+    # Cycles (the demo's engine) keyframes the robot's and the table's motion: neither may pull
+    # them back to the scan's path when the frame changes.
+    assert bpy.ops.scanner.scan(frames="0:180:90", output_dir=str(tmp_path / "out")) == {"FINISHED"}
     np.testing.assert_allclose(rig.get_joints(robot_obj()), q, atol=1e-6)
     assert bpy.data.objects["Turntable"].rotation_euler[2] == pytest.approx(math.radians(45))
     panel.frame_set(panel.frame_current + 1)  # no scan keyframe pulls them away
     assert bpy.data.objects["Turntable"].rotation_euler[2] == pytest.approx(math.radians(45))
+    np.testing.assert_allclose(rig.get_joints(robot_obj()), q, atol=1e-6)
+
+
+def test_the_cell_built_here_is_scanned_from_its_probes_own_range(panel):
+    """A probe edited to a 30 mm baseline measures at 35-125 mm, not the default's 70-250 mm:
+    the path laid out for the part stands the probe off by the middle of that range and leaves
+    out the sweep's ends that look past the part at a table beyond that range, so no frame is
+    out of range (by the Scanner's own ray casts) and the turns are all there."""
+    from addon import Scanner
+    from addon.core.kinematics.path import solve_path
+    from addon.ui import models
+    from addon.ui.ops import _cell_config
+
+    s = panel.scanner
+    s.probe_a = 30.0
+    z0, z1 = models.probe_from(s).z_range_mm
+    assert z1 < 160.0  # the default stand-off would leave everything out of range
+    cfg = _cell_config(s)
+    sol = solve_path(cfg.cell, cfg.waypoints, cfg.q_start)
+    assert sol.ok.all()
+    assert Scanner(config=cfg).frames_out_of_range(sol.q, cfg.waypoints.table_rad).tolist() == []
+    assert 180 <= len(cfg.waypoints) < 210  # three turns of 60, and part of the 30-frame sweep

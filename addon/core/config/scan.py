@@ -254,7 +254,8 @@ class ScanConfig:
             picked = np.arange(len(cfg.waypoints))[frames]
             if picked.size == 0:
                 asked = frames if not isinstance(frames, slice) else ":".join(
-                    "" if v is None else str(v) for v in (frames.start, frames.stop, frames.step)).rstrip(":")
+                    "" if v is None else str(v) for v in (frames.start, frames.stop)) + (
+                    "" if frames.step is None else f":{frames.step}")
                 raise InputError(f"--frames (the panel's Frames) {asked} selects no frames of the "
                                  f"{len(cfg.waypoints)} in the path (0 to {len(cfg.waypoints) - 1})")
             numbers = np.arange(len(cfg.waypoints)) if cfg.path_frames is None else cfg.path_frames

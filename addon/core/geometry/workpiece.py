@@ -126,8 +126,8 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         key = "the workpiece's" if role == "part" else f"the {role}'s"
         raise InputError(f"{path}: the {role} is {extent:.4g} mm across (scale {scale:g}); {role}s in the cell are "
                          f"{FILE_MIN_EXTENT_MM:g} to {FILE_MAX_EXTENT_MM:g} mm: is the file in another unit? "
-                         f"Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches; in the "
-                         f"panel, its Scale field)")
+                         f"Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches"
+                         f"{'; in the panel, its Scale field' if role == 'part' else ''})")
     check_mesh(mesh, str(path))
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)

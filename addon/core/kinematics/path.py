@@ -134,12 +134,13 @@ AROUND_PART_STANDOFF_MM = 160.0  # the default probe's mid-range
 AROUND_PART_TILT_DEG = 45.0
 
 
-def around_part(mesh, table, frames: int = 60) -> Waypoints:
+def around_part(mesh, table, frames: int = 60, standoff_mm: float = AROUND_PART_STANDOFF_MM) -> Waypoints:
     """A path for a part that a scanning engineer would set up from its bounding box (table
     frame): a table turn looking down from above, two table turns looking 45° down at its side
     (one at the near side's outside, one across the axis at the far side's inside: walls,
     holes, pockets), and a sweep across its top with half the frames. The laser plane holds
-    the table axis in the turns."""
+    the table axis in the turns. ``standoff_mm``: the probe's distance to its aim, best the
+    middle of its range (the default probe's 160 mm)."""
     lo, hi = mesh.bounds
     radius = float(np.linalg.norm(np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
     top = float(hi[2])
@@ -147,7 +148,7 @@ def around_part(mesh, table, frames: int = 60) -> Waypoints:
     beam = np.array([0.0, -np.sin(a), -np.cos(a)])  # from the +y side, towards the axis
     near = np.array([0.0, 0.5 * radius, 0.5 * top])
     far = np.array([0.0, -0.4 * radius, 0.6 * top])
-    standoff = AROUND_PART_STANDOFF_MM
+    standoff = float(standoff_mm)
     return concatenate([
         turntable(frames, [12.0, 0.0, top + standoff], table=table, segment=0),
         turntable(frames, near - standoff * beam, beam, (0.0, 0.0, 1.0), table=table, segment=1),

@@ -219,6 +219,20 @@ def table_fixtures(config: ScanConfig) -> tuple:
     return tuple(f for f in config.fixtures if f.on == "table")
 
 
+def frames_in_range(config: ScanConfig) -> ScanConfig:
+    """``config`` with only the waypoints whose laser puts some surface (the part, the table,
+    a table fixture) inside the probe's range: for a path laid out from the part's box alone
+    (``kinematics.path.around_part``), whose sweep ends may look past the part at a table
+    beyond a short-range probe's reach."""
+    foot = laser_footprint(config.probe, config.waypoints.probe2table, cell_surfaces(config))
+    keep = np.setdiff1d(np.arange(len(config.waypoints)), foot.empty_frames)
+    if len(keep) == len(config.waypoints):
+        return config
+    from dataclasses import replace
+
+    return replace(config, waypoints=config.waypoints.select(keep))
+
+
 FIXTURE_OVERLAP_MM = 0.05  # a table fixture may touch the part; reaching further into it is warned of
 OVERLAP_SAMPLES = 20000    # surface points drawn from each of the two meshes for the check
 
