@@ -132,7 +132,6 @@ class Scanner:
         self._cameras: set[int] = set()
         self._warnings: list[str] = []
         self._empty_frames: list[int] = []  # frames that put no surface inside the probe's range
-        self._fixture_lines: list[str] | None = None  # fixtures_in_the_part, once checked
         self._off_path = False  # measured anything but the config's path (run())
         self._t0 = time.perf_counter()
         self._cached = None  # (frames measured, ScanResult) of the last result(): report() after save() is free
@@ -342,12 +341,19 @@ class Scanner:
         return self._plan_waypoints(self._sweep_waypoints(from_mm, to_mm, frames, beam, line, table_deg),
                                     what="sweep")[:2]
 
+    def _cell_surfaces(self):
+        """The part, table and table fixtures for ray casts, built at the first need."""
+        if self._surfaces is None:
+            from .pipeline import cell_surfaces
+
+            self._surfaces = cell_surfaces(self.config)
+        return self._surfaces
+
     def frames_out_of_range(self, q: np.ndarray, table_rad: np.ndarray) -> np.ndarray:
         """Indices of the frames at joints q (n, 6) and table angles (n,) rad (what plan_sweep
         and plan_path give) whose laser puts no surface (part, table, table fixture) inside the
         probe's range: such frames would measure nothing. Ray casts only, nothing moves."""
         from .core.geometry.footprint import laser_footprint
-        from .pipeline import cell_surfaces
 
         q = np.asarray(q, dtype=np.float64)
         table_rad = np.asarray(table_rad, dtype=np.float64)
@@ -355,9 +361,7 @@ class Scanner:
                 or not (np.isfinite(q).all() and np.isfinite(table_rad).all())):
             raise InputError(f"frames_out_of_range needs finite joints (n, 6) and table angles (n,), got shapes "
                              f"{q.shape} and {table_rad.shape}")
-        if self._surfaces is None:
-            self._surfaces = cell_surfaces(self.config)
-        foot = laser_footprint(self.config.probe, self.config.cell.probe2table(q, table_rad), self._surfaces)
+        foot = laser_footprint(self.config.probe, self.config.cell.probe2table(q, table_rad), self._cell_surfaces())
         return np.asarray(foot.empty_frames, dtype=int)
 
     def _sweep_waypoints(self, from_mm, to_mm, frames, beam, line, table_deg) -> Waypoints:
@@ -484,15 +488,13 @@ class Scanner:
         last frame) only once they have all been measured: a run dropped or interrupted (Esc,
         Ctrl-C) midway leaves it as it was before, ready for the next measurement."""
         from .core.scan.frames import new_stats
-        from .pipeline import ScanRun, cell_surfaces, plan_frames
+        from .pipeline import ScanRun, plan_frames
 
         cfg = self.config
         t = time.perf_counter()
         own_step = plan is None  # a step of its own (measure, sweep, a path, an adaptive sweep), not run()
         if plan is None:
-            if self._surfaces is None:
-                self._surfaces = cell_surfaces(cfg)
-            plan = plan_frames(cfg, q, table_rad, allow_blind=True, surfaces=self._surfaces)
+            plan = plan_frames(cfg, q, table_rad, allow_blind=True, surfaces=self._cell_surfaces())
             self._timing["plan"] += time.perf_counter() - t
         first = self._frames
         n = len(q)
@@ -621,15 +623,13 @@ class Scanner:
         return result
 
     def _fixture_check(self) -> list[str]:
-        """The table fixtures that reach into the part (``plan.fixtures_in_the_part``), checked
-        once, when something has been measured."""
+        """The table fixtures that reach into the part (``plan.fixtures_in_the_part``, which
+        keeps its answer per config), once something has been measured."""
         if not self._frames:
             return []
-        if self._fixture_lines is None:
-            from .core.scan.plan import fixtures_in_the_part
+        from .core.scan.plan import fixtures_in_the_part
 
-            self._fixture_lines = fixtures_in_the_part(self.config)
-        return self._fixture_lines
+        return fixtures_in_the_part(self.config)
 
     def _range_warning(self) -> list[str]:
         """One line naming the frames that put no surface inside the probe's range (none: [])."""

@@ -40,6 +40,12 @@ def chosen_probe_rig(s) -> Probe:
     return load_probe(chosen_file(s.probe_file, "probe") if s.probe == FILE else s.probe)
 
 
+def show_probe_optics(s, probe: Probe) -> None:
+    """Put ``probe``'s optics (a, b, phi, gamma, sensor size) into the panel's fields."""
+    s.probe_a, s.probe_b, s.probe_phi, s.probe_gamma = probe.a_mm, probe.b_mm, probe.phi_rad, probe.gamma_rad
+    s.probe_rows, s.probe_cols = probe.rows_px, probe.cols_px
+
+
 def probe_from(s) -> Probe:
     """The probe rig with the panel's optics (a, b, phi, gamma, sensor size, which its name then
     says); raises InputError when invalid."""

@@ -72,16 +72,12 @@ class SCANNER_OT_load_probe(bpy.types.Operator):
         return idle()  # not while a scan runs
 
     def execute(self, context):
-        from ..core.config.rigs import load_probe
-
         s = context.scene.scanner
         try:
-            p = load_probe(models.chosen_file(s.probe_file, "probe") if s.probe == models.FILE else s.probe)
+            models.show_probe_optics(s, models.chosen_probe_rig(s))
         except ScannerError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        s.probe_a, s.probe_b, s.probe_phi, s.probe_gamma = p.a_mm, p.b_mm, p.phi_rad, p.gamma_rad
-        s.probe_rows, s.probe_cols = p.rows_px, p.cols_px
         return {"FINISHED"}
 
 
@@ -213,7 +209,6 @@ def _cell_config(s):
 
     from ..core.config.scan import load_scan_config
     from ..core.kinematics.path import around_part
-
     from ..core.scan.plan import frames_in_range
 
     base = load_scan_config("demo")

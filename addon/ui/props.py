@@ -61,11 +61,9 @@ def _probe_changed(self, context):
     from . import models
 
     try:
-        p = models.chosen_probe_rig(self)
+        models.show_probe_optics(self, models.chosen_probe_rig(self))
     except (ScannerError, OSError):
-        return
-    self.probe_a, self.probe_b, self.probe_phi, self.probe_gamma = p.a_mm, p.b_mm, p.phi_rad, p.gamma_rad
-    self.probe_rows, self.probe_cols = p.rows_px, p.cols_px
+        pass
 
 
 class ScannerSettings(bpy.types.PropertyGroup):

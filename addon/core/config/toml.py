@@ -31,21 +31,20 @@ def resolve_rig(kind: str, name_or_path: str | Path) -> Path:
     text = str(name_or_path)
     p = Path(text).expanduser()
     looks_like_path = p.suffix == ".toml" or any(sep in text for sep in ("/", "\\"))
+    what = kind[:-1] if kind.endswith("s") else kind
     if looks_like_path:
         if p.is_dir():
-            raise ConfigError(f"{p}: a folder, not a {kind[:-1] if kind.endswith('s') else kind} file (.toml)")
+            raise ConfigError(f"{p}: a folder, not a {what} file (.toml)")
         if not p.is_file():
             raise ConfigError(f"{p}: no such file")
         return p
     candidate = RIGS_DIR / kind / f"{text}.toml"
     if candidate.is_file():
         return candidate
-    if p.is_dir():
-        raise ConfigError(f"{p}: a folder, not a {kind[:-1] if kind.endswith('s') else kind} file (.toml), and not "
-                          f"one of the bundled {kind} ({', '.join(available_rigs(kind)) or 'none'})")
     known = ", ".join(available_rigs(kind)) or "none"
-    raise ConfigError(f"unknown {kind[:-1] if kind.endswith('s') else kind} '{text}': "
-                      f"not a file, and not one of the bundled {kind} ({known})")
+    if p.is_dir():
+        raise ConfigError(f"{p}: a folder, not a {what} file (.toml), and not one of the bundled {kind} ({known})")
+    raise ConfigError(f"unknown {what} '{text}': not a file, and not one of the bundled {kind} ({known})")
 
 
 def available_rigs(kind: str) -> list[str]:

@@ -4,6 +4,7 @@ written atomically, all at the end."""
 
 from __future__ import annotations
 
+import functools
 import platform
 import sys
 import time
@@ -48,8 +49,10 @@ VERSIONED = {"trimesh": "trimesh", "embreex": "embreex", "libigl": "libigl", "py
 MANIFEST = Path(__file__).resolve().parents[3] / "blender_manifest.toml"
 
 
+@functools.cache
 def simulator_version() -> str | None:
-    """This simulator's version, from its manifest (None where the manifest cannot be read)."""
+    """This simulator's version, from its manifest (None where the manifest cannot be read);
+    read once per process."""
     import tomllib
 
     try:

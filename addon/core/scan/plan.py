@@ -235,6 +235,7 @@ def frames_in_range(config: ScanConfig) -> ScanConfig:
 
 FIXTURE_OVERLAP_MM = 0.05  # a table fixture may touch the part; reaching further into it is warned of
 OVERLAP_SAMPLES = 20000    # surface points drawn from each of the two meshes for the check
+_OVERLAP_LINES: list = []  # ((workpiece, fixtures), warnings) of the last few configs checked
 
 
 def fixtures_in_the_part(config: ScanConfig) -> list[str]:
@@ -243,9 +244,13 @@ def fixtures_in_the_part(config: ScanConfig) -> list[str]:
     each mesh's vertices and of points spread over its surface (a rod through a box has no
     vertex inside it) to the other mesh; a fixture that is not a closed mesh cannot be judged
     so and is named instead. An inside-out closed mesh is turned right way out first."""
+    key = (config.workpiece, config.fixtures)
+    known = next((lines for k, lines in _OVERLAP_LINES if k[0] is key[0] and k[1] is key[1]), None)
+    if known is not None:
+        return list(known)
     out = []
     wp = config.workpiece
-    part = wp.mesh
+    part_points = None  # sampled once, for all the fixtures
     for f in table_fixtures(config):
         fixture = f.mesh
         if not (fixture.is_watertight and fixture.is_winding_consistent):
@@ -255,8 +260,8 @@ def fixtures_in_the_part(config: ScanConfig) -> list[str]:
             fixture = fixture.copy()
             fixture.invert()
         lo, hi = fixture.bounds - 1.0, fixture.bounds + 1.0
-        P = _surface_points(part)
-        P = P[np.all((P >= lo[0]) & (P <= hi[1]), axis=1)]
+        part_points = _surface_points(wp.mesh) if part_points is None else part_points
+        P = part_points[np.all((part_points >= lo[0]) & (part_points <= hi[1]), axis=1)]
         depth = 0.0
         if len(P):
             _, signed = metrics.mesh_distances(P, fixture)
@@ -268,7 +273,9 @@ def fixtures_in_the_part(config: ScanConfig) -> list[str]:
             out.append(f"{f.name} reaches {depth:.2f} mm into the part, where a real one would touch it at most: "
                        f"the part's surface inside it is hidden and its points near the contact may count as the "
                        f"fixture's; move it out until it touches")
-    return out
+    _OVERLAP_LINES.insert(0, (key, out))
+    del _OVERLAP_LINES[4:]
+    return list(out)
 
 
 def _surface_points(mesh) -> np.ndarray:
