@@ -71,19 +71,40 @@ def part_box(config, grow: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+class BudgetBelowView(InputError):
+    """A profile budget too small for any of the planner's views: nothing can be scanned.
+    ``budget`` and ``smallest`` (the smallest view's profiles) let each front end name its
+    own setting."""
+
+    def __init__(self, budget: int, smallest: int):
+        self.budget, self.smallest = int(budget), int(smallest)
+        super().__init__(f"the budget of {self.budget} profiles is below the smallest view's {self.smallest}: "
+                         f"nothing was scanned (give max_profiles at least {self.smallest})")
+
+
+def checked_box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """The part's bounding box (table frame, mm) as two float arrays, or InputError naming
+    what is wrong: three finite numbers each, lo < hi, its top above the table top."""
+    try:
+        lo_a, hi_a = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    except (TypeError, ValueError):
+        lo_a = hi_a = np.full(0, np.nan)
+    if lo_a.shape != (3,) or hi_a.shape != (3,) or not (np.isfinite(lo_a).all() and np.isfinite(hi_a).all()
+                                                        and (hi_a > lo_a).all()):
+        raise InputError(f"the part's bounding box needs lo < hi, three finite numbers (mm) each, got {lo!r}, {hi!r}")
+    if hi_a[2] <= 0.0:
+        raise InputError(f"the part's bounding box {lo_a.tolist()} .. {hi_a.tolist()} mm lies under the table top "
+                         f"(z = 0 in the table frame): its top must be above 0")
+    return lo_a, hi_a
+
+
 class NextBestView:
     """The planner's state: the known-space model over the box, the candidate sweeps, and the
     ones done or impossible. ``choose(scanner)`` picks the next view (None: nothing left worth
     it); ``scan(scanner, view)`` scans it and adds what it measured to the model."""
 
     def __init__(self, scanner, lo, hi, *, min_gain: int = 30, voxel_mm: float = VOXEL_MM):
-        lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-        if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()
-                                                        and (hi > lo).all()):
-            raise InputError(f"the part's bounding box needs lo < hi, three finite numbers each, got {lo!r}, {hi!r}")
-        if hi[2] <= 0.0:
-            raise InputError(f"the part's bounding box {lo.tolist()} .. {hi.tolist()} mm lies under the table top "
-                             f"(z = 0 in the table frame): its top must be above 0")
+        lo, hi = checked_box(lo, hi)
         check_min_gain(min_gain)
         self.probe = scanner.config.probe
         self.lo, self.hi, self.min_gain = lo, hi, int(min_gain)
@@ -315,6 +336,8 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
     steps = [] if steps is None else steps
     taken = 0
     say = progress or (lambda stage, done, total: None)
+    if max_profiles < planner.smallest_view():
+        return steps  # no view fits: the caller says so (Scanner.adaptive raises BudgetBelowView)
     while taken < max_profiles:
         say("adaptive", taken, max_profiles)  # a stop asked for during the last sweep takes effect here
         yield taken

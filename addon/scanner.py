@@ -206,7 +206,9 @@ class Scanner:
         """The adaptive planner of the last :meth:`adaptive` call (``addon.adaptive.NextBestView``),
         None before one: its model of what is known (``planner.space``, a KnownSpace of unknown,
         free and surface cells), its candidates (``planner.pool``) and ``planner.feasible(scanner, c)``,
-        for a planner of one's own to read or build on. A later adaptive() call goes on from it."""
+        for a planner of one's own to read or build on. A later adaptive() call goes on from it.
+        To build on one before any adaptive() call: ``addon.adaptive.NextBestView(scanner,
+        *part_box(config))`` (docs/adaptive.md, *A planner of your own*)."""
         return self._planner
 
     @property
@@ -352,15 +354,22 @@ class Scanner:
     def frames_out_of_range(self, q: np.ndarray, table_rad: np.ndarray) -> np.ndarray:
         """Indices of the frames at joints q (n, 6) and table angles (n,) rad (what plan_sweep
         and plan_path give) whose laser puts no surface (part, table, table fixture) inside the
-        probe's range: such frames would measure nothing. Ray casts only, nothing moves."""
+        probe's range: such frames would measure nothing. Ray casts only, nothing moves.
+
+        It casts against the part's own mesh, as a cell designer checking a path would: a
+        planner that must not know the part (as the reference planner does not) asks its own
+        model instead (``scanner.planner.space``, ``core.scan.next_view.gain``)."""
         from .core.geometry.footprint import laser_footprint
 
         q = np.asarray(q, dtype=np.float64)
         table_rad = np.asarray(table_rad, dtype=np.float64)
-        if (q.ndim != 2 or q.shape[1] != 6 or table_rad.shape != (len(q),)
-                or not (np.isfinite(q).all() and np.isfinite(table_rad).all())):
-            raise InputError(f"frames_out_of_range needs finite joints (n, 6) and table angles (n,), got shapes "
+        if q.ndim != 2 or q.shape[1] != 6 or table_rad.shape != (len(q),):
+            raise InputError(f"frames_out_of_range needs joints (n, 6) and table angles (n,), got shapes "
                              f"{q.shape} and {table_rad.shape}")
+        if not (np.isfinite(q).all() and np.isfinite(table_rad).all()):
+            raise InputError(f"frames_out_of_range needs finite joints and table angles; frames "
+                             f"{np.flatnonzero(~(np.isfinite(q).all(axis=1) & np.isfinite(table_rad))).tolist()[:5]} "
+                             f"hold NaN or infinity")
         foot = laser_footprint(self.config.probe, self.config.cell.probe2table(q, table_rad), self._cell_surfaces())
         return np.asarray(foot.empty_frames, dtype=int)
 
@@ -549,9 +558,18 @@ class Scanner:
         sweeps chosen (``AdaptiveStep``); they join the report under ``adaptive``, and
         ``save(out_dir)`` writes what a scan writes. ``progress(stage, done, total)`` before each
         sweep and after each chunk of its frames; ``log(line)`` for each decision. A second call
-        goes on from what the planner learnt."""
-        return drain(self.adaptive_steps(box, max_profiles=max_profiles, min_gain=min_gain,
-                                         target_coverage=target_coverage, progress=progress, log=log))
+        goes on from what the planner learnt. A budget below the planner's smallest view raises
+        ``addon.adaptive.BudgetBelowView`` (an InputError), scanning nothing."""
+        steps = drain(self.adaptive_steps(box, max_profiles=max_profiles, min_gain=min_gain,
+                                          target_coverage=target_coverage, progress=progress, log=log))
+        if not steps and self._planner is not None:
+            from .adaptive import BudgetBelowView
+
+            smallest = self._planner.smallest_view()
+            budget = self.config.adaptive.max_profiles if max_profiles is None else max_profiles
+            if budget < smallest:
+                raise BudgetBelowView(budget, smallest)
+        return steps
 
     def adaptive_steps(self, box=None, *, max_profiles: int | None = None, min_gain: int | None = None,
                        target_coverage: float | None = None, progress=None, log=None):
@@ -560,10 +578,15 @@ class Scanner:
         of frames and between decisions; returns the sweeps. Dropped before its end (Esc), it
         keeps the sweeps finished until then and nothing of the one under way, so this Scanner
         (and its planner) can go on."""
-        from .adaptive import NextBestView, adaptive_steps, part_box
+        from .adaptive import NextBestView, adaptive_steps, checked_box, part_box
 
         settings = self.config.adaptive
-        lo, hi = part_box(self.config) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
+        if box is None:
+            lo, hi = part_box(self.config)
+        elif isinstance(box, (str, bytes)) or not hasattr(box, "__len__") or len(box) != 2:
+            raise InputError(f"box must be (lo, hi), two corners of three numbers each (table frame, mm), got {box!r}")
+        else:
+            lo, hi = checked_box(*box)
         budget = settings.max_profiles if max_profiles is None else max_profiles
         target = settings.target_coverage if target_coverage is None else target_coverage
         gain = settings.min_gain if min_gain is None else min_gain

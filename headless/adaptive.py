@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from addon import Scanner
-    from addon.adaptive import check_target_coverage, part_box
+    from addon.adaptive import BudgetBelowView, check_target_coverage, part_box
     from addon.core.config.scan import MAX_PROFILES, load_scan_config
     from addon.core.errors import InputError
     from addon.core.scan.outputs import OUTPUT_FILES
@@ -69,16 +69,17 @@ def run(args: argparse.Namespace) -> int:
     try:
         t = time.perf_counter()
         scanner = Scanner(config=replace(config, adaptive=settings))
-        steps = scanner.adaptive((lo, hi), progress=progress, log=None if args.quiet else progress.bar.say)
-        progress.bar.finish()
+        try:
+            steps = scanner.adaptive((lo, hi), progress=progress, log=None if args.quiet else progress.bar.say)
+        except BudgetBelowView as exc:
+            raise InputError(f"no view was scanned: the budget of {exc.budget} profiles is below the smallest view's "
+                             f"{exc.smallest} (raise --max-profiles to at least {exc.smallest}); nothing "
+                             f"written") from None
+        finally:
+            progress.bar.finish()
         if stops is not None:
             stops.check()
         if not steps:
-            smallest = scanner.planner.smallest_view() if scanner.planner is not None else 0
-            if smallest > settings.max_profiles:
-                raise InputError(f"no view was scanned: the budget of {settings.max_profiles} profiles is below the "
-                                 f"smallest view's {smallest} (raise --max-profiles to at least {smallest}); nothing "
-                                 f"written")
             raise InputError(f"no view was scanned: none the robot can do fits the budget of {settings.max_profiles} "
                              f"profiles and promises {settings.min_gain} new cells (raise --max-profiles, or check "
                              f"that the [adaptive] box {lo.round(1).tolist()} .. {hi.round(1).tolist()} mm is the "

@@ -24,7 +24,9 @@ Scanner over a part that only its bounding box reveals.
   beam direction and the table angle / 360.
 - **reward**: the new coverage, the model's surface cells the sweep found, in hundreds, minus
   its time in seconds times ``time_cost``; a sweep the robot cannot do (unreachable, colliding)
-  scans nothing and costs ``refusal_cost``. (Free air the laser crossed teaches the model too,
+  scans nothing and costs ``refusal_cost``. A view already scanned (masked) is scanned again:
+  it finds next to nothing and costs its time only, a small penalty next to a new view's
+  reward, so an agent that ignores the mask learns little from its repeats. (Free air the laser crossed teaches the model too,
   ``info["learnt"]``, but earns nothing.)
 - the episode ends when the profile budget is spent or every view has been scanned
   (terminated), or after ``max_steps`` steps (truncated); ``info`` has the same keys after ``reset`` and every ``step``: the sweep
@@ -35,7 +37,11 @@ Scanner over a part that only its bounding box reveals.
   The Scanner measures no per-path clearance for its report (``keep_clearance`` off): paths
   are still refused where they would collide, at a third of the cost.
 
-Scans are deterministic, so equal seeds and actions give equal episodes. Each step renders a
+Scans are deterministic, so equal actions give equal episodes: the part, its pose and the
+cell are the config's in every episode, and ``reset(seed=...)`` only seeds ``env.np_random``
+(Gymnasium's generator, for a policy that wants one). Registered as ``ScanPlanning-v0``:
+``gymnasium.make("headless.scan_env:ScanPlanning-v0", config="step_block", engine="raycast")``
+imports this module and passes the keywords on. Each step renders a
 whole sweep (seconds on a CPU): this is a test bench, not a fast simulator of views.
 """
 
@@ -56,6 +62,7 @@ from addon.core.scan import next_view
 
 
 PROBE_REACH_MM = 5000.0  # bounds of the probe's position in the observation (table frame)
+ENV_ID = "ScanPlanning-v0"
 
 
 class ScanPlanningEnv(gym.Env):
@@ -110,6 +117,10 @@ class ScanPlanningEnv(gym.Env):
         self._by_key = {c.key: c for c in self.planner.pool}
         self._scanned: set = set()  # views scanned this episode (their keys)
         self.profiles, self.steps = 0, 0
+        smallest = self.planner.smallest_view()
+        if smallest > self.max_profiles:
+            raise InputError(f"max_profiles {self.max_profiles} is below the smallest view's {smallest} profiles on "
+                             f"{self.config.name}: every action would be refused (give at least {smallest})")
         return self._observation(), self._info({"sweep": None, "refused": None}, 0, 0)
 
     def _info(self, info: dict, learnt: int, found: int) -> dict:
@@ -198,6 +209,10 @@ class ScanPlanningEnv(gym.Env):
         step = int(round(c.table_deg * next_view.TABLE_STEPS / 360.0)) % next_view.TABLE_STEPS
         view = min(range(len(self.tilts)), key=lambda v: abs(self.tilts[v] - c.tilt_deg))
         return np.array([step, view, 1 if c.kind == "turn" else 0])
+
+
+if ENV_ID not in gym.registry:  # a module imported twice (by path and by name) registers once
+    gym.register(id=ENV_ID, entry_point=ScanPlanningEnv)
 
 
 # Pooling order: a grid cell shows the most telling state of the model cells in it.
