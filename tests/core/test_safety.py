@@ -51,6 +51,38 @@ def test_the_clearance_above_a_block_is_the_gap_geometry_gives():
         assert c.point_b[2] == pytest.approx(30.0, abs=0.1)        # on the block's top
 
 
+def test_the_smallest_clearance_of_a_path_is_the_gap_geometry_gives_with_few_exact_distances():
+    """A table turn with the probe held above a round part's top (every pose as near as the
+    best) and a sweep dipping to its lowest in the middle: the smallest clearance is the
+    gap, at the pose geometry says, and the search takes few exact distances (hulls are a
+    hair thick: an exact search took one at every pose of the turn)."""
+    disc = trimesh.creation.cylinder(radius=40.0, height=30.0, sections=64)
+    disc.apply_translation([0.0, 0.0, 15.0])
+    cfg = demo_with(Workpiece("disc", disc, disc, "test disc", np.eye(4)))
+    model = CollisionModel(cfg.cell.robot, cfg.probe, cfg.table, cfg.workpiece.mesh)
+
+    def q_at(height):
+        T = np.eye(4)
+        T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # beam straight down, over the axis
+        T[:3, 3] = [0.0, 0.0, height]
+        res = cfg.cell.ik(T, cfg.q_start, relative_to="table", table_angle_rad=0.0)
+        assert res.success
+        return res.q
+
+    gap = 12.0
+    turn = np.linspace(0.0, 2 * np.pi, 400, endpoint=False)
+    found = model.check(np.repeat(q_at(30.0 + HEAD_REACH_MM + gap)[None], len(turn), axis=0), turn)
+    nearest = found.nearest[0]
+    assert nearest.distance_mm == pytest.approx(gap, abs=0.1)
+    assert (nearest.body_a, nearest.body_b) == ("probe", "workpiece")
+    assert found.exact_queries < 40, found.exact_queries  # far fewer than the 400 poses
+
+    lows = 5.0 + 10.0 * np.abs(np.linspace(-1.0, 1.0, 21))  # 15 mm down to 5 at frame 10 and up
+    q = np.array([q_at(30.0 + HEAD_REACH_MM + g) for g in lows])
+    nearest = model.check(q, np.zeros(len(q))).nearest[0]
+    assert nearest.distance_mm == pytest.approx(5.0, abs=0.1) and nearest.position == pytest.approx(10.0)
+
+
 def test_a_sweep_dipping_2_mm_into_a_block_is_refused_at_the_frame_geometry_gives():
     scanner = Scanner(workpiece=block_part())
     start = -110.0

@@ -11,7 +11,8 @@ found cheaply: a bounding-sphere bound in numpy for every pair and sample, then 
 convex-hull distance (a lower bound of the exact one, GJK in a few µs), then the
 exact distance only where those bounds cannot decide. The smallest clearance of
 each path entry, over its waypoints (the poses where the probe measures), is found by
-branch and bound over the same lower bounds, so it is exact too; the motion between
+branch and bound over the same lower bounds, so it is exact too (to NEAREST_TOL_MM, 4 µm:
+the hulls are thickened by a hair, see _convex); the motion between
 waypoints is checked against the allowed clearance, not searched for its minimum.
 """
 
@@ -138,6 +139,10 @@ def _robot_pair(c: Contact) -> bool:
 
 
 HULL_THICKNESS_MM = 1e-3  # a sheet's hull (one flat triangle, a plate of no thickness) is made this thick
+# The smallest clearance is searched to this: two hulls thickened so read up to 2√3 × 1 µm
+# nearer than their bodies, so where every pose lies as far as the best found (a table turn
+# around a sphere), an exact search would take an exact distance at every one of them.
+NEAREST_TOL_MM = 4 * HULL_THICKNESS_MM
 
 
 def _convex(fcl, points: np.ndarray):
@@ -383,16 +388,17 @@ class CollisionModel:
         return self._exact(i, j, carriers, s, hull <= 0)
 
     def _nearest(self, i, j, carriers, bound, pos, seg_of, nearest, out) -> None:
-        """Branch and bound: the smallest exact distance of pair (i, j) in each path entry."""
+        """Branch and bound: the smallest exact distance of pair (i, j) in each path entry (to
+        NEAREST_TOL_MM: a pose that could be nearer by less is not looked at exactly)."""
         waypoint = (pos >= 0) & (np.abs(pos - np.round(pos)) < 1e-9)
         for k in np.unique(seg_of[waypoint]):
             idx = np.flatnonzero((seg_of == k) & waypoint)
             best = nearest.get(int(k))
             best_d = math.inf if best is None else best.distance_mm
             for s in idx[np.argsort(bound[idx], kind="stable")]:
-                if bound[s] >= best_d:
+                if bound[s] >= best_d - NEAREST_TOL_MM:
                     break  # every later sample's bound is larger still
-                d, pa, pb = self._below(i, j, carriers, s, best_d, out)
+                d, pa, pb = self._below(i, j, carriers, s, best_d - NEAREST_TOL_MM, out)
                 if d < best_d:
                     best_d = d
                     best = self._contact(d, i, j, float(pos[s]), pa, pb, carriers, s)
