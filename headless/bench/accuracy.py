@@ -55,7 +55,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--factors", default="", help="comma-separated factor names to run (default all)")
     parser.add_argument("--eevee-frames", type=int, default=4, help="frames for the Eevee rows (slow on a CPU)")
     parser.add_argument("--out", default="out/accuracy", help="folder for accuracy.csv, .md and .png")
-    parser.add_argument("--readme", action="store_true", help="also put the table and plot into README.md")
+    parser.add_argument("--readme", action="store_true", help="also put the table and plot into docs/accuracy.md")
     parser.set_defaults(run=run)
 
 

@@ -46,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                                      "(default demo,step_block)")
     parser.add_argument("--only", choices=("scans", "noise"), help="run one part: the scans or the noise comparison")
     parser.add_argument("--noise-frames", type=int, default=20, help="noisy frames per level (default 20)")
-    parser.add_argument("--readme", action="store_true", help="also put the tables into README.md")
+    parser.add_argument("--readme", action="store_true", help="also put the tables into docs/realism.md")
     parser.set_defaults(run=run)
 
 

@@ -574,7 +574,7 @@ def _ideal():
 # -- the command -----------------------------------------------------------------------------
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--only", choices=("kinematics", "probe", "scene"), help="run one group")
-    parser.add_argument("--readme", action="store_true", help="also put the catalogue into README.md")
+    parser.add_argument("--readme", action="store_true", help="also put the catalogue into docs/stability.md")
     parser.set_defaults(run=run)
 
 

@@ -82,6 +82,8 @@ def test_structural_errors(tmp_path, body, links, fragments):
         (("min_deg = -170.0", "min_deg = -1000.0"), ["link[1].min_deg", "[-720, 720]"]),
         (("alpha_deg = 90.0\n", ""), ["link[1].alpha_deg", "missing"]),
         (("d_mm = 0.0", "d_mm = 0.0\nmass_kg = 3.0"), ["link[1].mass_kg", "unknown key"]),
+        # A misspelt optional key: the list of what is allowed names the optional ones too.
+        (("d_mm = 0.0", "d_mm = 0.0\nmesj = 'arm.stl'"), ["link[1].mesj", "unknown key", "mesh, mesh_offset"]),
     ],
 )
 def test_value_errors_name_file_key_and_range(tmp_path, replace, fragments):

@@ -191,3 +191,22 @@ def test_a_ctrl_c_during_a_render_call_is_raised_once_the_call_is_over():
         assert asked == [signal.SIGINT]
     finally:
         signal.signal(signal.SIGINT, old)
+
+
+def test_the_blender_cell_pages_example_runs_and_sees_the_laser_line():
+    """docs/blender-cell.md's first example, as written, in a Python of its own."""
+    import os
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    code = re.search(r"```python\n(.*?)```", (repo / "docs" / "blender-cell.md").read_text(), re.S).group(1)
+    code += "\nprint(len(images), len(images[0]), images[0][0].shape, float(images[0][0][..., 0].max()))\n"
+    out = subprocess.run([sys.executable, "-c", code], cwd=repo, capture_output=True, text=True, timeout=600,
+                         env={**os.environ, "PYTHONPATH": str(repo)})
+    assert out.returncode == 0, out.stderr[-2000:]
+    last = out.stdout.strip().splitlines()[-1]
+    assert last.startswith("1 2 (160, 160, 3) "), last  # one frame, both cameras, the default sensor
+    assert float(last.rsplit(" ", 1)[1]) > 0.1  # the laser line lights some pixels red

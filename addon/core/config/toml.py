@@ -107,6 +107,9 @@ class Table:
         return default
 
     def has(self, key: str) -> bool:
+        """Whether the file gives ``key``; asking names it among the keys this table takes
+        (:meth:`finish`'s list of what is allowed), given or not."""
+        self._used.add(key)
         return key in self.data
 
     def allow(self, *keys: str) -> None:
