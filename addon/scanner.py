@@ -31,7 +31,8 @@ from .core.config.rigs import load_probe, load_robot
 from .core.config.scan import MAX_FRAMES, ScanConfig, load_scan_config
 from .core.errors import CollisionError, InputError, UnreachablePose, check_whole
 from .core.geometry.cloud import Cloud
-from .core.geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
+from .core.geometry.workpiece import (BUILTINS, Workpiece, builtin_workpiece, check_on_table, load_workpiece,
+                                      resting_on_table)
 from .core.kinematics.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
 from .core.kinematics.path import Waypoints, sweep as sweep_waypoints
 from .core.kinematics.robot import Robot
@@ -84,9 +85,12 @@ def _probe(value) -> Probe:
 
 
 def _workpiece(value) -> Workpiece:
+    """A part given as an object (checked: not sunk into the table), a built-in shape's name or
+    a mesh file (no pose of its own: it is put on the table, its lowest point on the top)."""
     if isinstance(value, Workpiece):
+        check_on_table(value, "move it up (its mesh and truth in the table frame, z = 0 the table top)")
         return value
-    return builtin_workpiece(value) if value in BUILTINS else load_workpiece(value)
+    return builtin_workpiece(value) if value in BUILTINS else resting_on_table(load_workpiece(value))[0]
 
 
 def drain(steps):
@@ -634,7 +638,7 @@ class Scanner:
         from .core.safety import PathClearance
 
         warnings = list(self._warnings) + self._range_warning()
-        warnings += [w for w in self._fixture_check() if w not in warnings]  # run() has it from its plan
+        warnings += [w for w in self._part_check() if w not in warnings]  # run() has it from its plan
         plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), warnings,
                     PathClearance.merge(self._clearances) if self._clearances else None,
                     fixture_frames=self._fixture_frames)
@@ -645,14 +649,14 @@ class Scanner:
         self._cached = (key, result)
         return result
 
-    def _fixture_check(self) -> list[str]:
-        """The table fixtures that reach into the part (``plan.fixtures_in_the_part``, which
-        keeps its answer per config), once something has been measured."""
+    def _part_check(self) -> list[str]:
+        """What plan.part_warnings says of the part (an open mesh, table fixtures reaching into
+        it; kept per config), once something has been measured."""
         if not self._frames:
             return []
-        from .core.scan.plan import fixtures_in_the_part
+        from .core.scan.plan import part_warnings
 
-        return fixtures_in_the_part(self.config)
+        return part_warnings(self.config)
 
     def _range_warning(self) -> list[str]:
         """One line naming the frames that put no surface inside the probe's range (none: [])."""

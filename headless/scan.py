@@ -320,6 +320,9 @@ def print_summary(result, wall: float) -> None:
         bias = f"bias {e['bias_um']:+.1f} um" if _finite(e["bias_um"]) else "bias n/a (an open mesh has no inside)"
         print(f"  error         RMS {e['rms_um']:.1f} um, mean {e['mean_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
               f"max {e['max_um']:.1f} um, {bias} (part, against its exact shape)")
+        within = r.get("within_2_sigma")
+        print(f"  outliers      {r.get('outliers', 0)} points farther than 0.2 mm from the part"
+              + ("" if within is None else f"; {within * 100:.1f} % within twice their stated sigma"))
     else:
         print("  error         none: no point on the part")
     print(f"  coverage      {r['coverage_measurable'] * 100:.1f} % of the surface the path can measure "

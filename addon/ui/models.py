@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import tempfile
 from dataclasses import replace
 from pathlib import Path
@@ -15,7 +16,7 @@ from ..core.optics.probe import Probe
 from ..core.config.rigs import load_probe
 from ..core.optics.sensor import SensorModel
 from ..core.kinematics.turntable import Turntable
-from ..core.geometry.workpiece import builtin_workpiece, load_workpiece
+from ..core.geometry.workpiece import builtin_workpiece, load_workpiece, resting_on_table
 from ..scene.cell import CELL_NAME, cell_object
 from .props import CELL, FILE
 
@@ -67,10 +68,24 @@ def sensor_from(s) -> SensorModel:
                        seed=s.sensor_seed)
 
 
-def workpiece_from(s):
+def check_table_angle(s) -> None:
+    """Refuse a table angle that is not a finite number (a script can set NaN)."""
+    if not math.isfinite(s.table_angle):
+        raise InputError(f"the Table angle must be a finite angle, got {s.table_angle}")
+
+
+def placed_workpiece(s):
+    """The panel's part and how far it was lifted to rest on the table (mm): a built-in shape
+    (0), or a mesh file put on the table, its lowest point on the table top, the file's x and
+    y kept."""
     if s.workpiece == FILE:
-        return load_workpiece(chosen_file(s.workpiece_file, "mesh"), scale=s.workpiece_scale or None)
-    return builtin_workpiece(s.workpiece)
+        part = load_workpiece(chosen_file(s.workpiece_file, "mesh"), scale=s.workpiece_scale or None)
+        return resting_on_table(part)
+    return builtin_workpiece(s.workpiece), 0.0
+
+
+def workpiece_from(s):
+    return placed_workpiece(s)[0]
 
 
 def cell_from(s) -> Cell:

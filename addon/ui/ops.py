@@ -49,14 +49,18 @@ class SCANNER_OT_build_cell(bpy.types.Operator):
 
         s = context.scene.scanner
         try:
-            sc = build_cell(context.scene, models.cell_from(s), models.probe_from(s), models.workpiece_from(s),
+            models.check_table_angle(s)
+            part, lift = models.placed_workpiece(s)
+            sc = build_cell(context.scene, models.cell_from(s), models.probe_from(s), part,
                             s.laser, name=models.CELL_NAME, material=s.material, roughness=s.roughness)
         except ScannerError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         sc.pose(np.zeros(6), s.table_angle)
         part = s.workpiece if s.workpiece != models.FILE else bpy.path.basename(s.workpiece_file)
-        self.report({"INFO"}, f"Built the cell: {sc.cell.robot.name}, {sc.probe.name}, {part}")
+        rested = "" if abs(lift) < 1e-6 else (f" (put on the table: {'lifted' if lift > 0 else 'lowered'} "
+                                               f"{abs(lift):.1f} mm so that its lowest point rests on the top)")
+        self.report({"INFO"}, f"Built the cell: {sc.cell.robot.name}, {sc.probe.name}, {part}{rested}")
         return {"FINISHED"}
 
 
@@ -149,6 +153,11 @@ class SCANNER_OT_render_views(bpy.types.Operator):
         sc = models.scene_cell(context)
         if sc is None:
             self.report({"ERROR"}, "Build the cell first (the probe settings may be invalid)")
+            return {"CANCELLED"}
+        try:
+            models.check_table_angle(s)
+        except ScannerError as exc:
+            self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         try:
             sensor = models.sensor_from(s)
@@ -304,6 +313,7 @@ class _SteppedScan:
         # A cell built here that the scan's config will stand in for: the message says so.
         self._swapped = robot is not None and (bool(getattr(self, "config", "")) or s.scan_config != models.CELL)
         try:
+            models.check_table_angle(s)
             self._scanner, self._steps = self._open(context)
             self._progress = self._progress_of(next(self._steps))  # plans (a refusal raises here)
             self._value = None
@@ -448,8 +458,10 @@ def _engine_property():
 
 
 def _output_property(what: str):
-    """An operator's output folder for ``what``, empty for the panel's."""
-    return StringProperty(name="Output", default="", subtype="DIR_PATH", options={"SKIP_SAVE"},
+    """An operator's output folder for ``what``, empty for the panel's; //-relative to the saved
+    .blend file allowed (_checked_output resolves it)."""
+    return StringProperty(name="Output", default="", subtype="DIR_PATH",
+                          options={"SKIP_SAVE", "PATH_SUPPORTS_BLEND_RELATIVE"},
                           description=f"Folder for {what} (empty: the panel's)")
 
 
@@ -495,6 +507,11 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
 
     def _finish(self, context, scanner, _):
         result = scanner.result(self._folder)
+        if not result.report["points"]:  # nothing to bring in: the scene's cloud stays as it was
+            codes = ", ".join(f"{k.lower()} {v}" for k, v in sorted(result.report["column_codes"].items()) if k != "OK")
+            self.report({"WARNING"}, f"Scanned 0 points: no sensor column gave one ({codes or 'no columns'}); the "
+                                     f"scene's cloud is left as it was; files in {result.files['cloud'].parent}")
+            return {"FINISHED"}
         _import_result(context, scanner, result)
         warned = _report_warnings(self, result.report)
         swapped = (f"; the cell is the scan config's ({result.report['config']['name']}): choose The Cell Built "
@@ -514,7 +531,10 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
 
     @classmethod
     def poll(cls, context):
-        return bpy.data.objects.get(models.CLOUD_NAME) is not None
+        if bpy.data.objects.get(models.CLOUD_NAME) is None:
+            cls.poll_message_set("There is no scanned cloud in the scene: Scan first")
+            return False
+        return True
 
     def execute(self, context):
         from ..core.geometry.cloud import save_ply
@@ -522,14 +542,20 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
 
         given = bpy.path.abspath(self.filepath)
         target = bpy.path.ensure_ext(given, ".ply")
+        folder = os.path.dirname(target) or "."
         try:
-            if not self.filepath or os.path.isdir(given):
+            if not self.filepath.strip():
+                raise InputError("export needs a file name, and none was given")
+            if os.path.isdir(given):
                 raise InputError(f"export needs a file name, got the folder {given}")
+            if not os.path.isdir(folder):  # a file dialog's export goes into a folder that is there
+                raise InputError(f"{folder} is a file, not a folder" if os.path.exists(folder) else
+                                 f"the folder {folder} does not exist (create it first)")
             cloud = cloud_from_object(bpy.data.objects[models.CLOUD_NAME])
             path = save_ply(cloud, target)
         except (ScannerError, OSError) as exc:
-            where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-            text = _message(exc) if isinstance(exc, ScannerError) else f"{where}{exc.strerror or exc}"
+            # The file's name, never the temporary one it is written to first.
+            text = _message(exc) if isinstance(exc, ScannerError) else f"{target}: {exc.strerror or exc}"
             self.report({"ERROR"}, f"Export PLY: {text} (nothing written)")
             return {"CANCELLED"}
         self.report({"INFO"}, f"Wrote {len(cloud)} points to {path}")

@@ -45,11 +45,15 @@ WORKPIECE_ITEMS = [(k, k.replace("_", " ").title(), f"Built-in {k.replace('_', '
                    for k in BUILTINS] + [(FILE, "Mesh file...", "STL, OBJ, PLY or GLB (mm; GLB in metres)")]
 
 
+# Paths may be //-relative to the saved .blend file (the operators resolve them with bpy.path.abspath).
+BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"}
+
+
 def _table_angle_changed(self, context):
     from ..scene.cell import cell_object
 
     table = cell_object("Turntable")
-    if table is not None:
+    if table is not None and math.isfinite(self.table_angle):  # NaN is refused by the operators, never shown
         table.rotation_euler[2] = self.table_angle
 
 
@@ -70,14 +74,17 @@ class ScannerSettings(bpy.types.PropertyGroup):
     # -- cell ----------------------------------------------------------------------
     robot: EnumProperty(name="Robot", items=ROBOT_ITEMS, default=ROBOT_ITEMS[0][0],
                         description="Robot rig: a DH table with joint limits")
-    robot_file: StringProperty(name="Robot file", subtype="FILE_PATH", description="Robot rig file (TOML)")
+    robot_file: StringProperty(name="Robot file", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                               description="Robot rig file (TOML)")
     probe: EnumProperty(name="Probe", items=PROBE_ITEMS, default="default", update=_probe_changed,
                         description="Probe rig: laser, cameras and mount; choosing one loads its optics into "
                                     "the fields below, where they can be edited")
-    probe_file: StringProperty(name="Probe file", subtype="FILE_PATH", description="Probe rig file (TOML)",
+    probe_file: StringProperty(name="Probe file", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                               description="Probe rig file (TOML)",
                                update=_probe_changed)
     workpiece: EnumProperty(name="Workpiece", items=WORKPIECE_ITEMS, default="sphere")
-    workpiece_file: StringProperty(name="Mesh file", subtype="FILE_PATH", description="Workpiece mesh")
+    workpiece_file: StringProperty(name="Mesh file", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                                   description="Workpiece mesh")
     workpiece_scale: FloatProperty(name="Scale", default=0.0, min=0.0, soft_max=1000.0,
                                    description="Millimetres per unit of the mesh file: 1 for a file in mm, 1000 "
                                                "for one in metres (Blender's own STL/OBJ export), 25.4 for "
@@ -159,8 +166,9 @@ class ScannerSettings(bpy.types.PropertyGroup):
                                description="Rotary table angle theta_R")
     # -- scan -------------------------------------------------------------------------
     scan_config: EnumProperty(name="Scan", items=SCENE_ITEMS, default="demo", description="Scan config")
-    scan_file: StringProperty(name="Scan file", subtype="FILE_PATH", description="Scan config file (TOML)")
-    output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="",
+    scan_file: StringProperty(name="Scan file", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                              description="Scan config file (TOML)")
+    output_dir: StringProperty(name="Output", subtype="DIR_PATH", options=BLEND_RELATIVE, default="",
                                description="Folder for cloud.ply, report.json, preview.png (empty: the "
                                            "extension's user folder)")
     scan_sensor: EnumProperty(name="Sensor", items=[

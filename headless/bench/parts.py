@@ -21,7 +21,7 @@ from dataclasses import replace
 from addon.core.kinematics.path import AROUND_PART_STANDOFF_MM as STANDOFF_MM
 from addon.core.kinematics.path import around_part as part_path
 
-OUTLIER_MM = 0.2
+from addon.core.geometry.metrics import OUTLIER_MM  # the real-parts goal: nothing farther from the part
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -378,6 +378,9 @@ CASES = [
     ("mesh: a folder", part_file(folder_as_mesh), 2, "folder.stl"),
     ("mesh: unknown file type", part_file(unknown_mesh_type), 2, "part.xyz123"),
     ("mesh: missing", part_file(lambda t: t / "gone.stl"), 2, "gone.stl"),
+    ("mesh: sunk 5 mm into the table", lambda t: ["scan", scene(t, DEMO.replace(
+        'shape = "sphere"\nradius_mm = 30.0', f'file = "{good_cube_stl(t)}"\n[workpiece.pose]\nxyz_mm = [0, 0, -5]'))],
+     2, "workpiece.pose: the workpiece cube reaches 5.00 mm below the table top"),
     ("mesh: scale negative", lambda t: ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0',
                                         f'file = "{binary_stl_with_inf(t)}"\nscale = -1.0'))], 2, "scale"),
     # 0 used to count as "not given" and the part was scanned at its file's own scale

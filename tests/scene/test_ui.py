@@ -740,3 +740,48 @@ def test_the_cell_built_here_is_scanned_from_its_probes_own_range(panel):
     assert sol.ok.all()
     assert Scanner(config=cfg).frames_out_of_range(sol.q, cfg.waypoints.table_rad).tolist() == []
     assert 180 <= len(cfg.waypoints) < 210  # three turns of 60, and part of the 30-frame sweep
+
+
+def test_a_mesh_file_rests_on_the_table_and_bad_values_from_a_script_are_refused(panel, tmp_path, capfd):
+    """From a Blender 4.5 user's trial: a box saved centred on its origin (half of it below the
+    table top) is put on the table, the message saying by how much; a NaN table angle and a
+    camera a kilometre from the laser are refused by the operators with one line; Export PLY
+    names the file and the folder, never its temporary file, and says why it is greyed out."""
+    import trimesh
+
+    box = trimesh.creation.box([40.0, 30.0, 20.0])  # centred: z from -10 to 10 mm
+    box.export(tmp_path / "box.stl")
+    s = panel.scanner
+    s.workpiece, s.workpiece_file = "FILE", str(tmp_path / "box.stl")
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    assert "box.stl (put on the table: lifted 10.0 mm" in "".join(capfd.readouterr())
+    part = next(o for o in bpy.data.objects if o.name.startswith("Workpiece ") and "twin" not in o.name)
+    lowest = min((part.matrix_world @ v.co).z for v in part.data.vertices)
+    table_top = bpy.data.objects["Turntable"].matrix_world.translation.z
+    assert lowest == pytest.approx(table_top, abs=1e-6)  # metres in Blender: on the table top
+
+    s.table_angle = float("nan")
+    for op in (bpy.ops.scanner.build_cell, bpy.ops.scanner.render_views):
+        with pytest.raises(RuntimeError, match="Table angle must be a finite angle"):
+            op()
+    with pytest.raises(RuntimeError, match="Table angle must be a finite angle"):
+        bpy.ops.scanner.scan(frames="0:2", output_dir=str(tmp_path / "never"))
+    assert not (tmp_path / "never").exists()
+    assert all(math.isfinite(v) for v in bpy.data.objects["Turntable"].matrix_world.to_euler())
+    s.table_angle = 0.0
+    s.probe_b = 1e6
+    with pytest.raises(RuntimeError, match=r"b_mm = 1e\+06 mm is beyond the ±100000 mm"):
+        bpy.ops.scanner.build_cell()
+
+    assert not bpy.ops.scanner.export_ply.poll()  # no cloud yet
+    (tmp_path / "a_file").write_text("")
+    for target, words in (("", "needs a file name, and none was given"),
+                          (str(tmp_path / "a_file" / "x.ply"), "a_file is a file, not a folder"),
+                          (str(tmp_path / "nowhere" / "x.ply"), "the folder .*nowhere does not exist")):
+        bpy.data.objects.new("Scan cloud", bpy.data.meshes.new("Scan cloud"))  # something to export
+        with pytest.raises(RuntimeError, match=words) as caught:
+            bpy.ops.scanner.export_ply(filepath=target)
+        assert ".part" not in str(caught.value)
+        bpy.data.objects.remove(bpy.data.objects["Scan cloud"])
+    assert not (tmp_path / "nowhere").exists()
+

@@ -19,6 +19,9 @@ from scipy.spatial import cKDTree
 from ..errors import InputError
 
 
+OUTLIER_MM = 0.2  # a point farther than this from the part is an outlier (the real-parts goal's limit)
+
+
 @dataclass(frozen=True)
 class ErrorStats:
     """Point-to-surface error of n points, µm. bias: mean signed distance (NaN if unsigned)."""

@@ -132,3 +132,35 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)
     return Workpiece(path.stem, mesh, mesh, str(path), pose)
+
+
+SINK_TOLERANCE_MM = 0.05  # a part may reach this far below the table top (a mesh's rounding)
+
+
+def depth_below_table(wp: Workpiece) -> float:
+    """How far (mm) the part reaches below the table top (z = 0 in the table frame); 0 where it
+    does not."""
+    return max(0.0, -float(wp.mesh.bounds[0][2]))
+
+
+def resting_on_table(wp: Workpiece) -> tuple[Workpiece, float]:
+    """A mesh-file part given no pose (the panel's, ``Scanner(workpiece=path)``) moved straight
+    up or down so that its lowest point lies on the table top, as a part is put on a table:
+    (the part, the lift in mm, negative where it came down). Its truth moves with it."""
+    lift = -float(wp.mesh.bounds[0][2])
+    if wp.is_analytic or lift == 0.0:
+        return wp, 0.0
+    T = np.eye(4)
+    T[2, 3] = lift
+    mesh = wp.mesh.copy()
+    mesh.apply_transform(T)
+    return Workpiece(wp.name, mesh, mesh, wp.source, T @ wp.pose), lift
+
+
+def check_on_table(wp: Workpiece, fix: str) -> None:
+    """Refuse a part that reaches more than SINK_TOLERANCE_MM into the table, ``fix`` saying how
+    to lift it: the table would hide that surface and its truth would still count it."""
+    depth = depth_below_table(wp)
+    if depth > SINK_TOLERANCE_MM:
+        raise InputError(f"the workpiece {wp.name} reaches {depth:.2f} mm below the table top (z = 0 in the table "
+                         f"frame): a part rests on the table or on a fixture; {fix}")

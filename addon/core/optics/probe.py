@@ -39,6 +39,7 @@ from .calibrated import NOMINAL_PLANE, CameraModel, ProbeCalibration
 
 CAMERAS = (0, 1)
 MAX_PIXELS = 100_000
+MAX_OFFSET_MM = 1e5  # the farthest a camera may sit from the laser (a, b), as probe files allow
 EDGE_TOL_PX = TOL.sensor_edge_px
 HOUSING_MARGIN_MM = 30.0  # the housing reaches this much beyond the two cameras, in all
 
@@ -87,6 +88,10 @@ class Probe:
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 2 <= v <= MAX_PIXELS:
                 raise InputError(f"{who}: {key} must be a whole number of pixels in [2, {MAX_PIXELS}], got {v!r}")
             object.__setattr__(self, key, int(v))
+        for key in ("a_mm", "b_mm"):  # as a probe file allows: a probe is not metres across
+            if abs(getattr(self, key)) > MAX_OFFSET_MM:
+                raise InputError(f"{who}: {key} = {getattr(self, key):g} mm is beyond the ±{MAX_OFFSET_MM:g} mm a "
+                                 f"probe's cameras may sit from its laser")
         deg = math.degrees
         if self.a_mm <= 0:
             raise InputError(f"{who}: a = {self.a_mm:g} mm: the cameras must sit beside the laser plane, a > 0")

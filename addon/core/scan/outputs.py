@@ -193,6 +193,7 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
     poses = np.zeros((0, 4, 4)) if probe2table is None else probe2table
     if len(P) == 0:
         return ({"points_on_part": 0, "points_on_table": 0, "points_on_fixtures": 0,
+                 "outliers": 0, "within_2_sigma": None,
                  "error_um": metrics.error_stats([]).as_dict(),
                  "table_error_um": metrics.error_stats([]).as_dict(), "coverage": 0.0,
                  **measurable_coverage(config, poses, P),
@@ -207,8 +208,11 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
     part = metrics.error_stats(d_part[on_part], None if s_part is None else s_part[on_part])
     table = metrics.error_stats(d_table[on_table], P[on_table, 2])
     coverage = metrics.coverage(P[on_part], wp.mesh, config.coverage_tolerance_mm)
+    d = d_part[on_part]
+    within = float(np.mean(d <= 2.0 * cloud.quality[on_part])) if len(d) else None
     return ({"points_on_part": int(on_part.sum()), "points_on_table": int(on_table.sum()),
              "points_on_fixtures": int(on_fixture.sum()),
+             "outliers": int(np.sum(d > metrics.OUTLIER_MM)), "within_2_sigma": within,
              "error_um": part.as_dict(), "table_error_um": table.as_dict(), "coverage": coverage,
              **measurable_coverage(config, poses, P[on_part]),
              "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3, on_fixture)

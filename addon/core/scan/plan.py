@@ -14,7 +14,7 @@ from warnings import catch_warnings, simplefilter
 import numpy as np
 
 from ..config.scan import ScanConfig
-from ..errors import CollisionError, ScannerError, UnreachablePose
+from ..errors import CollisionError, InputError, ScannerError, UnreachablePose
 from ..geometry import metrics
 from ..geometry.footprint import OCCLUSION_EPS_MM, SurfaceCaster, fan_rays, laser_footprint, seen_by
 from ..kinematics.path import solve_path
@@ -73,7 +73,7 @@ def plan_scan(config: ScanConfig, allow_blind: bool = False) -> Plan:
     if sol.jumps:
         warnings.append(f"joint jumps over {math.degrees(max(sol.max_step_rad)):.0f}° between neighbouring "
                         f"waypoints at frames {frame_ranges(sol.jumps)} (near a singularity or a limit)")
-    warnings += fixtures_in_the_part(config)
+    warnings += part_warnings(config)
     plan = plan_frames(config, sol.q, wp.table_rad, allow_blind, warnings)
     plan.clearance = clearance
     return plan
@@ -228,6 +228,11 @@ def frames_in_range(config: ScanConfig) -> ScanConfig:
     keep = np.setdiff1d(np.arange(len(config.waypoints)), foot.empty_frames)
     if len(keep) == len(config.waypoints):
         return config
+    if not len(keep):
+        z0, z1 = config.probe.z_range_mm
+        raise InputError(f"none of the {len(config.waypoints)} frames of the path puts the part, the table or a "
+                         f"fixture inside the probe's range {z0:.0f}-{z1:.0f} mm: check the probe's optics "
+                         f"(a, b, φ, γ) and the part's size")
     from dataclasses import replace
 
     return replace(config, waypoints=config.waypoints.select(keep))
@@ -236,6 +241,21 @@ def frames_in_range(config: ScanConfig) -> ScanConfig:
 FIXTURE_OVERLAP_MM = 0.05  # a table fixture may touch the part; reaching further into it is warned of
 OVERLAP_SAMPLES = 20000    # surface points drawn from each of the two meshes for the check
 _OVERLAP_LINES: list = []  # ((workpiece, fixtures), warnings) of the last few configs checked
+
+
+def part_warnings(config: ScanConfig) -> list[str]:
+    """What a scan should say about its part before the figures are read: a mesh that is not
+    closed (its error has no sign, so no bias), and table fixtures reaching into it
+    (:func:`fixtures_in_the_part`)."""
+    wp = config.workpiece
+    out = []
+    if not wp.is_analytic and not wp.mesh.is_watertight:
+        import trimesh
+
+        open_edges = len(trimesh.grouping.group_rows(wp.mesh.edges_sorted, require_count=1))
+        out.append(f"the workpiece mesh {wp.name} is not closed ({open_edges} edges border one face only): its "
+                   f"points' error has no sign, so no bias is given (close the mesh to have one)")
+    return out + fixtures_in_the_part(config)
 
 
 def fixtures_in_the_part(config: ScanConfig) -> list[str]:

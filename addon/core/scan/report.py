@@ -50,7 +50,9 @@ class ScanReport:
     profiles_per_s: frames / (render + detect + triangulate); config: what was scanned;
     clearance: the smallest distance between the robot or the probe and the table, the workpiece
     or a fixture over the motion (``nearest``) and per path entry (``per_path``), each with its
-    bodies, frame and point (None where the config turns collision checks off).
+    bodies, frame and point (None where the config turns collision checks off); outliers: the
+    part's points farther than 0.2 mm (metrics.OUTLIER_MM) from it; within_2_sigma: the share of
+    the part's points within twice their stated σ (the cloud's quality), None without any.
     """
 
     config: dict
@@ -77,6 +79,8 @@ class ScanReport:
     clearance: dict | None = None
     software: dict = field(default_factory=dict)
     points_on_fixtures: int = 0
+    outliers: int = 0
+    within_2_sigma: float | None = None
     render_device: str | None = None
     extra: dict = field(default_factory=dict)  # anything else a run adds (a farm's shard counts)
 
