@@ -144,6 +144,47 @@ def test_ur5_urdf_links_carry_its_cylinders():
     assert extent.max() == pytest.approx(212.5, abs=1e-6) and extent.min() == pytest.approx(-212.5, abs=1e-6)
 
 
+def test_the_base_link_and_what_is_fixed_to_it_make_the_robots_base_and_the_probe_may_not_enter_it(tmp_path):
+    """The UR5's base_link carries a cylinder 150 mm across and 80 mm high on the floor: it
+    becomes the robot's base (drawn and collision-checked). A gantry's frame fixed to its base
+    link is a base too; a link off the chain is not. The probe driven into the base is a
+    collision; a pose with the probe clear of it is not (the base's geometry from the file)."""
+    from dataclasses import replace
+
+    import trimesh
+
+    from addon.core.config.rigs import load_probe
+    from addon.core.kinematics.link_shapes import base_mesh
+    from addon.core.kinematics.turntable import Turntable
+    from addon.core.safety import CollisionModel
+
+    robot = load_robot(UR5_URDF)
+    base = base_mesh(robot, collision=True)
+    frame0 = robot.link_frames(np.zeros(6))[0]
+    world = base.vertices @ frame0[:3, :3].T + frame0[:3, 3]
+    np.testing.assert_allclose(world.min(axis=0), [-75.0, -75.0, 0.0], atol=0.5)  # a 64-gon's corners
+    np.testing.assert_allclose(world.max(axis=0), [75.0, 75.0, 80.0], atol=0.5)
+    gantry = load_robot(REPO / "rigs" / "robots" / "urdf" / "gantry.urdf")
+    assert base_mesh(gantry) is not None and np.ptp(base_mesh(gantry).vertices, axis=0).max() == pytest.approx(1600.0)
+
+    # A DH robot with a pedestal put around where the probe is at one pose: touching, then clear.
+    probe = load_probe("default")
+    arm = load_robot("adept_viper_s650").with_tool(probe.mount)
+    q = np.radians([0, 30, -15, 0, 75, 90])
+    probe2base = arm.fk(q[None])[0]
+    housing_extents, housing_centre = probe.body_boxes()[0][1:]
+    for gap, touches in ((-5.0, True), (10.0, False)):
+        # A 40 mm cube beside the housing along the probe's x, ``gap`` mm from its side.
+        cube = trimesh.creation.box([40.0, 40.0, 40.0])
+        side = housing_centre + [housing_extents[0] / 2 + gap + 20.0, 0.0, 0.0]
+        cube.apply_transform(np.linalg.inv(frame0 := arm.link_frames(q[None])[0, 0]) @ probe2base
+                             @ np.array([[1, 0, 0, side[0]], [0, 1, 0, side[1]], [0, 0, 1, side[2]], [0, 0, 0, 1]]))
+        model = CollisionModel(replace(arm, base_mesh=(cube, np.eye(4))), probe, Turntable())
+        found = model.clearance_at(q, 0.0)
+        hits = {(c.body_a, c.body_b) for c, _ in found.collisions}
+        assert (("probe", "robot base") in hits or ("robot base", "probe") in hits) == touches, (gap, hits)
+
+
 # -- any chain ----------------------------------------------------------------------------
 @pytest.mark.parametrize("seed", range(6))
 def test_random_chains_keep_their_kinematics(seed, tmp_path):

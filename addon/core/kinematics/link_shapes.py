@@ -76,9 +76,11 @@ def link_mesh(robot: Robot, k: int, collision: bool = False):
     return _load(*entries[k])
 
 
-def base_mesh(robot: Robot):
-    """The robot's fixed base (a pedestal) in DH frame 0, for display; None where it has none."""
-    return _load(*robot.base_mesh) if robot.base_mesh else None
+def base_mesh(robot: Robot, collision: bool = False):
+    """The robot's fixed base (a pedestal) in DH frame 0 (``collision``: its collision geometry
+    where the rig has its own, else the visual one); None where it has none."""
+    entry = (robot.base_collision_mesh or robot.base_mesh) if collision else robot.base_mesh
+    return _load(*entry) if entry else None
 
 
 def _load(source, offset):

@@ -66,7 +66,9 @@ class Robot:
         checks; empty tuple when the rig names no meshes (see link_shapes.link_mesh)
     collision_meshes : the same for the collision checks alone (a URDF's collision geometry)
     base_mesh : (mesh file or trimesh, (4, 4) transform into DH frame 0) of the base that does
-        not move (a pedestal), for display; () for none
+        not move (a pedestal), for display and, without base_collision_mesh, the collision
+        checks (the probe and links 2–6 must not touch it); () for none
+    base_collision_mesh : the same for the collision checks alone (a URDF's collision geometry)
     ik_via : where IK comes from when not from this project's solver: a
         ``ik_remote.ControllerIK`` (the robot controller over TCP/IP); None: the local solver
     """
@@ -84,6 +86,7 @@ class Robot:
     link_meshes: tuple = ()
     collision_meshes: tuple = ()
     base_mesh: tuple = ()
+    base_collision_mesh: tuple = ()
     ik_via: object = None
     prismatic: tuple = ()  # per joint, True where it slides along z_{i-1}; () for all revolute
     flange: np.ndarray = field(default_factory=lambda: np.eye(4))

@@ -27,7 +27,8 @@ The conversion is checked against the URDF's own chain product at random joint
 vectors when the file loads (1e-6 mm; a failure is reported, never used).
 
 Meshes: every link's visuals (and, separately, its collision geometry) go to the DH
-link whose joint moves it (links fixed to the base are left out): mesh files (STL,
+link whose joint moves it, those of the base link and the links fixed to it to the
+robot's base (DH frame 0), links off the chain nowhere: mesh files (STL,
 OBJ, DAE, ...; ``package://`` resolved against ``package_dirs`` and the file's folder)
 with their scale, and boxes, cylinders and spheres.
 """
@@ -283,10 +284,11 @@ def load_urdf_robot(path: str | Path, base_link: str | None = None, tool_link: s
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None
     _check_conversion(robot, chain)
-    visual, collision = _meshes(urdf, chain, robot, package_dirs)
+    (visual, base_visual), (collision, base_collision) = _meshes(urdf, chain, robot, package_dirs)
     from dataclasses import replace
 
-    return replace(robot, link_meshes=visual, collision_meshes=collision)
+    return replace(robot, link_meshes=visual, collision_meshes=collision, base_mesh=base_visual,
+                   base_collision_mesh=base_collision)
 
 
 def _parse(path: Path, package_dirs):
@@ -394,26 +396,31 @@ def _geometry_mesh(geometry, urdf_path: Path, package_dirs):
 
 
 def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs) -> tuple[tuple, tuple]:
-    """Per DH link 1..6: (its visuals, its collision geometry) merged into one mesh each, in
-    the DH frame of that link, mm; ("", identity) where a link has none."""
+    """((visuals per DH link 1..6, the base's visuals), (the same for the collision geometry)),
+    each merged into one mesh in the DH frame of its link (the base: frame 0), mm; per link
+    ("", identity) where it has none, () where no link has any. The base is the base link and
+    what hangs on it by fixed joints (a pedestal, a gantry's frame): it never moves, and the
+    probe and the links must not run into it. Links off the chain are left out."""
     import trimesh
 
     frames0 = robot.link_frames(np.zeros(N_JOINTS))
     scale = np.diag([M_TO_MM, M_TO_MM, M_TO_MM, 1.0])
     out = []
     for kind in ("visuals", "collisions"):
-        pieces: list[list] = [[] for _ in range(N_JOINTS)]
+        pieces: list[list] = [[] for _ in range(N_JOINTS + 1)]  # the base first, then links 1..6
         for link in urdf.robot.links:
-            k = chain.link_index.get(link.name, 0)
-            if k == 0:
-                continue
+            k = chain.link_index.get(link.name)
+            if k is None:
+                continue  # not on the chain, nor fixed to it
             for item in getattr(link, kind):
                 mesh = _geometry_mesh(item.geometry, chain.path, package_dirs)
                 if mesh is None:
                     continue
                 origin = np.eye(4) if item.origin is None else _in_mm(item.origin)
                 mesh.apply_transform(rigid_inverse(frames0[k]) @ chain.link_pose[link.name] @ origin @ scale)
-                pieces[k - 1].append(mesh)
-        out.append(tuple((trimesh.util.concatenate(p), np.eye(4)) if p else ("", np.eye(4)) for p in pieces)
-                   if any(pieces) else ())
+                pieces[k].append(mesh)
+        links = pieces[1:]
+        out.append((tuple((trimesh.util.concatenate(p), np.eye(4)) if p else ("", np.eye(4)) for p in links)
+                    if any(links) else (),
+                    (trimesh.util.concatenate(pieces[0]), np.eye(4)) if pieces[0] else ()))
     return out[0], out[1]

@@ -4,6 +4,8 @@ Bodies and what carries them:
 
 - ``link 1`` … ``link 6``: DH frame k (the rig's link meshes where it has them,
   otherwise the cylinders the Blender cell draws: ``kinematics.link_shapes``);
+- ``robot base``: DH frame 0, where the rig gives the base's geometry (a DH rig's
+  ``base_mesh``, a URDF's base link and what is fixed to it);
 - ``probe``: the probe frame (flange · T_L^6): its housing and the camera and laser
   heads (``Probe.body_boxes``);
 - ``table``: the table's disc, in the table frame;
@@ -12,9 +14,10 @@ Bodies and what carries them:
 
 Pairs checked: every robot body (links and probe) against the table, the workpiece
 and the fixtures, with the clearance the config asks for; and robot bodies against
-each other (links two or more apart, the probe against links 1–4), which must not
-touch. Pairs that touch in the rig's rest pose (q = 0) are part of its design and
-are not checked.
+each other (links two or more apart, the probe against links 1–4 and the base), which
+must not touch. The base is not checked against the table, the part or the fixtures:
+it never moves, and where it stands is the cell's layout. Pairs that touch in the rig's
+rest pose (q = 0) are part of its design and are not checked.
 
 A mesh in FCL is a surface: a body wholly inside a closed part would be reported
 as near its surface, not inside it. So where a robot body comes near a closed
@@ -30,7 +33,7 @@ import numpy as np
 import trimesh
 
 from ..errors import ScannerError
-from ..kinematics.link_shapes import link_cylinders, link_mesh
+from ..kinematics.link_shapes import base_mesh, link_cylinders, link_mesh
 from ..kinematics.robot import N_JOINTS, Robot
 from ..kinematics.turntable import TABLE_RADIUS_MM, TABLE_THICKNESS_MM, Turntable
 from ..optics.probe import Probe
@@ -158,10 +161,16 @@ def _enclosing_points(vertices: np.ndarray) -> np.ndarray:
     return HalfspaceIntersection(halfspaces, inside).intersections
 
 
+ROBOT_BASE = "robot base"
+
+
 def robot_bodies(robot: Robot, probe: Probe) -> list[Body]:
-    """Links 1..6 and the probe."""
+    """Links 1..6, the probe, and the robot's base where the rig gives its geometry."""
     fcl = _fcl()
     bodies = []
+    base = base_mesh(robot, collision=True)
+    if base is not None and len(base.faces):
+        bodies.append(Body(ROBOT_BASE, "link0", [mesh_shape(fcl, base)], True, base if base.is_watertight else None))
     cylinders = link_cylinders(robot)
     for k in range(N_JOINTS):
         name = f"link {k + 1}"
@@ -204,7 +213,7 @@ def environment_bodies(workpiece_mesh: trimesh.Trimesh | None, fixtures=()) -> l
 def carrier_poses(robot: Robot, table: Turntable, q: np.ndarray, table_rad: np.ndarray) -> dict[str, np.ndarray]:
     """World poses (n, 4, 4) of every carrier at joints q (n, 6) and table angles (n,)."""
     frames = robot.link_frames(q)
-    out = {f"link{k}": frames[:, k] for k in range(1, N_JOINTS + 1)}
+    out = {f"link{k}": frames[:, k] for k in range(0, N_JOINTS + 1)}  # link0: the base, DH frame 0
     out["probe"] = frames[:, N_JOINTS] @ robot.tool
     out["table"] = table.table2base(table_rad)
     out["world"] = np.broadcast_to(np.eye(4), (len(q), 4, 4))

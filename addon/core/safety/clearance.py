@@ -28,7 +28,7 @@ from ..errors import InputError
 from ..kinematics.robot import Robot
 from ..kinematics.turntable import Turntable
 from ..optics.probe import Probe
-from .bodies import UNIT_CORNERS, Body, _fcl, carrier_poses, environment_bodies, robot_bodies
+from .bodies import ROBOT_BASE, UNIT_CORNERS, Body, _fcl, carrier_poses, environment_bodies, robot_bodies
 
 STEP_MM = 1.0             # no point moves farther than this between two checked samples
 DEFAULT_CLEARANCE_MM = 2.0
@@ -208,15 +208,17 @@ class CollisionModel:
         # The probe first: it is nearest the part on a scan path, so the branch and bound that
         # finds the smallest clearance (shared by all pairs) prunes the links at once.
         robot = sorted(robot, key=lambda i: self.bodies[i].name != "probe")
-        pairs = [(i, j, self.min_clearance_mm) for i in robot for j in env]
+        # The base never moves: not against the table, the part or the fixtures (the layout's).
+        pairs = [(i, j, self.min_clearance_mm) for i in robot for j in env if self.bodies[i].name != ROBOT_BASE]
         q0 = np.zeros((1, 6))
         carriers = carrier_poses(self.robot, self.table, q0, np.zeros(1))
+        order = {"probe": 7, ROBOT_BASE: 0}  # place in the chain; links by their number
         for a in range(len(robot)):
             for b in range(a + 1, len(robot)):
                 i, j = robot[a], robot[b]
                 ni, nj = self.bodies[i].name, self.bodies[j].name
-                ki = 7 if ni == "probe" else int(ni.split()[-1])
-                kj = 7 if nj == "probe" else int(nj.split()[-1])
+                ki = order[ni] if ni in order else int(ni.split()[-1])
+                kj = order[nj] if nj in order else int(nj.split()[-1])
                 if abs(ki - kj) < 2 or (7 in (ki, kj) and min(ki, kj) >= 5):
                     continue  # neighbours in the chain (the probe sits on links 5 and 6)
                 if self._exact(i, j, carriers, 0)[0] <= CONTACT_MM:
