@@ -144,6 +144,22 @@ def test_ur5_urdf_links_carry_its_cylinders():
     assert extent.max() == pytest.approx(212.5, abs=1e-6) and extent.min() == pytest.approx(-212.5, abs=1e-6)
 
 
+def test_a_urdf_under_another_name_is_read_as_urdf_where_a_config_says_urdf(tmp_path):
+    """``.xml`` is read as URDF by name; a scan config's ``urdf =`` key reads any name as URDF."""
+    from addon.core.config.scan import load_scan_config
+
+    text = UR5_URDF.read_text()
+    (tmp_path / "arm.xml").write_text(text)
+    (tmp_path / "arm.description").write_text(text)
+    assert load_robot(tmp_path / "arm.xml").name == load_robot(UR5_URDF).name
+    scene = (REPO / "rigs" / "scenes" / "ur5_urdf.toml").read_text()
+    scene = scene.replace('urdf = "../robots/urdf/ur5.urdf"', 'urdf = "arm.description"')
+    assert 'urdf = "arm.description"' in scene
+    (tmp_path / "scan.toml").write_text(scene)
+    config = load_scan_config(tmp_path / "scan.toml")
+    np.testing.assert_allclose(config.robot.a_mm, load_robot(UR5_URDF).a_mm)
+
+
 def test_the_base_link_and_what_is_fixed_to_it_make_the_robots_base_and_the_probe_may_not_enter_it(tmp_path):
     """The UR5's base_link carries a cylinder 150 mm across and 80 mm high on the floor: it
     becomes the robot's base (drawn and collision-checked). A gantry's frame fixed to its base
@@ -294,6 +310,8 @@ def _six(tmp_path, **kw):
     ("missing mesh", "not found"),
     ("limits inverted", "limits"),
     ("no such file", "no such file"),
+    ("xacro named .urdf", "holds xacro macros.*expand it first"),
+    ("xacro file", "a xacro file.*expand it first"),
 ])
 def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     kw = {}
@@ -321,6 +339,14 @@ def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     elif case == "limits inverted":
         path = _six(tmp_path)
         path.write_text(path.read_text().replace('lower="-3.1" upper="3.1"', 'lower="3.1" upper="-3.1"', 1))
+    elif case == "xacro named .urdf":
+        path = _six(tmp_path)
+        path.write_text(path.read_text().replace(
+            "<robot ", '<robot xmlns:xacro="http://www.ros.org/wiki/xacro" ', 1).replace(
+            '<link name="l2"/>', '<xacro:property name="r" value="0.05"/><link name="l2"/>'))
+    elif case == "xacro file":
+        path = tmp_path / "arm.urdf.xacro"
+        path.write_text(_six(tmp_path).read_text())
     else:
         path = tmp_path / "none.urdf"
     with pytest.raises(ConfigError, match=words) as info:

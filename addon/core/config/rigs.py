@@ -24,12 +24,20 @@ from ..optics.probe import MAX_PIXELS, Probe, angles_from_range
 from .toml import load_toml, resolve_rig
 
 
+URDF_SUFFIXES = (".urdf", ".xml")
+
+
 def load_robot(name_or_path: str | Path, *, base_link: str | None = None, tool_link: str | None = None,
-               package_dirs=()) -> Robot:
-    """Robot from ``rigs/robots/<name>.toml``, a path to such a file, or a URDF file (``.urdf``:
-    the chain from ``base_link`` to ``tool_link``, meshes found through ``package_dirs``; see
-    addon.core.kinematics.urdf). Cached while the file is unchanged."""
-    if str(name_or_path).lower().endswith(".urdf"):
+               package_dirs=(), urdf: bool | None = None) -> Robot:
+    """Robot from ``rigs/robots/<name>.toml``, a path to such a file, or a URDF file (``.urdf``
+    or ``.xml``, or any name with ``urdf=True``: the chain from ``base_link`` to ``tool_link``,
+    meshes found through ``package_dirs``; see addon.core.kinematics.urdf). A xacro file is
+    named as one, to be expanded first. Cached while the file is unchanged."""
+    lower = str(name_or_path).lower()
+    if lower.endswith(".xacro"):
+        raise ConfigError(f"{name_or_path}: a xacro file, which URDF readers do not expand: expand it first "
+                          f"(ROS's `xacro {Path(name_or_path).name} > robot.urdf`) and give the .urdf")
+    if urdf or (urdf is None and lower.endswith(URDF_SUFFIXES)):
         path = Path(name_or_path).expanduser()
         if not path.is_file():
             raise ConfigError(f"{path}: no such file")

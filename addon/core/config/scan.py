@@ -315,7 +315,7 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
             robot = load_robot(_rig_path(base, rig))
         else:
             robot = load_robot(f if f.is_absolute() else base / f, base_link=links[0], tool_link=links[1],
-                               package_dirs=[d if d.is_absolute() else base / d for d in dirs])
+                               package_dirs=[d if d.is_absolute() else base / d for d in dirs], urdf=True)
     except ConfigError as exc:
         raise ConfigError(f"{path}: robot.{key}: {exc}") from None
     q_start = None
@@ -325,6 +325,9 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
         turning = ~np.array(robot.prismatic)
         if (np.abs(values[turning]) > 720).any():
             raise ConfigError(f"{path}: robot.start_deg: {values[turning].tolist()} holds an angle beyond ±720°")
+        outside = robot.limit_violations(q_start)
+        if outside:  # where the robot stands when the scan starts: it cannot stand beyond a limit
+            raise ConfigError(f"{path}: robot.start_deg: {'; '.join(outside)} (the robot's limits)")
     if rt.string("ik", default="local", choices=["local", "controller"]) == "controller":
         ct = rt.table("controller", default={})
         controller = Controller(ct.string("host", default="127.0.0.1"),

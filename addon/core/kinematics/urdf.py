@@ -303,6 +303,9 @@ def _parse(path: Path, package_dirs):
         tree = ET.parse(path)
     except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: not a readable URDF file (XML: {exc})") from None
+    if any("xacro" in element.tag for element in tree.iter()):  # xacro:macro, xacro:include, ...
+        raise ConfigError(f"{path}: holds xacro macros, which URDF readers do not expand: expand it first "
+                          f"(ROS's `xacro {path.name} > robot.urdf`) and give the result")
     _check_joint_numbers(tree.getroot(), path)
     try:
         return URDF.load(str(path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False,
