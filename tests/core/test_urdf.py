@@ -144,6 +144,27 @@ def test_ur5_urdf_links_carry_its_cylinders():
     assert extent.max() == pytest.approx(212.5, abs=1e-6) and extent.min() == pytest.approx(-212.5, abs=1e-6)
 
 
+def test_a_pose_only_a_joint_limit_keeps_out_of_reach_names_that_limit(tmp_path):
+    """A chain whose third joint turns only ±0.3 rad, asked for the pose it has at q3 = 1.2 rad:
+    the refusal names J3 and the angle that would reach it (a URDF engineer's trial: the
+    message said only "outside the workspace or needs joints beyond their limits")."""
+    from addon.core.kinematics import ik
+
+    path = random_chain(np.random.default_rng(3), tmp_path, "arm.urdf")
+    head, rest = path.read_text().split('<joint name="j2"', 1)
+    path.write_text(head + '<joint name="j2"' + rest.replace('lower="-3.1" upper="3.1"', 'lower="-0.3" upper="0.3"', 1))
+    robot = load_robot(path)
+    q = np.array([0.4, -0.6, 1.2, 0.5, -0.7, 0.3])
+    res = ik.solve(robot, robot.fk(q[None])[0], np.zeros(6))
+    assert not res.success
+    angle = float(res.message.split("J3 = ")[1].split("°")[0])
+    assert "without the limits it is reached with J3 = " in res.message and "outside [-17.1887°, 17.1887°]" in res.message
+    assert abs(angle) > 17.19  # beyond the limit (1.2 rad = 68.75° is one such solution)
+    far = robot.fk(q[None])[0].copy()
+    far[:3, 3] *= 100.0  # beyond any reach: no limit to blame
+    assert "without the limits" not in ik.solve(robot, far, np.zeros(6)).message
+
+
 def test_a_urdf_under_another_name_is_read_as_urdf_where_a_config_says_urdf(tmp_path):
     """``.xml`` is read as URDF by name; a scan config's ``urdf =`` key reads any name as URDF."""
     from addon.core.config.scan import load_scan_config

@@ -290,6 +290,7 @@ def _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_star
         out = solve_numeric(robot, T[todo], q0[todo], pos_tol, rot_tol, np.random.default_rng(seed),
                             max_starts=max_starts)
         q[todo], success[todo], iterations[todo] = out.q, out.converged, out.iterations
+        hinted = False
         for j, i in enumerate(rows):
             if not out.converged[j]:
                 reasons[i] = "not_converged"
@@ -297,6 +298,13 @@ def _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_star
                                f"{out.starts[j]} starts stays {out.pos_err_mm[j]:.3g} mm and "
                                f"{out.rot_err_rad[j]:.3g} rad away; the pose is outside the workspace "
                                "or needs joints beyond their limits")
+                if not hinted:  # the first miss (the one a refusal quotes) says which limit, where one does
+                    hinted = True
+                    blocked = _limits_in_the_way(robot, T[i], q0[i], pos_tol, rot_tol, seed)
+                    if blocked:
+                        messages[i] = (f"no joint vector within limits reaches the target (the best of "
+                                       f"{out.starts[j]} starts stays {out.pos_err_mm[j]:.3g} mm away); without "
+                                       f"the limits it is reached with {blocked}")
 
     again = ~checked
     if again.any():
@@ -426,3 +434,22 @@ def solve_all(robot, T_target, *, pos_tol_mm: float | None = None, rot_tol_rad: 
         if all(np.max(np.abs(q[0, k] - s)) > 1e-6 for s in sols):
             sols.append(q[0, k])
     return np.array(sols).reshape(-1, 6)
+
+
+LIMIT_HINT_STARTS = 41  # starts for the solve without limits that names the limit in the way
+
+
+def _limits_in_the_way(robot, T: np.ndarray, q0: np.ndarray, pos_tol: float, rot_tol: float, seed) -> str:
+    """Which joint limits keep target T (4, 4) out of reach: solved again with every turning
+    joint free over a full turn either way (sliding joints keep theirs), the joints of the
+    solution found that lie beyond the robot's limits ("J3 = -28.6° outside [-17.2°, 11.5°]");
+    "" where even that finds none (the pose is outside the workspace)."""
+    from dataclasses import replace
+
+    free = replace(robot, q_min_rad=np.where(robot._slides, robot.q_min_rad, -2 * np.pi),
+                   q_max_rad=np.where(robot._slides, robot.q_max_rad, 2 * np.pi), ik_via=None)
+    out = solve_numeric(free, T[None], np.clip(q0, free.q_min_rad, free.q_max_rad)[None], pos_tol, rot_tol,
+                        np.random.default_rng(seed), max_starts=LIMIT_HINT_STARTS)
+    if not out.converged[0]:
+        return ""
+    return "; ".join(robot.limit_violations(out.q[0]))
