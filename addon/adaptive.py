@@ -79,7 +79,7 @@ class BudgetBelowView(InputError):
     def __init__(self, budget: int, smallest: int):
         self.budget, self.smallest = int(budget), int(smallest)
         super().__init__(f"the budget of {self.budget} profiles is below the smallest view's {self.smallest}: "
-                         f"nothing was scanned (give max_profiles at least {self.smallest})")
+                         f"nothing was scanned (give a budget of at least {self.smallest} profiles)")
 
 
 def checked_box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
@@ -336,8 +336,8 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
     steps = [] if steps is None else steps
     taken = 0
     say = progress or (lambda stage, done, total: None)
-    if max_profiles < planner.smallest_view():
-        return steps  # no view fits: the caller says so (Scanner.adaptive raises BudgetBelowView)
+    if max_profiles < planner.smallest_view():  # no view fits: nothing is scanned, nothing recorded
+        raise BudgetBelowView(max_profiles, planner.smallest_view())
     while taken < max_profiles:
         say("adaptive", taken, max_profiles)  # a stop asked for during the last sweep takes effect here
         yield taken

@@ -84,13 +84,20 @@ def _probe(value) -> Probe:
     return value if isinstance(value, Probe) else load_probe(value)
 
 
-def _workpiece(value) -> Workpiece:
+def _workpiece(value) -> tuple[Workpiece, str | None]:
     """A part given as an object (checked: not sunk into the table), a built-in shape's name or
-    a mesh file (no pose of its own: it is put on the table, its lowest point on the top)."""
+    a mesh file (no pose of its own: it is put on the table, its lowest point on the top), and
+    a line saying so where the file's part was moved."""
     if isinstance(value, Workpiece):
         check_on_table(value, "move it up (its mesh and truth in the table frame, z = 0 the table top)")
-        return value
-    return builtin_workpiece(value) if value in BUILTINS else resting_on_table(load_workpiece(value))[0]
+        return value, None
+    if value in BUILTINS:
+        return builtin_workpiece(value), None
+    part, lift = resting_on_table(load_workpiece(value))
+    how = "lifted" if lift > 0 else "lowered"
+    moved = None if abs(lift) < 1e-9 else (f"the part from {value} was put on the table: {how} {abs(lift):.2f} mm "
+                                           f"so that its lowest point rests on the top")
+    return part, moved
 
 
 def drain(steps):
@@ -115,10 +122,12 @@ class Scanner:
                  workpiece: Workpiece | str = "sphere", table: Turntable | None = None,
                  render: RenderOptions | None = None, detect: str = "gauss", *, config: ScanConfig | None = None,
                  scene=None):
+        moved = None
         if config is None:
             base = load_scan_config("demo")  # the detection, filter and leave-out defaults of a scan
+            part, moved = _workpiece(workpiece)
             config = replace(base, name="Scanner", source="", robot=_robot(robot), probe=_probe(probe),
-                             table=table or Turntable(), workpiece=_workpiece(workpiece),
+                             table=table or Turntable(), workpiece=part,
                              waypoints=Waypoints(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0, int)),
                              q_start=base.q_start if robot == "adept_viper_s650" else None,
                              render=render or base.render)
@@ -134,7 +143,7 @@ class Scanner:
         self._stats: list[dict] = []
         self._timing = {"plan": 0.0, "scene": 0.0, "render": 0.0, "detect": 0.0, "triangulate": 0.0}
         self._cameras: set[int] = set()
-        self._warnings: list[str] = []
+        self._warnings: list[str] = [moved] if moved else []
         self._empty_frames: list[int] = []  # frames that put no surface inside the probe's range
         self._off_path = False  # measured anything but the config's path (run())
         self._t0 = time.perf_counter()
@@ -563,17 +572,9 @@ class Scanner:
         ``save(out_dir)`` writes what a scan writes. ``progress(stage, done, total)`` before each
         sweep and after each chunk of its frames; ``log(line)`` for each decision. A second call
         goes on from what the planner learnt. A budget below the planner's smallest view raises
-        ``addon.adaptive.BudgetBelowView`` (an InputError), scanning nothing."""
-        steps = drain(self.adaptive_steps(box, max_profiles=max_profiles, min_gain=min_gain,
-                                          target_coverage=target_coverage, progress=progress, log=log))
-        if not steps and self._planner is not None:
-            from .adaptive import BudgetBelowView
-
-            smallest = self._planner.smallest_view()
-            budget = self.config.adaptive.max_profiles if max_profiles is None else max_profiles
-            if budget < smallest:
-                raise BudgetBelowView(budget, smallest)
-        return steps
+        ``addon.adaptive.BudgetBelowView`` (an InputError), scanning and recording nothing."""
+        return drain(self.adaptive_steps(box, max_profiles=max_profiles, min_gain=min_gain,
+                                         target_coverage=target_coverage, progress=progress, log=log))
 
     def adaptive_steps(self, box=None, *, max_profiles: int | None = None, min_gain: int | None = None,
                        target_coverage: float | None = None, progress=None, log=None):

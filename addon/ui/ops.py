@@ -191,7 +191,13 @@ class SCANNER_OT_render_views(bpy.types.Operator):
 
 
 def _message(exc: Exception) -> str:
-    """One line for the status bar: the project's own errors as they are, others with their kind."""
+    """One line for the status bar: the project's own errors as they are (a budget too small
+    for any view naming the panel's field), others with their kind."""
+    from ..adaptive import BudgetBelowView
+
+    if isinstance(exc, BudgetBelowView):
+        return (f"Adaptive scan: the budget of {exc.budget} profiles is below the smallest view's {exc.smallest}; "
+                f"raise Profile Budget to at least {exc.smallest} (nothing was scanned)")
     return str(exc) if isinstance(exc, ScannerError) else f"{type(exc).__name__}: {exc}"
 
 
@@ -633,12 +639,9 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
         return taken, self._budget
 
     def _finish(self, context, scanner, steps):
-        if not steps:
-            smallest = scanner.planner.smallest_view() if scanner.planner is not None else None
-            hint = ("" if smallest is None or smallest <= self._budget else
-                    f" (the smallest view takes {smallest} profiles: raise Profile Budget to at least that)")
-            self.report({"WARNING"}, f"Adaptive scan: no reachable sweep fits the budget of {self._budget} profiles"
-                                     f"{hint}; nothing was scanned")
+        if not steps:  # (a budget below every view is refused before: _message)
+            self.report({"WARNING"}, f"Adaptive scan: no reachable sweep fits the budget of {self._budget} profiles "
+                                     f"and promises enough new surface; nothing was scanned")
             return {"CANCELLED"}
         result = scanner.result(self._folder)
         _import_result(context, scanner, result)

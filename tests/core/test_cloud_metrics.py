@@ -225,3 +225,27 @@ def test_a_point_beside_a_sharp_edge_measures_its_own_face_not_the_one_beyond():
     # A point on a side face, 0.5 mm under the rim, covers that side's band and not the top.
     side = np.column_stack([g, np.full(g.size, 20.0), np.full(g.size, 19.5)])
     assert coverage(side, box, tolerance_mm=1.0, samples=60000) == pytest.approx(1.5 / 240, abs=0.002)
+
+
+def test_the_reports_outliers_and_share_within_twice_sigma_come_from_each_points_distance():
+    """Points on a sphere on the table at known radial offsets with known stated σ: the report
+    counts those beyond 0.2 mm and the share within 2σ as the offsets say."""
+    from dataclasses import replace
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.scan.outputs import measure_against_truth
+
+    config = load_scan_config("demo")  # a 30 mm sphere on the table
+    rng = np.random.default_rng(2)
+    dirs = rng.normal(size=(1000, 3))
+    dirs[:, 2] = np.abs(dirs[:, 2]) + 0.2  # the upper half, off the table
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    centre = np.array([0.0, 0.0, 30.0])
+    offsets = np.full(1000, 0.010)  # 10 µm off ...
+    offsets[:7] = 0.25  # ... but 7 points 0.25 mm off
+    sigma = np.where(np.arange(1000) < 100, 0.004, 0.006)  # 2σ = 8 µm for 100 points: they miss it
+    cloud = Cloud(centre + dirs * (30.0 + offsets[:, None]), np.zeros(1000), np.ones(1000), sigma)
+    entries = measure_against_truth(cloud, replace(config, fixtures=()))[0]
+    assert entries["points_on_part"] == 1000
+    assert entries["outliers"] == 7
+    assert entries["within_2_sigma"] == pytest.approx(0.9, abs=1e-9)  # 900 points with 2σ = 12 ≥ 10 µm

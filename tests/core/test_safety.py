@@ -357,3 +357,17 @@ def test_the_fixture_check_sees_a_rod_through_the_part_and_names_an_open_mesh_an
     jaw.invert()
     assert jaw.volume < 0
     assert fixtures_in_the_part(replace(cfg, fixtures=(Fixture("fixture jaw", jaw, "table"),))) == []
+
+
+def test_a_gantrys_frame_is_one_body_per_side_so_its_bounds_still_decide():
+    """The gantry URDF's base is its two side frames, 1.4 m apart around the work area: as one
+    body its bounds held the whole cell and every pose needed exact distances (57 357 on its
+    scan); one body per side keeps them to a handful. The probe is still checked against them."""
+    config = load_scan_config("gantry_urdf")
+    model = CollisionModel(config.cell.robot, config.probe, config.table, config.workpiece.mesh)
+    sides = [b for b in model.bodies if b.name.startswith("robot base")]
+    assert len(sides) == 2 and all(b.radius < 1100.0 for b in sides)  # each a 1.6 × 1.3 m wall
+    names = {(model.bodies[i].name, model.bodies[j].name) for i, j, _ in model.pairs}
+    assert ("probe", sides[0].name) in names and not any("workpiece" in p and "robot base" in " ".join(p) for p in names)
+    plan = plan_scan(config)
+    assert plan.clearance.exact_queries < 500, plan.clearance.exact_queries

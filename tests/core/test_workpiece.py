@@ -86,3 +86,38 @@ def test_unknown_format_and_builtin(tmp_path):
         builtin_workpiece("torus")
     with pytest.raises(InputError, match="unknown parameter"):
         builtin_workpiece("sphere", colour="red")
+
+
+def test_a_part_is_put_on_the_table_where_no_pose_is_given_and_refused_where_sunk(tmp_path):
+    """A box saved centred on its origin, given to the Scanner as a file, rests on the table
+    top (and the report says it was moved); the same box as an object sunk 20 mm is refused;
+    an open mesh and a path whose frames see nothing in range are named."""
+    from dataclasses import replace
+
+    import trimesh
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.errors import InputError
+    from addon.core.kinematics.path import sweep
+    from addon.core.scan.plan import frames_in_range, part_warnings
+    from addon.core.geometry.workpiece import Workpiece
+    from addon.scanner import Scanner
+
+    box = trimesh.creation.box([40.0, 30.0, 20.0])  # z from -10 to 10
+    box.export(tmp_path / "box.stl")
+    s = Scanner(workpiece=str(tmp_path / "box.stl"))
+    lo, hi = s.config.workpiece.mesh.bounds
+    assert lo[2] == pytest.approx(0.0, abs=1e-9) and hi[2] == pytest.approx(20.0, abs=1e-9)
+    assert any("lifted 10.00 mm" in w for w in s.report().to_dict()["warnings"])
+    sunk = Workpiece("box", box, box, "test box", np.eye(4))
+    with pytest.raises(InputError, match="reaches 10.00 mm below the table top"):
+        Scanner(workpiece=sunk)
+
+    config = load_scan_config("demo")
+    open_box = trimesh.Trimesh(box.vertices + [0, 0, 10], box.faces[:-2], process=False)  # one side (two triangles) gone: its 4 edges open
+    warned = part_warnings(replace(config, workpiece=Workpiece("box", open_box, open_box, "open", np.eye(4)),
+                                   fixtures=()))
+    assert any("is not closed (4 edges border one face only)" in w for w in warned), warned
+    high = replace(config, waypoints=sweep(5, [-10, 0, 2000], [10, 0, 2000]))  # 2 m up: nothing in range
+    with pytest.raises(InputError, match="none of the 5 frames of the path puts the part"):
+        frames_in_range(high)

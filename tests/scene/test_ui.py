@@ -417,8 +417,10 @@ def test_the_scan_box_sets_engine_frames_and_budget_and_the_operators_own_values
     assert bpy.ops.scanner.scan(frames="0:20:10", engine="Cycles", output_dir=str(tmp_path / "call")) == {"FINISHED"}
     report = json.loads(next((tmp_path / "call").glob("*/report.json")).read_text())
     assert report["config"]["engine"] == "cycles" and report["frames"] == 2
-    s.adaptive_budget = 2  # fits no sweep: the box's budget is the one used
-    assert bpy.ops.scanner.adaptive(config="demo") == {"CANCELLED"}
+    s.adaptive_budget = 2  # fits no sweep: the box's budget is the one used, and the panel's field named
+    with pytest.raises(RuntimeError, match=r"budget of 2 profiles is below the smallest view's \d+; raise Profile "
+                                           r"Budget to at least \d+ \(nothing was scanned\)"):
+        bpy.ops.scanner.adaptive(config="demo")
     first = next((tmp_path / "box").glob("*/report.json"))
     written = first.stat().st_mtime_ns
     s.scan_sensor, s.sensor_realistic, s.sensor_noise = "PANEL", True, True  # raycast renders ideal sensors only
@@ -458,8 +460,9 @@ def load_scan_config_table2base():
 
 
 def test_the_adaptive_operator_scans_from_the_box_and_brings_the_cloud_in(panel, tmp_path):
-    # a budget no sweep fits: told so, nothing written
-    assert bpy.ops.scanner.adaptive(config="demo", max_profiles=2, output_dir=str(tmp_path)) == {"CANCELLED"}
+    # a budget no sweep fits: told so, naming the panel's field, nothing written
+    with pytest.raises(RuntimeError, match="raise Profile Budget to at least"):
+        bpy.ops.scanner.adaptive(config="demo", max_profiles=2, output_dir=str(tmp_path))
     assert not any(tmp_path.iterdir())
     assert bpy.ops.scanner.adaptive(config="demo", max_profiles=120, target_coverage=0.05,
                                     output_dir=str(tmp_path)) == {"FINISHED"}

@@ -122,7 +122,7 @@ def _read_robot(path: Path) -> Robot:
         slides.append(t.string("joint", default="revolute", choices=("revolute", "prismatic")) == "prismatic")
         unit, other, top_value = ("mm", "deg", MAX_LENGTH_MM) if slides[-1] else ("deg", "mm", MAX_JOINT_DEG)
         for key in (f"min_{other}", f"max_{other}"):
-            if t.has(key):
+            if key in t.data:  # refused here: not named among the keys this link takes
                 raise t.error(key, f"a {'prismatic' if slides[-1] else 'revolute'} joint's limits are "
                                    f"min_{unit} and max_{unit}")
         lo = t.number(f"min_{unit}", lo=-top_value, hi=top_value)
@@ -177,6 +177,7 @@ def _read_robot(path: Path) -> Robot:
             # links, so that no result depends on whether it was installed.
             collision_meshes=tuple(("", np.eye(4)) for _ in meshes) if optional and meshes else (),
             base_mesh=pedestal,
+            base_collision_mesh=("", np.eye(4)) if optional and pedestal else (),
         )
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None

@@ -76,17 +76,25 @@ def distances(points, truth) -> tuple[np.ndarray, np.ndarray | None]:
     return mesh_distances(P, mesh)
 
 
+def has_inside(mesh: trimesh.Trimesh) -> bool:
+    """Whether distances to ``mesh`` can be signed (inside negative): a closed, consistently
+    wound mesh, and libigl to sign them."""
+    try:
+        import igl  # noqa: F401
+    except ImportError:
+        return False
+    return bool(mesh.is_watertight and mesh.is_winding_consistent)
+
+
 def mesh_distances(points: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray | None]:
     """(unsigned (n,) mm, signed (n,) mm positive outside, or None for an open mesh) from
     points (n, 3) to a mesh's faces: exact closest points on the triangles."""
     P = np.ascontiguousarray(points, dtype=np.float64)
-    try:
-        import igl
-    except ImportError:
-        return _closest_faces(P, mesh)[0], None
-    if mesh.is_watertight and mesh.is_winding_consistent:
+    if has_inside(mesh):
         # A closed, consistently wound mesh: the pseudonormal sign is exact (the fast winding
         # number's distances are approximate, up to 37 µm off on a box).
+        import igl
+
         V, F = _igl_mesh(mesh)
         signed = np.asarray(igl.signed_distance(P, V, F, sign_type=igl.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)[0])
         return np.abs(signed), signed

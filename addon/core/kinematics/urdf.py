@@ -299,6 +299,13 @@ def _parse(path: Path, package_dirs):
                           "and the Blender extension install; this Python has none") from None
     import xml.etree.ElementTree as ET
 
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if b"<xacro:" in raw or b"$(" in raw and b"xacro" in raw:  # macros, with or without their namespace
+        raise ConfigError(f"{path}: holds xacro macros, which URDF readers do not expand: expand it first "
+                          f"(ROS's `xacro {path.name} > robot.urdf`) and give the result")
     try:  # well-formed XML first: the URDF parser would quietly recover from a cut file
         tree = ET.parse(path)
     except (ET.ParseError, OSError, UnicodeDecodeError) as exc:

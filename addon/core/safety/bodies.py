@@ -170,7 +170,13 @@ def robot_bodies(robot: Robot, probe: Probe) -> list[Body]:
     bodies = []
     base = base_mesh(robot, collision=True)
     if base is not None and len(base.faces):
-        bodies.append(Body(ROBOT_BASE, "link0", [mesh_shape(fcl, base)], True, base if base.is_watertight else None))
+        # One body per separate piece (a gantry's two side frames): the bounds and hulls of the
+        # whole would hold the work area between them, and decide nothing.
+        pieces = base.split(only_watertight=False) if len(base.faces) > 1 else [base]
+        pieces = sorted(pieces, key=lambda m: tuple(np.round(m.bounds[0], 6))) or [base]
+        for k, piece in enumerate(pieces):
+            name = ROBOT_BASE if len(pieces) == 1 else f"{ROBOT_BASE} (piece {k + 1})"
+            bodies.append(Body(name, "link0", [mesh_shape(fcl, piece)], True, piece if piece.is_watertight else None))
     cylinders = link_cylinders(robot)
     for k in range(N_JOINTS):
         name = f"link {k + 1}"

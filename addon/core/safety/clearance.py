@@ -209,16 +209,17 @@ class CollisionModel:
         # finds the smallest clearance (shared by all pairs) prunes the links at once.
         robot = sorted(robot, key=lambda i: self.bodies[i].name != "probe")
         # The base never moves: not against the table, the part or the fixtures (the layout's).
-        pairs = [(i, j, self.min_clearance_mm) for i in robot for j in env if self.bodies[i].name != ROBOT_BASE]
+        pairs = [(i, j, self.min_clearance_mm) for i in robot for j in env
+                 if not self.bodies[i].name.startswith(ROBOT_BASE)]
         q0 = np.zeros((1, 6))
         carriers = carrier_poses(self.robot, self.table, q0, np.zeros(1))
-        order = {"probe": 7, ROBOT_BASE: 0}  # place in the chain; links by their number
+        def place(name: str) -> int:  # in the chain: the base 0, links by their number, the probe 7
+            return 0 if name.startswith(ROBOT_BASE) else 7 if name == "probe" else int(name.split()[-1])
+
         for a in range(len(robot)):
             for b in range(a + 1, len(robot)):
                 i, j = robot[a], robot[b]
-                ni, nj = self.bodies[i].name, self.bodies[j].name
-                ki = order[ni] if ni in order else int(ni.split()[-1])
-                kj = order[nj] if nj in order else int(nj.split()[-1])
+                ki, kj = place(self.bodies[i].name), place(self.bodies[j].name)
                 if abs(ki - kj) < 2 or (7 in (ki, kj) and min(ki, kj) >= 5):
                     continue  # neighbours in the chain (the probe sits on links 5 and 6)
                 if self._exact(i, j, carriers, 0)[0] <= CONTACT_MM:

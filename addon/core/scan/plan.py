@@ -247,14 +247,18 @@ def part_warnings(config: ScanConfig) -> list[str]:
     """What a scan should say about its part before the figures are read: a mesh that is not
     closed (its error has no sign, so no bias), and table fixtures reaching into it
     (:func:`fixtures_in_the_part`)."""
+    from ..geometry.metrics import has_inside
+
     wp = config.workpiece
     out = []
-    if not wp.is_analytic and not wp.mesh.is_watertight:
+    if not wp.is_analytic and not has_inside(wp.mesh):
         import trimesh
 
         open_edges = len(trimesh.grouping.group_rows(wp.mesh.edges_sorted, require_count=1))
-        out.append(f"the workpiece mesh {wp.name} is not closed ({open_edges} edges border one face only): its "
-                   f"points' error has no sign, so no bias is given (close the mesh to have one)")
+        why = (f"is not closed ({open_edges} edges border one face only)" if open_edges else
+               "is not wound consistently (its faces' normals disagree)" if not wp.mesh.is_winding_consistent else
+               "cannot be signed here (libigl is missing)")
+        out.append(f"the workpiece mesh {wp.name} {why}: its points' error has no sign, so no bias is given")
     return out + fixtures_in_the_part(config)
 
 
