@@ -95,7 +95,7 @@ def _workpiece(value) -> tuple[Workpiece, str | None]:
         return builtin_workpiece(value), None
     part, lift = resting_on_table(load_workpiece(value))
     how = "lifted" if lift > 0 else "lowered"
-    moved = None if abs(lift) < 1e-9 else (f"the part from {value} was put on the table: {how} {abs(lift):.2f} mm "
+    moved = None if abs(lift) < 0.005 else (f"the part from {value} was put on the table: {how} {abs(lift):.2f} mm "
                                            f"so that its lowest point rests on the top")
     return part, moved
 

@@ -58,7 +58,7 @@ class SCANNER_OT_build_cell(bpy.types.Operator):
             return {"CANCELLED"}
         sc.pose(np.zeros(6), s.table_angle)
         part = s.workpiece if s.workpiece != models.FILE else bpy.path.basename(s.workpiece_file)
-        rested = "" if abs(lift) < 1e-6 else (f" (put on the table: {'lifted' if lift > 0 else 'lowered'} "
+        rested = "" if abs(lift) < 0.05 else (f" (put on the table: {'lifted' if lift > 0 else 'lowered'} "
                                                f"{abs(lift):.1f} mm so that its lowest point rests on the top)")
         self.report({"INFO"}, f"Built the cell: {sc.cell.robot.name}, {sc.probe.name}, {part}{rested}")
         return {"FINISHED"}

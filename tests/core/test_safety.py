@@ -371,3 +371,18 @@ def test_a_gantrys_frame_is_one_body_per_side_so_its_bounds_still_decide():
     assert ("probe", sides[0].name) in names and not any("workpiece" in p and "robot base" in " ".join(p) for p in names)
     plan = plan_scan(config)
     assert plan.clearance.exact_queries < 500, plan.clearance.exact_queries
+
+
+def test_a_base_whose_file_keeps_its_vertices_apart_is_still_one_body():
+    """A pedestal box as a textured file stores it (every triangle its own three vertices) is
+    one piece: split where the vertices are shared, not into a body per triangle."""
+    from addon.core.config.rigs import load_probe, load_robot
+    from addon.core.kinematics.turntable import Turntable
+
+    box = trimesh.creation.box([200.0, 200.0, 300.0])
+    loose = trimesh.Trimesh(box.vertices[box.faces].reshape(-1, 3), np.arange(3 * len(box.faces)).reshape(-1, 3),
+                            process=False)
+    assert len(loose.split(only_watertight=False)) == 12  # what a split without merging gives
+    robot = replace(load_robot("adept_viper_s650"), base_mesh=(loose, np.eye(4)))
+    model = CollisionModel(robot, load_probe("default"), Turntable())
+    assert [b.name for b in model.bodies if b.name.startswith("robot base")] == ["robot base"]

@@ -160,9 +160,19 @@ def test_a_pose_only_a_joint_limit_keeps_out_of_reach_names_that_limit(tmp_path)
     angle = float(res.message.split("J3 = ")[1].split("°")[0])
     assert "without the limits it is reached with J3 = " in res.message and "outside [-17.1887°, 17.1887°]" in res.message
     assert abs(angle) > 17.19  # beyond the limit (1.2 rad = 68.75° is one such solution)
-    far = robot.fk(q[None])[0].copy()
-    far[:3, 3] *= 100.0  # beyond any reach: no limit to blame
-    assert "without the limits" not in ik.solve(robot, far, np.zeros(6)).message
+    assert res.message.count("outside [") == 1  # J3 alone: the other joints are put back by whole turns
+    # A path through the pose: only its first miss is explained (a second solve each would
+    # double the time a refused path takes), and that one names J3 too.
+    from addon.core.kinematics.cell import Cell
+    from addon.core.kinematics.path import Waypoints, solve_path
+    from addon.core.kinematics.turntable import Turntable
+
+    cell = Cell(robot, Turntable())
+    T = robot.fk(q[None])[0]
+    poses = cell.table.base2table(np.zeros(3)) @ np.stack([T, T, T])
+    sol = solve_path(cell, Waypoints(poses, np.zeros(3), np.zeros(3, int)), np.zeros(6))
+    assert not sol.ok.any()
+    assert "J3 = " in sol.messages[0] and all("without the limits" not in m for m in sol.messages[1:])
 
 
 def test_a_urdf_under_another_name_is_read_as_urdf_where_a_config_says_urdf(tmp_path):
@@ -170,6 +180,15 @@ def test_a_urdf_under_another_name_is_read_as_urdf_where_a_config_says_urdf(tmp_
     from addon.core.config.scan import load_scan_config
 
     text = UR5_URDF.read_text()
+    # xacro's own output keeps the source's comments: a URDF already expanded loads ...
+    expanded = text.replace("<robot ", '<!-- from ur5.urdf.xacro: <xacro:include filename="$(find ur)/x.xacro"/> -->'
+                                       '\n<robot ', 1)
+    (tmp_path / "expanded.urdf").write_text(expanded)
+    assert load_robot(tmp_path / "expanded.urdf").name == load_robot(UR5_URDF).name
+    # ... and one with a macro left in a value is named as xacro
+    (tmp_path / "left.urdf").write_text(text.replace('<robot name="', '<robot name="${prefix}', 1))
+    with pytest.raises(ConfigError, match="holds xacro macros"):
+        load_robot(tmp_path / "left.urdf")
     (tmp_path / "arm.xml").write_text(text)
     (tmp_path / "arm.description").write_text(text)
     assert load_robot(tmp_path / "arm.xml").name == load_robot(UR5_URDF).name

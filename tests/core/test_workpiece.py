@@ -121,3 +121,29 @@ def test_a_part_is_put_on_the_table_where_no_pose_is_given_and_refused_where_sun
     high = replace(config, waypoints=sweep(5, [-10, 0, 2000], [10, 0, 2000]))  # 2 m up: nothing in range
     with pytest.raises(InputError, match="none of the 5 frames of the path puts the part"):
         frames_in_range(high)
+
+
+def test_a_closed_mesh_that_cannot_be_signed_is_named_with_the_right_reason():
+    """Two boxes sharing one edge (closed, but an edge of four faces) and a box with one face
+    turned over (closed, wound inconsistently): each warning says which."""
+    from dataclasses import replace
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.geometry.workpiece import Workpiece
+    from addon.core.scan.plan import part_warnings
+
+    config = replace(load_scan_config("demo"), fixtures=())
+    a = trimesh.creation.box([10.0, 10.0, 10.0])
+    a.apply_translation([5.0, 5.0, 5.0])
+    b = a.copy()
+    b.apply_translation([10.0, 10.0, 0.0])  # touching a along the vertical edge at x = y = 10
+    pair = trimesh.util.concatenate([a, b])
+    pair.merge_vertices()
+    turned = a.copy()
+    faces = turned.faces.copy()
+    faces[0] = faces[0][::-1]
+    turned = trimesh.Trimesh(turned.vertices, faces, process=False)
+    for mesh, words in ((pair, "is not one closed surface (1 edge is shared by more than two faces)"),
+                        (turned, "is not wound consistently")):
+        warned = part_warnings(replace(config, workpiece=Workpiece("m", mesh, mesh, "test", np.eye(4))))
+        assert any(words in w for w in warned), warned

@@ -10,6 +10,7 @@ trimesh answers the same distances, unsigned and slower. Statistics are in micro
 
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -76,14 +77,19 @@ def distances(points, truth) -> tuple[np.ndarray, np.ndarray | None]:
     return mesh_distances(P, mesh)
 
 
-def has_inside(mesh: trimesh.Trimesh) -> bool:
-    """Whether distances to ``mesh`` can be signed (inside negative): a closed, consistently
-    wound mesh, and libigl to sign them."""
+@functools.lru_cache(maxsize=1)
+def _have_igl() -> bool:
     try:
         import igl  # noqa: F401
     except ImportError:
         return False
-    return bool(mesh.is_watertight and mesh.is_winding_consistent)
+    return True
+
+
+def has_inside(mesh: trimesh.Trimesh) -> bool:
+    """Whether distances to ``mesh`` can be signed (inside negative): a closed, consistently
+    wound mesh, and libigl to sign them."""
+    return _have_igl() and bool(mesh.is_watertight and mesh.is_winding_consistent)
 
 
 def mesh_distances(points: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray | None]:

@@ -200,7 +200,7 @@ def _check_seeds(robot, q0, n: int) -> np.ndarray:
 
 def solve(robot, T_target, q0=None, *, method: str = "auto", pos_tol_mm: float | None = None,
           rot_tol_rad: float | None = None, raise_on_failure: bool = False, seed: int = 0,
-          max_starts: int = 121) -> IKResult:
+          max_starts: int = 121, explain_limits: bool = True) -> IKResult:
     """Joint vector (6,) rad that puts the tool at ``T_target`` (4, 4, mm, world frame).
 
     q0 : (6,) seed; among several solutions the one nearest q0 wins (default: q = 0
@@ -210,6 +210,8 @@ def solve(robot, T_target, q0=None, *, method: str = "auto", pos_tol_mm: float |
     raise_on_failure : raise UnreachablePose (carrying the result) instead of
         returning success=False.
     seed, max_starts : random restarts of the numeric solver (reproducible).
+    explain_limits : where the numeric solver misses, solve again without the turning joints'
+        limits and name the limits in the way in the message (a second, smaller solve).
     """
     T = check_transform(T_target, "IK target pose")
     if T.shape != (4, 4):
@@ -225,22 +227,24 @@ def solve(robot, T_target, q0=None, *, method: str = "auto", pos_tol_mm: float |
                                 pos_tol, rot_tol)
     if result is None:
         result = _solve_checked(robot, T[None], None if q0 is None else np.asarray(q0)[None], method, pos_tol_mm,
-                                rot_tol_rad, seed, max_starts)[0]
+                                rot_tol_rad, seed, max_starts, explain_limits)[0]
     if raise_on_failure and not result.success:
         raise UnreachablePose(f"{robot.name}: {result.message}", result)
     return result
 
 
 def solve_batch(robot, T_targets, q0=None, *, method: str = "auto", pos_tol_mm: float | None = None,
-                rot_tol_rad: float | None = None, seed: int = 0, max_starts: int = 121) -> IKBatch:
+                rot_tol_rad: float | None = None, seed: int = 0, max_starts: int = 121,
+                explain_limits: bool = True) -> IKBatch:
     """IK for targets (n, 4, 4). q0: (6,) for all or (n, 6) per target. See :func:`solve`."""
     T = check_transform(T_targets, "IK target poses")
     if T.ndim != 3:
         raise InputError(f"IK target poses must have shape (n, 4, 4), got {T.shape}")
-    return _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_starts)
+    return _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_starts, explain_limits)
 
 
-def _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_starts) -> IKBatch:
+def _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_starts,
+                   explain_limits: bool = True) -> IKBatch:
     """solve_batch for targets T (n, 4, 4) already checked to be rigid transforms."""
     n = T.shape[0]
     q0 = _check_seeds(robot, q0, n)
@@ -298,7 +302,7 @@ def _solve_checked(robot, T, q0, method, pos_tol_mm, rot_tol_rad, seed, max_star
                                f"{out.starts[j]} starts stays {out.pos_err_mm[j]:.3g} mm and "
                                f"{out.rot_err_rad[j]:.3g} rad away; the pose is outside the workspace "
                                "or needs joints beyond their limits")
-                if not hinted:  # the first miss (the one a refusal quotes) says which limit, where one does
+                if explain_limits and not hinted:  # the first miss (a refusal quotes it) says which limit
                     hinted = True
                     blocked = _limits_in_the_way(robot, T[i], q0[i], pos_tol, rot_tol, seed)
                     if blocked:
@@ -446,10 +450,14 @@ def _limits_in_the_way(robot, T: np.ndarray, q0: np.ndarray, pos_tol: float, rot
     "" where even that finds none (the pose is outside the workspace)."""
     from dataclasses import replace
 
-    free = replace(robot, q_min_rad=np.where(robot._slides, robot.q_min_rad, -2 * np.pi),
-                   q_max_rad=np.where(robot._slides, robot.q_max_rad, 2 * np.pi), ik_via=None)
+    slides = robot._slides
+    free = replace(robot, q_min_rad=np.where(slides, robot.q_min_rad, np.minimum(robot.q_min_rad, -2 * np.pi)),
+                   q_max_rad=np.where(slides, robot.q_max_rad, np.maximum(robot.q_max_rad, 2 * np.pi)), ik_via=None)
     out = solve_numeric(free, T[None], np.clip(q0, free.q_min_rad, free.q_max_rad)[None], pos_tol, rot_tol,
                         np.random.default_rng(seed), max_starts=LIMIT_HINT_STARTS)
     if not out.converged[0]:
         return ""
-    return "; ".join(robot.limit_violations(out.q[0]))
+    # Each turning joint by whole turns into its limits where a turn fits: only what no turn
+    # mends is blamed (a wrist at 183° is fine as −177°).
+    wrapped, _ = wrap_to_limits(robot, out.q, np.asarray(q0, dtype=np.float64)[None])
+    return "; ".join(robot.limit_violations(np.where(slides, out.q[0], wrapped[0])))

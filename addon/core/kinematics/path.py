@@ -167,6 +167,8 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
     q = np.zeros((n, 6))
     ok = np.zeros(n, dtype=bool)
     messages = [""] * n
+    seeds = np.zeros((n, 6))  # where each waypoint's solve started
+    quiet = {} if robot.ik_via is not None else {"explain_limits": False}  # a controller takes no options
     if arm is not None:
         # Every branch of every waypoint at once, then walk along picking the nearest.
         branch_q, inside, pos, rot, _ = all_branches(robot, arm, targets, np.tile(q_prev, (n, 1)))
@@ -179,16 +181,21 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
                 q[i], ok[i], messages[i] = cand[k], True, "ok"
                 q_prev = q[i]
             else:
-                res = robot.ik(targets[i], q_prev)
+                seeds[i] = q_prev
+                res = robot.ik(targets[i], q_prev, **quiet)
                 q[i], ok[i], messages[i] = res.q, res.success, res.message
                 if res.success:
                     q_prev = res.q
     else:
         for i in range(n):
-            res = robot.ik(targets[i], q_prev)
+            seeds[i] = q_prev
+            res = robot.ik(targets[i], q_prev, **quiet)
             q[i], ok[i], messages[i] = res.q, res.success, res.message
             if res.success:
                 q_prev = res.q
+    missed = np.flatnonzero(~ok)
+    if len(missed) and quiet:  # the first miss, which a refusal quotes, says which joint limit is in the way
+        messages[missed[0]] = robot.ik(targets[missed[0]], seeds[missed[0]]).message
     turning = ~np.array(robot.prismatic)  # a flip is a turn; sliding joints just travel
     step = np.r_[0.0, np.max(np.abs(np.diff(q[:, turning], axis=0)), axis=1)] if n > 1 else np.zeros(n)
     # Between path entries the robot repositions; only steps within one entry can be flips.

@@ -299,20 +299,21 @@ def _parse(path: Path, package_dirs):
                           "and the Blender extension install; this Python has none") from None
     import xml.etree.ElementTree as ET
 
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot be read ({exc.strerror or exc})") from None
-    if b"<xacro:" in raw or b"$(" in raw and b"xacro" in raw:  # macros, with or without their namespace
-        raise ConfigError(f"{path}: holds xacro macros, which URDF readers do not expand: expand it first "
-                          f"(ROS's `xacro {path.name} > robot.urdf`) and give the result")
+    xacro = (f"{path}: holds xacro macros, which URDF readers do not expand: expand it first "
+             f"(ROS's `xacro {path.name} > robot.urdf`) and give the result")
     try:  # well-formed XML first: the URDF parser would quietly recover from a cut file
         tree = ET.parse(path)
     except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: not a readable URDF file (XML: {exc})") from None
-    if any("xacro" in element.tag for element in tree.iter()):  # xacro:macro, xacro:include, ...
-        raise ConfigError(f"{path}: holds xacro macros, which URDF readers do not expand: expand it first "
-                          f"(ROS's `xacro {path.name} > robot.urdf`) and give the result")
+        try:  # a xacro: prefix without its namespace declared does not parse
+            unexpanded = b"<xacro:" in path.read_bytes()
+        except OSError:
+            unexpanded = False
+        raise ConfigError(xacro if unexpanded else f"{path}: not a readable URDF file (XML: {exc})") from None
+    # Macros left in (comments are gone: xacro's own output keeps them, and is fine): xacro's
+    # elements, and ${...} or $(...) in a value.
+    for element in tree.iter():
+        if "xacro" in element.tag or any("${" in v or "$(" in v for v in element.attrib.values()):
+            raise ConfigError(xacro)
     _check_joint_numbers(tree.getroot(), path)
     try:
         return URDF.load(str(path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False,

@@ -162,6 +162,7 @@ def _enclosing_points(vertices: np.ndarray) -> np.ndarray:
 
 
 ROBOT_BASE = "robot base"
+MAX_BASE_PIECES = 16  # separate pieces of a robot's base checked apart; more stay one body
 
 
 def robot_bodies(robot: Robot, probe: Probe) -> list[Body]:
@@ -171,9 +172,15 @@ def robot_bodies(robot: Robot, probe: Probe) -> list[Body]:
     base = base_mesh(robot, collision=True)
     if base is not None and len(base.faces):
         # One body per separate piece (a gantry's two side frames): the bounds and hulls of the
-        # whole would hold the work area between them, and decide nothing.
-        pieces = base.split(only_watertight=False) if len(base.faces) > 1 else [base]
-        pieces = sorted(pieces, key=lambda m: tuple(np.round(m.bounds[0], 6))) or [base]
+        # whole would hold the work area between them, and decide nothing. Split where the
+        # vertices are shared (a textured file keeps them apart at its seams); a base in more
+        # pieces than that stays one body.
+        joined = base.copy()
+        joined.merge_vertices(merge_tex=True, merge_norm=True)
+        pieces = joined.split(only_watertight=False) if len(joined.faces) > 1 else [base]
+        if not 1 <= len(pieces) <= MAX_BASE_PIECES:
+            pieces = [base]
+        pieces = sorted(pieces, key=lambda m: tuple(np.round(m.bounds[0], 6)))
         for k, piece in enumerate(pieces):
             name = ROBOT_BASE if len(pieces) == 1 else f"{ROBOT_BASE} (piece {k + 1})"
             bodies.append(Body(name, "link0", [mesh_shape(fcl, piece)], True, piece if piece.is_watertight else None))

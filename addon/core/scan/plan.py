@@ -252,12 +252,17 @@ def part_warnings(config: ScanConfig) -> list[str]:
     wp = config.workpiece
     out = []
     if not wp.is_analytic and not has_inside(wp.mesh):
-        import trimesh
-
-        open_edges = len(trimesh.grouping.group_rows(wp.mesh.edges_sorted, require_count=1))
-        why = (f"is not closed ({open_edges} edges border one face only)" if open_edges else
-               "is not wound consistently (its faces' normals disagree)" if not wp.mesh.is_winding_consistent else
-               "cannot be signed here (libigl is missing)")
+        if not wp.mesh.is_watertight:
+            _, faces_per_edge = np.unique(wp.mesh.edges_sorted, axis=0, return_counts=True)
+            open_edges, shared = int(np.sum(faces_per_edge == 1)), int(np.sum(faces_per_edge > 2))
+            why = (f"is not closed ({open_edges} edge{'s border' if open_edges > 1 else ' borders'} one face "
+                   f"only)" if open_edges else
+                   f"is not one closed surface ({shared} edge{'s are' if shared > 1 else ' is'} shared by more "
+                   f"than two faces)")
+        elif not wp.mesh.is_winding_consistent:
+            why = "is not wound consistently (its faces' normals disagree)"
+        else:
+            why = "cannot be signed here (libigl is missing)"
         out.append(f"the workpiece mesh {wp.name} {why}: its points' error has no sign, so no bias is given")
     return out + fixtures_in_the_part(config)
 
