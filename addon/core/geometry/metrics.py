@@ -10,7 +10,6 @@ trimesh answers the same distances, unsigned and slower. Statistics are in micro
 
 from __future__ import annotations
 
-import functools
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -77,19 +76,15 @@ def distances(points, truth) -> tuple[np.ndarray, np.ndarray | None]:
     return mesh_distances(P, mesh)
 
 
-@functools.lru_cache(maxsize=1)
-def _have_igl() -> bool:
+def has_inside(mesh: trimesh.Trimesh) -> bool:
+    """Whether distances to ``mesh`` can be signed (inside negative): a closed, consistently
+    wound mesh, and libigl to sign them (looked for on each call: once imported, a dictionary
+    lookup; a Python without it may be the Blender the extension runs in)."""
     try:
         import igl  # noqa: F401
     except ImportError:
         return False
-    return True
-
-
-def has_inside(mesh: trimesh.Trimesh) -> bool:
-    """Whether distances to ``mesh`` can be signed (inside negative): a closed, consistently
-    wound mesh, and libigl to sign them."""
-    return _have_igl() and bool(mesh.is_watertight and mesh.is_winding_consistent)
+    return bool(mesh.is_watertight and mesh.is_winding_consistent)
 
 
 def mesh_distances(points: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray | None]:
