@@ -336,8 +336,9 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
     steps = [] if steps is None else steps
     taken = 0
     say = progress or (lambda stage, done, total: None)
-    if max_profiles < planner.smallest_view():  # no view fits: nothing is scanned, nothing recorded
-        raise BudgetBelowView(max_profiles, planner.smallest_view())
+    smallest = planner.smallest_view()
+    if max_profiles < smallest:  # no view fits: nothing is scanned, nothing recorded
+        raise BudgetBelowView(max_profiles, smallest)
     while taken < max_profiles:
         say("adaptive", taken, max_profiles)  # a stop asked for during the last sweep takes effect here
         yield taken

@@ -31,8 +31,8 @@ from .core.config.rigs import load_probe, load_robot
 from .core.config.scan import MAX_FRAMES, ScanConfig, load_scan_config
 from .core.errors import CollisionError, InputError, UnreachablePose, check_whole
 from .core.geometry.cloud import Cloud
-from .core.geometry.workpiece import (BUILTINS, Workpiece, builtin_workpiece, check_on_table, load_workpiece,
-                                      resting_on_table)
+from .core.geometry.workpiece import (BUILTINS, Workpiece, builtin_workpiece, check_on_table, lift_text,
+                                      load_workpiece, resting_on_table)
 from .core.kinematics.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
 from .core.kinematics.path import Waypoints, sweep as sweep_waypoints
 from .core.kinematics.robot import Robot
@@ -94,10 +94,8 @@ def _workpiece(value) -> tuple[Workpiece, str | None]:
     if value in BUILTINS:
         return builtin_workpiece(value), None
     part, lift = resting_on_table(load_workpiece(value))
-    how = "lifted" if lift > 0 else "lowered"
-    moved = None if abs(lift) < 0.005 else (f"the part from {value} was put on the table: {how} {abs(lift):.2f} mm "
-                                           f"so that its lowest point rests on the top")
-    return part, moved
+    moved = lift_text(lift, decimals=2)
+    return part, None if moved is None else f"the part from {value} was put on the table: {moved}"
 
 
 def drain(steps):

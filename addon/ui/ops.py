@@ -14,6 +14,7 @@ from bpy.props import FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from ..core.errors import InputError, ScannerError
+from ..core.geometry.workpiece import lift_text
 from ..scene import rig
 from ..scene.render_state import RenderState, kept_render_settings
 from . import models
@@ -58,8 +59,8 @@ class SCANNER_OT_build_cell(bpy.types.Operator):
             return {"CANCELLED"}
         sc.pose(np.zeros(6), s.table_angle)
         part = s.workpiece if s.workpiece != models.FILE else bpy.path.basename(s.workpiece_file)
-        rested = "" if abs(lift) < 0.05 else (f" (put on the table: {'lifted' if lift > 0 else 'lowered'} "
-                                               f"{abs(lift):.1f} mm so that its lowest point rests on the top)")
+        moved = lift_text(lift)
+        rested = "" if moved is None else f" (put on the table: {moved})"
         self.report({"INFO"}, f"Built the cell: {sc.cell.robot.name}, {sc.probe.name}, {part}{rested}")
         return {"FINISHED"}
 

@@ -35,8 +35,9 @@ def load_robot(name_or_path: str | Path, *, base_link: str | None = None, tool_l
     named as one, to be expanded first. Cached while the file is unchanged."""
     lower = str(name_or_path).lower()
     if lower.endswith(".xacro"):
-        raise ConfigError(f"{name_or_path}: a xacro file, which URDF readers do not expand: expand it first "
-                          f"(ROS's `xacro {Path(name_or_path).name} > robot.urdf`) and give the .urdf")
+        from ..kinematics.urdf import unexpanded_xacro
+
+        raise unexpanded_xacro(Path(name_or_path), "a xacro file")
     if urdf or (urdf is None and lower.endswith(URDF_SUFFIXES)):
         path = Path(name_or_path).expanduser()
         if not path.is_file():

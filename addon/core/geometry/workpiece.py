@@ -157,6 +157,15 @@ def resting_on_table(wp: Workpiece) -> tuple[Workpiece, float]:
     return Workpiece(wp.name, mesh, mesh, wp.source, T @ wp.pose), lift
 
 
+def lift_text(lift_mm: float, decimals: int = 1) -> str | None:
+    """What :func:`resting_on_table` did, in words ("lifted 10.0 mm so that ..."); None where
+    it moved the part by less than the 0.05 mm a sinking part is allowed."""
+    if abs(lift_mm) < SINK_TOLERANCE_MM:
+        return None
+    return (f"{'lifted' if lift_mm > 0 else 'lowered'} {abs(lift_mm):.{decimals}f} mm so that its lowest point "
+            f"rests on the table top")
+
+
 def check_on_table(wp: Workpiece, fix: str) -> None:
     """Refuse a part that reaches more than SINK_TOLERANCE_MM into the table, ``fix`` saying how
     to lift it: the table would hide that surface and its truth would still count it."""

@@ -167,7 +167,7 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
     q = np.zeros((n, 6))
     ok = np.zeros(n, dtype=bool)
     messages = [""] * n
-    seeds = np.zeros((n, 6))  # where each waypoint's solve started
+    first_miss = None  # (waypoint, the joints its solve started from)
     quiet = {} if robot.ik_via is not None else {"explain_limits": False}  # a controller takes no options
     if arm is not None:
         # Every branch of every waypoint at once, then walk along picking the nearest.
@@ -181,21 +181,23 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
                 q[i], ok[i], messages[i] = cand[k], True, "ok"
                 q_prev = q[i]
             else:
-                seeds[i] = q_prev
                 res = robot.ik(targets[i], q_prev, **quiet)
                 q[i], ok[i], messages[i] = res.q, res.success, res.message
                 if res.success:
                     q_prev = res.q
+                elif first_miss is None:
+                    first_miss = (i, q_prev)
     else:
         for i in range(n):
-            seeds[i] = q_prev
             res = robot.ik(targets[i], q_prev, **quiet)
             q[i], ok[i], messages[i] = res.q, res.success, res.message
             if res.success:
                 q_prev = res.q
-    missed = np.flatnonzero(~ok)
-    if len(missed) and quiet:  # the first miss, which a refusal quotes, says which joint limit is in the way
-        messages[missed[0]] = robot.ik(targets[missed[0]], seeds[missed[0]]).message
+            elif first_miss is None:
+                first_miss = (i, q_prev)
+    if first_miss is not None and quiet:  # the first miss, which a refusal quotes, names a limit in the way
+        i, seed = first_miss
+        messages[i] = robot.ik(targets[i], seed).message
     turning = ~np.array(robot.prismatic)  # a flip is a turn; sliding joints just travel
     step = np.r_[0.0, np.max(np.abs(np.diff(q[:, turning], axis=0)), axis=1)] if n > 1 else np.zeros(n)
     # Between path entries the robot repositions; only steps within one entry can be flips.

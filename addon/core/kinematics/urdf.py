@@ -291,6 +291,13 @@ def load_urdf_robot(path: str | Path, base_link: str | None = None, tool_link: s
                    base_collision_mesh=base_collision)
 
 
+def unexpanded_xacro(path: Path, what: str = "holds xacro macros") -> ConfigError:
+    """The refusal of a xacro file (``what``: by its name, or by the macros left in it), naming
+    the command that expands it."""
+    return ConfigError(f"{path}: {what}, which URDF readers do not expand: expand it first "
+                       f"(ROS's `xacro {Path(path).name} > robot.urdf`) and give the result")
+
+
 def _parse(path: Path, package_dirs):
     try:
         from yourdfpy import URDF
@@ -299,8 +306,6 @@ def _parse(path: Path, package_dirs):
                           "and the Blender extension install; this Python has none") from None
     import xml.etree.ElementTree as ET
 
-    xacro = (f"{path}: holds xacro macros, which URDF readers do not expand: expand it first "
-             f"(ROS's `xacro {path.name} > robot.urdf`) and give the result")
     try:  # well-formed XML first: the URDF parser would quietly recover from a cut file
         tree = ET.parse(path)
     except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
@@ -308,12 +313,13 @@ def _parse(path: Path, package_dirs):
             unexpanded = b"<xacro:" in path.read_bytes()
         except OSError:
             unexpanded = False
-        raise ConfigError(xacro if unexpanded else f"{path}: not a readable URDF file (XML: {exc})") from None
+        raise (unexpanded_xacro(path) if unexpanded else
+               ConfigError(f"{path}: not a readable URDF file (XML: {exc})")) from None
     # Macros left in (comments are gone: xacro's own output keeps them, and is fine): xacro's
     # elements, and ${...} or $(...) in a value.
     for element in tree.iter():
         if "xacro" in element.tag or any("${" in v or "$(" in v for v in element.attrib.values()):
-            raise ConfigError(xacro)
+            raise unexpanded_xacro(path)
     _check_joint_numbers(tree.getroot(), path)
     try:
         return URDF.load(str(path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False,

@@ -240,15 +240,20 @@ def frames_in_range(config: ScanConfig) -> ScanConfig:
 
 FIXTURE_OVERLAP_MM = 0.05  # a table fixture may touch the part; reaching further into it is warned of
 OVERLAP_SAMPLES = 20000    # surface points drawn from each of the two meshes for the check
-_OVERLAP_LINES: list = []  # ((workpiece, fixtures), warnings) of the last few configs checked
+_PART_LINES: list = []  # ((workpiece, fixtures), warnings) of the last few configs checked
 
 
 def part_warnings(config: ScanConfig) -> list[str]:
     """What a scan should say about its part before the figures are read: a mesh that is not
     closed (its error has no sign, so no bias), and table fixtures reaching into it
-    (:func:`fixtures_in_the_part`)."""
+    (:func:`fixtures_in_the_part`). Kept for the last few configs: a Scanner asks after every
+    measurement."""
     from ..geometry.metrics import has_inside
 
+    key = (config.workpiece, config.fixtures)
+    known = next((lines for k, lines in _PART_LINES if k[0] is key[0] and k[1] is key[1]), None)
+    if known is not None:
+        return list(known)
     wp = config.workpiece
     out = []
     if not wp.is_analytic and not has_inside(wp.mesh):
@@ -264,7 +269,10 @@ def part_warnings(config: ScanConfig) -> list[str]:
         else:
             why = "cannot be signed here (libigl is missing)"
         out.append(f"the workpiece mesh {wp.name} {why}: its points' error has no sign, so no bias is given")
-    return out + fixtures_in_the_part(config)
+    out += fixtures_in_the_part(config)
+    _PART_LINES.insert(0, (key, out))
+    del _PART_LINES[4:]
+    return list(out)
 
 
 def fixtures_in_the_part(config: ScanConfig) -> list[str]:
@@ -273,10 +281,6 @@ def fixtures_in_the_part(config: ScanConfig) -> list[str]:
     each mesh's vertices and of points spread over its surface (a rod through a box has no
     vertex inside it) to the other mesh; a fixture that is not a closed mesh cannot be judged
     so and is named instead. An inside-out closed mesh is turned right way out first."""
-    key = (config.workpiece, config.fixtures)
-    known = next((lines for k, lines in _OVERLAP_LINES if k[0] is key[0] and k[1] is key[1]), None)
-    if known is not None:
-        return list(known)
     out = []
     wp = config.workpiece
     part_points = None  # sampled once, for all the fixtures
@@ -302,9 +306,7 @@ def fixtures_in_the_part(config: ScanConfig) -> list[str]:
             out.append(f"{f.name} reaches {depth:.2f} mm into the part, where a real one would touch it at most: "
                        f"the part's surface inside it is hidden and its points near the contact may count as the "
                        f"fixture's; move it out until it touches")
-    _OVERLAP_LINES.insert(0, (key, out))
-    del _OVERLAP_LINES[4:]
-    return list(out)
+    return out
 
 
 def _surface_points(mesh) -> np.ndarray:
