@@ -143,9 +143,9 @@ def clearance_readout(context):
         return None
     if found.collisions:
         c = found.first_collision[0]
-        return c.distance_mm, c.body_a, c.body_b, True
+        return c.distance_mm, found.label(c.body_a), found.label(c.body_b), True
     c = found.nearest.get(0)
-    return None if c is None else (c.distance_mm, c.body_a, c.body_b, False)
+    return None if c is None else (c.distance_mm, found.label(c.body_a), found.label(c.body_b), False)
 
 
 def default_output_dir() -> Path:

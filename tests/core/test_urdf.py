@@ -157,8 +157,8 @@ def test_a_pose_only_a_joint_limit_keeps_out_of_reach_names_that_limit(tmp_path)
     q = np.array([0.4, -0.6, 1.2, 0.5, -0.7, 0.3])
     res = ik.solve(robot, robot.fk(q[None])[0], np.zeros(6))
     assert not res.success
-    angle = float(res.message.split("J3 = ")[1].split("°")[0])
-    assert "without the limits it is reached with J3 = " in res.message and "outside [-17.1887°, 17.1887°]" in res.message
+    angle = float(res.message.split("J3 (j2) = ")[1].split("°")[0])  # the file's name for it beside its number
+    assert "without the limits it is reached with J3 (j2) = " in res.message and "outside [-17.1887°, 17.1887°]" in res.message
     assert abs(angle) > 17.19  # beyond the limit (1.2 rad = 68.75° is one such solution)
     assert res.message.count("outside [") == 1  # J3 alone: the other joints are put back by whole turns
     # A path through the pose: only its first miss is explained (a second solve each would
@@ -172,7 +172,7 @@ def test_a_pose_only_a_joint_limit_keeps_out_of_reach_names_that_limit(tmp_path)
     poses = cell.table.base2table(np.zeros(3)) @ np.stack([T, T, T])
     sol = solve_path(cell, Waypoints(poses, np.zeros(3), np.zeros(3, int)), np.zeros(6))
     assert not sol.ok.any()
-    assert "J3 = " in sol.messages[0] and all("without the limits" not in m for m in sol.messages[1:])
+    assert "J3 (j2) = " in sol.messages[0] and all("without the limits" not in m for m in sol.messages[1:])
 
 
 def test_a_urdf_under_another_name_is_read_as_urdf_where_a_config_says_urdf(tmp_path):
@@ -239,6 +239,51 @@ def test_the_base_link_and_what_is_fixed_to_it_make_the_robots_base_and_the_prob
         found = model.clearance_at(q, 0.0)
         hits = {(c.body_a, c.body_b) for c, _ in found.collisions}
         assert (("probe", "robot base") in hits or ("robot base", "probe") in hits) == touches, (gap, hits)
+
+
+def test_messages_name_a_urdfs_joints_and_links_as_the_file_does():
+    """A URDF engineer reads "J3 (elbow_joint)" and "link 3 (forearm_link)", not numbers alone:
+    the names are the file's moving joints from the base to the tool and the links they move
+    (read here from the XML), quoted by the joint-limit and collision messages."""
+    from addon.core.config.rigs import load_probe
+    from addon.core.kinematics.turntable import Turntable
+    from addon.core.safety import CollisionModel
+
+    root = ET.parse(UR5_URDF).getroot()
+    by_child = {j.find("child").get("link"): j for j in root.findall("joint")}
+    link, chain = "ee_link", []
+    while link in by_child:
+        chain.append(by_child[link])
+        link = by_child[link].find("parent").get("link")
+    moving = [j for j in reversed(chain) if j.get("type") != "fixed"]
+    joint_names = [j.get("name") for j in moving]
+    link_names = [j.find("child").get("link") for j in moving]
+    assert len(joint_names) == 6
+
+    probe = load_probe("default")
+    arm = load_robot(UR5_URDF).with_tool(probe.mount)
+    q = np.zeros(6)
+    q[2] = arm.q_max_rad[2] + 0.5
+    (violation,) = arm.limit_violations(q)
+    assert violation.startswith(f"J3 ({joint_names[2]}) = ")
+
+    model = CollisionModel(arm, probe, Turntable())
+    named = set()
+    for q in arm.random_q(60, np.random.default_rng(0)):
+        found = model.clearance_at(q, 0.0)
+        if not found.collisions:
+            continue
+        contact = found.first_collision[0]
+        for body in (contact.body_a, contact.body_b):
+            if body.startswith("link "):
+                k = int(body.split()[1])
+                assert f"link {k} ({link_names[k - 1]})" in found.message(), found.message()
+                named.add(k)
+    assert len(named) >= 2  # links met in collisions: the search found some
+
+    # A DH table has no names: the numbers alone, as before.
+    dh = load_robot("ur5").with_tool(probe.mount)
+    assert dh.joint_names == () and dh.limit_violations(q * 0 + 20.0)[0].startswith("J1 = ")
 
 
 # -- any chain ----------------------------------------------------------------------------

@@ -71,6 +71,8 @@ class Robot:
     base_collision_mesh : the same for the collision checks alone (a URDF's collision geometry)
     ik_via : where IK comes from when not from this project's solver: a
         ``ik_remote.ControllerIK`` (the robot controller over TCP/IP); None: the local solver
+    joint_names, link_names : the file's own names of joints 1..6 and of the links they move
+        (a URDF's), which messages quote beside the numbers; () where the rig has none (a DH table)
     """
 
     name: str
@@ -90,6 +92,8 @@ class Robot:
     ik_via: object = None
     prismatic: tuple = ()  # per joint, True where it slides along z_{i-1}; () for all revolute
     flange: np.ndarray = field(default_factory=lambda: np.eye(4))
+    joint_names: tuple = ()
+    link_names: tuple = ()
 
     def __post_init__(self) -> None:
         for label in ("a_mm", "d_mm", "alpha_rad", "theta_offset_rad", "q_min_rad", "q_max_rad"):
@@ -114,6 +118,11 @@ class Robot:
         if slides.shape != (N_JOINTS,) or slides.dtype != bool:
             raise InputError(f"robot {self.name!r}: prismatic must be 6 booleans, got {self.prismatic!r}")
         object.__setattr__(self, "prismatic", tuple(bool(v) for v in slides))
+        for label in ("joint_names", "link_names"):
+            names = getattr(self, label)
+            if len(names) not in (0, N_JOINTS) or not all(isinstance(n, str) for n in names):
+                raise InputError(f"robot {self.name!r}: {label} must be 6 names or none, got {names!r}")
+            object.__setattr__(self, label, tuple(names))
         slides = slides.copy()
         slides.setflags(write=False)
         object.__setattr__(self, "_slides", slides)
@@ -214,9 +223,17 @@ class Robot:
         for j in range(N_JOINTS):
             tol = TOL.joint_limit_rad
             if not (self.q_min_rad[j] - tol <= q[j] <= self.q_max_rad[j] + tol):
-                out.append(f"J{j + 1} = {self.joint_text(j, q[j], '.3f')} outside "
+                out.append(f"{self.joint_label(j)} = {self.joint_text(j, q[j], '.3f')} outside "
                            f"[{self.joint_text(j, self.q_min_rad[j])}, {self.joint_text(j, self.q_max_rad[j])}]")
         return out
+
+    def joint_label(self, j: int) -> str:
+        """Joint j (0-based) for people: "J3", or "J3 (elbow_joint)" where the file names it."""
+        return f"J{j + 1}" + (f" ({self.joint_names[j]})" if self.joint_names else "")
+
+    def link_label(self, k: int) -> str:
+        """Link k (1..6) for people: "link 3", or "link 3 (forearm_link)" where the file names it."""
+        return f"link {k}" + (f" ({self.link_names[k - 1]})" if self.link_names else "")
 
     def joint_text(self, j: int, value: float, spec: str = "g") -> str:
         """Joint j's value (rad, or mm where it slides) for people: "12.5°" or "250 mm"."""

@@ -280,7 +280,8 @@ def load_urdf_robot(path: str | Path, base_link: str | None = None, tool_link: s
     try:
         robot = Robot(name=f"{urdf.robot.name or path.stem} (URDF)", a_mm=a, d_mm=d, alpha_rad=alpha, theta_offset_rad=theta,
                       q_min_rad=lo, q_max_rad=hi, base=base, tool=tool, flange=tool, source=f"URDF {path}",
-                      prismatic=chain.prismatic)
+                      prismatic=chain.prismatic, joint_names=tuple(j.name for j in chain.moving),
+                      link_names=tuple(j.child for j in chain.moving))
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None
     _check_conversion(robot, chain)

@@ -25,7 +25,7 @@ import numpy as np
 import trimesh
 
 from ..errors import InputError
-from ..kinematics.robot import Robot
+from ..kinematics.robot import N_JOINTS, Robot
 from ..kinematics.turntable import Turntable
 from ..optics.probe import Probe
 from .bodies import ROBOT_BASE, UNIT_CORNERS, Body, _fcl, carrier_poses, environment_bodies, robot_bodies
@@ -80,6 +80,7 @@ class PathClearance:
     bound_queries: int = 0
     waypoints: int = 0  # of the path checked
     moved_from: bool = False  # the motion onto the path from a start pose was checked too
+    labels: dict = field(default_factory=dict)  # a body's name for people where it differs ("link 3 (forearm_link)")
 
     @property
     def ok(self) -> bool:
@@ -110,13 +111,18 @@ class PathClearance:
         how = ("touches" if worst.distance_mm <= 0 else f"comes within {worst.distance_mm:.2f} mm of")
         allowed = ("they must not touch" if _robot_pair(first) else
                    f"at least {self.min_clearance_mm:g} mm allowed ([safety] min_clearance_mm)")
-        return f"{where}: {_the(first.body_a)} {how} {_the(first.body_b)}; {allowed}"
+        return f"{where}: {_the(self.label(first.body_a))} {how} {_the(self.label(first.body_b))}; {allowed}"
+
+    def label(self, body: str) -> str:
+        """A body's name for people: a URDF link's own name beside its number."""
+        return self.labels.get(body, body)
 
     @staticmethod
     def merge(parts: list["PathClearance"]) -> "PathClearance":
         """One record of several checks (a scanner's moves): their path entries numbered on."""
         out = PathClearance(parts[0].min_clearance_mm)
         for p in parts:
+            out.labels.update(p.labels)
             base = len(out.nearest)
             out.nearest.update({base + i: c for i, (_, c) in enumerate(sorted(p.nearest.items()))})
             out.collisions += p.collisions
@@ -192,6 +198,7 @@ class CollisionModel:
         for b in self.bodies:
             b.hull = _convex(self.fcl, _hull_points(b))
         self.index = {b.name: i for i, b in enumerate(self.bodies)}
+        self.labels = {f"link {k}": robot.link_label(k) for k in range(1, N_JOINTS + 1) if robot.link_names}
         self.pairs = self._pairs()
         # Lever arm bound for the motion sampling: the farthest any robot point gets from a joint axis.
         self.arm_mm = robot.reach_bound_mm + max(b.radius + np.linalg.norm(b.centre) for b in self.bodies
@@ -313,7 +320,8 @@ class CollisionModel:
             centres[i] = np.einsum("nij,j->ni", T[:, :3, :3], b.centre) + T[:, :3, 3]
             support[i] = np.einsum("nij,kj->nki", T[:, :3, :3], b.support) + T[:, None, :3, 3]
         up = carriers["table"][:, :3, 2]
-        out = PathClearance(self.min_clearance_mm, samples=len(qs), waypoints=n_way, moved_from=q_start is not None)
+        out = PathClearance(self.min_clearance_mm, samples=len(qs), waypoints=n_way, moved_from=q_start is not None,
+                            labels=self.labels)
         closest: dict[int, Contact] = {}
         for i, j, limit in self.pairs:
             bound = self._bound(i, j, centres, support, up)
