@@ -644,7 +644,8 @@ class Scanner:
         # The path's frame numbers hold only while this Scanner has run nothing but its path.
         config = self.config if not self._off_path else replace(self.config, path_frames=None)
         result = assemble(config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
-                          {"render_device": render_device(self._raycaster, self._sc), **extra})
+                          {"render_device": render_device(self._raycaster, self._sc), **extra},
+                          step_by_step=self._off_path)
         self._cached = (key, result)
         return result
 

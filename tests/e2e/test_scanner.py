@@ -287,3 +287,40 @@ def test_a_fixture_reaching_into_the_part_is_warned_of_step_by_step_too():
     s.measure()
     said = [w for w in s.report().to_dict()["warnings"] if "reaches" in w]
     assert len(said) == 1 and said[0].startswith("fixture jaw reaches")
+
+
+def test_a_path_that_measures_little_of_a_large_part_says_so():
+    """A 200 mm plate scanned by a path of two profiles: each lights one line at most the
+    plate's diagonal (283 mm) long, and coverage counts 1 mm either side of it, so at most
+    2 × 2 × 283 mm² of the plate's 83 200 mm² (1.4 %) can be measurable: the report says the
+    path misses most of the part. The same two profiles taken step by step say nothing (a
+    step-by-step scan has only begun); the demo's own first table turn measures far more of
+    its sphere and says nothing of the kind either."""
+    from dataclasses import replace
+
+    import trimesh
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.geometry.workpiece import Workpiece
+
+    plate = trimesh.creation.box([200.0, 200.0, 4.0])
+    plate.apply_translation([0.0, 0.0, 2.0])
+    base = load_scan_config("demo").with_overrides(engine="raycast")
+    cfg = replace(base, workpiece=Workpiece("plate", plate, plate, "test:plate", np.eye(4)))
+    s = Scanner(config=cfg.with_overrides(frames=slice(0, 2)))
+    s.run()
+    report = s.report().to_dict()
+    assert 0 < report["measurable_share"] <= 2 * 2 * 283 / plate.area
+    said = [w for w in report["warnings"] if "can measure only" in w]
+    assert len(said) == 1 and f"{report['measurable_share'] * 100:.1f} % of the part's surface" in said[0]
+
+    steps = Scanner(config=cfg)
+    steps.move_to(s.pose())
+    steps.measure()
+    report = steps.report().to_dict()
+    assert 0 < report["measurable_share"] < 0.05 and not any("can measure only" in w for w in report["warnings"])
+
+    turn = Scanner.from_config("demo", engine="raycast", frames=slice(0, 60))
+    turn.run()
+    report = turn.report().to_dict()
+    assert report["measurable_share"] > 0.05 and not any("can measure only" in w for w in report["warnings"])

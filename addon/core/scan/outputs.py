@@ -76,10 +76,15 @@ def software_versions() -> dict:
             pass
     return out
 
+SMALL_SHARE = 0.05  # a path measuring less of its part than this is said to miss most of it
+
+
 def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, out_dir: str | Path | None,
-             t_start: float, extra: dict | None = None) -> ScanResult:
+             t_start: float, extra: dict | None = None, step_by_step: bool = False) -> ScanResult:
     """The scan's result from its cloud and counters: error against the truth, the report,
-    and (with ``out_dir``) cloud.ply, report.json and preview.png written atomically."""
+    and (with ``out_dir``) cloud.ply, report.json and preview.png written atomically.
+    ``step_by_step``: frames a Scanner took one by one (not a path), which say nothing of
+    how much of the part a path measures."""
     probe = config.probe
     timing = dict(timing)
     t = time.perf_counter()
@@ -93,6 +98,11 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     scan_time = timing.get("render", 0.0) + timing.get("detect", 0.0) + timing.get("triangulate", 0.0)
     r = config.render
     warnings = list(plan.warnings) + fixture_warnings(plan.fixture_frames, len(plan.q))
+    share = quality.get("measurable_share", 0.0)
+    if n and 0 < share < SMALL_SHARE and not step_by_step:
+        warnings.append(f"the path can measure only {share * 100:.1f} % of the part's surface (whole-part coverage "
+                        f"{quality['coverage'] * 100:.1f} %): the part reaches far beyond what the path scans; "
+                        "a path of the part's own size: [[path]] entries, or the adaptive planner")
     used = (extra or {}).get("render_device")
     if r.engine == "cycles" and r.device != "CPU" and used == "CPU":
         warnings.append(f"render device {r.device} asked for, but no such GPU answered: rendered on the CPU")
