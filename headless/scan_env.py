@@ -39,7 +39,12 @@ Scanner over a part that only its bounding box reveals.
 
 Scans are deterministic, so equal actions give equal episodes: the part, its pose and the
 cell are the config's in every episode, and ``reset(seed=...)`` only seeds ``env.np_random``
-(Gymnasium's generator, for a policy that wants one). Registered as ``ScanPlanning-v0``:
+(Gymnasium's generator, for a policy that wants one). With ``turn_part=True`` each reset puts
+the part down at an angle about the table's axis drawn from ``env.np_random`` (so the seed
+decides it, and equal seeds still give equal episodes): a policy that learnt one pose by
+heart meets others. The planner is told the box of the turned part (grown by 10 %), or the
+config's ``[adaptive]`` box turned with it; ``info["part_turn_deg"]`` says the angle, which
+the observation does not. Registered as ``ScanPlanning-v0``:
 ``gymnasium.make("headless.scan_env:ScanPlanning-v0", config="step_block", engine="raycast")``
 imports this module and passes the keywords on. Each step renders a
 whole sweep (seconds on a CPU): this is a test bench, not a fast simulator of views.
@@ -69,7 +74,8 @@ class ScanPlanningEnv(gym.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, config: str = "demo", *, max_profiles: int = 600, grid: int = 16, max_steps: int = 32,
-                 time_cost: float = 0.01, refusal_cost: float = 0.5, engine: str | None = None):
+                 time_cost: float = 0.01, refusal_cost: float = 0.5, engine: str | None = None,
+                 turn_part: bool = False):
         from addon.core.config.scan import load_scan_config
 
         def whole(v):  # numpy's integers too (a training loop's sweep passes np.int64)
@@ -81,6 +87,8 @@ class ScanPlanningEnv(gym.Env):
         for value, what in ((time_cost, "time_cost"), (refusal_cost, "refusal_cost")):
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < float("inf"):
                 raise InputError(f"{what} must be a finite number ≥ 0, got {value!r}")
+        if not isinstance(turn_part, (bool, np.bool_)):
+            raise InputError(f"turn_part must be True or False, got {turn_part!r}")
         if isinstance(config, (str, os.PathLike)):
             config = load_scan_config(os.fspath(config))
         elif not hasattr(config, "adaptive"):
@@ -95,6 +103,8 @@ class ScanPlanningEnv(gym.Env):
         self.config = config
         self.max_profiles, self.grid, self.max_steps = int(max_profiles), int(grid), int(max_steps)
         self.time_cost, self.refusal_cost = float(time_cost), float(refusal_cost)
+        self.turn_part = bool(turn_part)
+        self.part_turn_deg = 0.0
         self.tilts = [0.0] + [t * sign for t in next_view.TILTS_DEG[1:] for sign in (1.0, -1.0)]
         self.action_space = spaces.MultiDiscrete([next_view.TABLE_STEPS, len(self.tilts), 2])
         self.observation_space = spaces.Dict({
@@ -110,9 +120,13 @@ class ScanPlanningEnv(gym.Env):
         super().reset(seed=seed)
         from addon import Scanner
 
-        self.scanner = Scanner(config=self.config)
+        config = self.config
+        self.part_turn_deg = float(self.np_random.uniform(0.0, 360.0)) if self.turn_part else 0.0
+        if self.turn_part:
+            config = turned_part(config, self.part_turn_deg)
+        self.scanner = Scanner(config=config)
         self.scanner.keep_clearance = False  # collisions are still refused; the report's clearance is not measured
-        lo, hi = part_box(self.config)
+        lo, hi = part_box(config)
         self.planner = NextBestView(self.scanner, lo, hi)
         self._by_key = {c.key: c for c in self.planner.pool}
         self._scanned: set = set()  # views scanned this episode (their keys)
@@ -125,7 +139,7 @@ class ScanPlanningEnv(gym.Env):
 
     def _info(self, info: dict, learnt: int, found: int) -> dict:
         """The step's ``info``: the same keys after reset and after every step."""
-        return {**info, "profiles": self.profiles, "learnt": int(learnt), "new_surface_cells": int(found),
+        return {**info, "part_turn_deg": self.part_turn_deg, "profiles": self.profiles, "learnt": int(learnt), "new_surface_cells": int(found),
                 "surface_cells": self._surface_cells(), "coverage_estimate": self.planner.coverage_estimate(),
                 "action_mask": self.action_mask()}
 
@@ -219,6 +233,27 @@ if ENV_ID not in gym.registry:  # a module imported twice (by path and by name) 
 _RANK = np.zeros(3, np.uint8)
 _RANK[[FREE, UNKNOWN, SURFACE]] = (0, 1, 2)
 _STATE = np.array([FREE, UNKNOWN, SURFACE], np.uint8)
+
+
+def turned_part(config, deg: float):
+    """``config`` with its part turned by ``deg`` about the table's axis, the fixtures on the
+    table with it (they hold the part), and its [adaptive] box (where it gives one) replaced by
+    the bounds of that box turned with it."""
+    from dataclasses import replace
+
+    from addon.core.geometry.workpiece import turned_on_table
+    from addon.core.kinematics.transforms import rot_z
+
+    adaptive = config.adaptive
+    if adaptive.box is not None:
+        lo, hi = (np.asarray(v, dtype=np.float64) for v in adaptive.box)
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        corners = corners @ rot_z(np.radians(deg))[:3, :3].T  # the box's bounds once turned
+        adaptive = replace(adaptive, box=(corners.min(axis=0), corners.max(axis=0)))
+    R = rot_z(np.radians(deg))
+    fixtures = tuple(replace(f, mesh=f.mesh.copy().apply_transform(R)) if f.on == "table" else f
+                     for f in config.fixtures)
+    return replace(config, workpiece=turned_on_table(config.workpiece, deg), adaptive=adaptive, fixtures=fixtures)
 
 
 def pooled(state: np.ndarray, cells: int) -> np.ndarray:

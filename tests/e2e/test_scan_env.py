@@ -53,7 +53,8 @@ def test_a_sweep_steeper_than_any_the_planner_sweeps_is_refused_and_scans_nothin
 
 
 @pytest.mark.parametrize("kw", [dict(max_profiles=0), dict(max_profiles=-3), dict(max_profiles=2.5), dict(grid=1),
-                                dict(max_steps=0), dict(time_cost=float("nan")), dict(refusal_cost=-1.0)])
+                                dict(max_steps=0), dict(time_cost=float("nan")), dict(refusal_cost=-1.0),
+                                dict(turn_part="yes")])
 def test_an_impossible_episode_setting_is_refused_with_what_is_allowed(kw):
     from addon.core.errors import InputError
 
@@ -168,3 +169,33 @@ def test_the_action_mask_rules_out_steep_sweeps_views_scanned_and_views_over_the
     env.max_profiles = env.profiles + next_view.turn_frames(env.planner.part_radius()) - 1
     small = env.action_mask()
     assert not small[:, :, 1].any() and small[:, :, 0].any()
+
+
+def test_a_turned_part_is_drawn_from_the_seed_and_scanned_where_it_was_put():
+    """turn_part: each reset puts the step block down at an angle about the table's axis that
+    the seed decides (equal seeds, equal angles), inside the box the planner is told; its mesh
+    is the config's turned by that angle (the rotation written out here), and a sweep's points
+    lie on the turned block (an independent point-to-mesh query), not where the config put it."""
+    import trimesh
+
+    env = ScanPlanningEnv("step_block", max_profiles=300, max_steps=2, engine="raycast", turn_part=True)
+    angles = {seed: env.reset(seed=seed)[1]["part_turn_deg"] for seed in (5, 6, 5)}
+    assert len(angles) == 2 and angles[5] != angles[6]
+    seed = next(k for k in range(20) if 30 < env.reset(seed=k)[1]["part_turn_deg"] % 180 < 150)
+    obs, info = env.reset(seed=seed)
+    a = np.radians(info["part_turn_deg"])
+    turn = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    original = env.config.workpiece.mesh
+    turned = env.scanner.config.workpiece.mesh
+    np.testing.assert_allclose(turned.vertices, original.vertices @ turn.T, atol=1e-9)
+    assert np.all(turned.bounds[0] >= env.planner.lo) and np.all(turned.bounds[1] <= env.planner.hi)
+
+    _, _, _, _, info = env.step(env.reference_action())
+    assert info["refused"] is None
+    result = env.scanner.result()
+    points = result.cloud.points[result.on_part]
+    assert len(points) > 500
+    near_turned = np.abs(trimesh.proximity.closest_point(turned, points)[1])
+    near_original = np.abs(trimesh.proximity.closest_point(original, points)[1])
+    assert np.percentile(near_turned, 95) < 0.05 and np.median(near_original) > 1.0
+    assert result.report["error_um"]["rms_um"] < 50  # measured against the turned block's exact shape

@@ -11,7 +11,7 @@ are metres by their specification and are scaled by 1000. ``scale`` overrides bo
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +19,7 @@ import trimesh
 
 from ..errors import InputError
 from .shapes import Cylinder, PlanePatch, Sphere, StepBlock
-from ..kinematics.transforms import check_transform, trans
+from ..kinematics.transforms import check_transform, rot_z, trans
 
 FORMATS = (".stl", ".obj", ".ply", ".glb", ".gltf")
 METRE_FORMATS = (".glb", ".gltf")
@@ -55,6 +55,18 @@ class Workpiece:
     @property
     def is_analytic(self) -> bool:
         return self.truth is not self.mesh
+
+
+def turned_on_table(wp: Workpiece, deg: float) -> Workpiece:
+    """``wp`` turned by ``deg`` degrees about the table's axis, its exact truth with it: the
+    same part put down at another angle."""
+    if isinstance(deg, bool) or not isinstance(deg, (int, float, np.floating)) or not np.isfinite(deg):
+        raise InputError(f"a workpiece's turn must be a finite number of degrees, got {deg!r}")
+    R = rot_z(np.radians(float(deg)))
+    mesh = wp.mesh.copy()
+    mesh.apply_transform(R)
+    truth = replace(wp.truth, pose=R @ wp.truth.pose) if wp.is_analytic else mesh
+    return Workpiece(wp.name, mesh, truth, wp.source, R @ wp.pose)
 
 
 def builtin_workpiece(kind: str, pose=None, **params) -> Workpiece:
