@@ -386,3 +386,24 @@ def test_a_base_whose_file_keeps_its_vertices_apart_is_still_one_body():
     robot = replace(load_robot("adept_viper_s650"), base_mesh=(loose, np.eye(4)))
     model = CollisionModel(robot, load_probe("default"), Turntable())
     assert [b.name for b in model.bodies if b.name.startswith("robot base")] == ["robot base"]
+
+
+def test_a_joint_turning_far_between_path_entries_is_said():
+    """Two sweeps over the step block, the second back along the first with its laser line
+    turned end for end: the probe turns half a turn about its beam between the entries, which
+    the Viper's wrist does with its last joint, and the plan says so (a repositioning no path
+    entry shows). The same second sweep with its line turned a quarter turn says nothing."""
+    from addon.core.kinematics import path as kp
+
+    base = load_scan_config("step_block")
+    said = {}
+    for name, line in (("half", (0.0, -1.0, 0.0)), ("quarter", (1.0, 0.0, 0.0))):
+        a = kp.sweep(20, [-45.0, 0.0, 200.0], [45.0, 0.0, 200.0], line=(0.0, 1.0, 0.0), segment=0)
+        b = kp.sweep(20, [45.0, 0.0, 200.0], [-45.0, 0.0, 200.0], line=line, segment=1)
+        both = kp.Waypoints(np.concatenate([a.probe2table, b.probe2table]), np.concatenate([a.table_rad, b.table_rad]),
+                            np.concatenate([a.segment, b.segment]))
+        said[name] = [w for w in plan_scan(replace(base, waypoints=both)).warnings if "repositions" in w]
+    assert said["quarter"] == []
+    (line,) = said["half"]
+    assert line.startswith("between path[1] and path[2] (before frame 20) the robot repositions: J6 by ")
+    assert float(line.split("J6 by ")[1].split("°")[0]) == pytest.approx(180.0, abs=1.0)

@@ -109,19 +109,22 @@ def test_ur5_urdf_matches_the_dh_rig_to_a_nanometre():
     urdf, dh = load_robot(UR5_URDF), load_robot("ur5")
     q = dh.random_q(2000, np.random.default_rng(1))
     Tu, Td = urdf.fk(q), dh.fk(q)
-    # The two descriptions differ by a half turn of the base about joint 1 and the tool frame.
+    # The two descriptions differ by a half turn of the base about joint 1 (ROS's base_link);
+    # the tool link, tool0 (ROS-Industrial's flange), is the DH flange frame itself.
     B = rot_z(np.pi)
-    E = np.linalg.inv(B @ Td[0]) @ Tu[0]
-    assert np.abs(E[:3, 3]).max() < 1e-9  # the same flange point
-    assert np.abs(Tu[:, :3, 3] - (B @ Td @ E)[:, :3, 3]).max() < 1e-9
-    assert np.abs(Tu[:, :3, :3] - (B @ Td @ E)[:, :3, :3]).max() < 1e-12
+    assert np.abs(Tu[:, :3, 3] - (B @ Td)[:, :3, 3]).max() < 1e-9
+    assert np.abs(Tu[:, :3, :3] - (B @ Td)[:, :3, :3]).max() < 1e-12
+    # ee_link, the older convention, is the same flange point with its x axis out of the flange.
+    ee = load_robot(UR5_URDF, tool_link="ee_link").fk(q)
+    assert np.abs(ee[:, :3, 3] - Tu[:, :3, 3]).max() < 1e-9
+    assert np.abs(np.einsum("ni,ni->n", ee[:, :3, 0], Tu[:, :3, 2]) - 1.0).max() < 1e-12
 
 
 def test_ur5_urdf_matches_its_own_xml_and_gets_the_closed_form():
     robot = load_robot(UR5_URDF)
     rng = np.random.default_rng(2)
     for q in robot.random_q(50, rng):
-        np.testing.assert_allclose(robot.fk(q), xml_fk(UR5_URDF, q, "ee_link"), atol=1e-9)
+        np.testing.assert_allclose(robot.fk(q), xml_fk(UR5_URDF, q, "tool0"), atol=1e-9)
     assert isinstance(closed_form_arm(robot)[0], ParallelAxesArm)
     qs = robot.random_q(500, rng)
     batch = robot.ik_batch(robot.fk(qs))

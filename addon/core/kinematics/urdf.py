@@ -45,6 +45,7 @@ from .transforms import rigid_inverse
 
 M_TO_MM = 1000.0
 MOVING = ("revolute", "continuous", "prismatic")
+ROS_FLANGE = "tool0"  # ROS-Industrial's name for the flange frame (z out of the flange): the tool link where the chain ends in several
 PARALLEL_TOL = 1e-9  # |u × v| below this: parallel axes
 MEET_TOL_MM = 1e-9   # common normal shorter than this: the axes meet
 
@@ -94,6 +95,8 @@ class UrdfChain:
                               f"(links: {', '.join(sorted(links))})")
         if tool_link is None:
             leaves = sorted(name for name in _descendants(base, children) if name not in children)
+            if len(leaves) > 1 and ROS_FLANGE in leaves:
+                leaves = [ROS_FLANGE]  # ROS-Industrial's flange frame, where tools are mounted
             if len(leaves) != 1:
                 raise ConfigError(f"{path}: the chain from {base!r} ends in {len(leaves)} links "
                                   f"({', '.join(leaves)}); name the tool link (tool_link = ...)")

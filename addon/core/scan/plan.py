@@ -73,13 +73,33 @@ def plan_scan(config: ScanConfig, allow_blind: bool = False) -> Plan:
     if sol.jumps:
         warnings.append(f"joint jumps over {math.degrees(max(sol.max_step_rad)):.0f}° between neighbouring "
                         f"waypoints at frames {frame_ranges(sol.jumps)} (near a singularity or a limit)")
-    warnings += part_warnings(config)
+    warnings += robot_warnings(config, sol.q) + part_warnings(config)
     plan = plan_frames(config, sol.q, wp.table_rad, allow_blind, warnings)
     plan.clearance = clearance
     return plan
 
 
 _MODELS: list = []  # the last few collision models, with the objects they were built from
+
+
+REPOSITION_DEG = 120.0  # a joint turning more than this between two path entries is said
+
+
+def robot_warnings(config: ScanConfig, q: np.ndarray) -> list[str]:
+    """What a cell designer should hear of the robot's motion along the path ``q`` (n, 6): a
+    joint turning more than REPOSITION_DEG where the robot goes from one path entry to the next
+    (a repositioning the path itself does not show; a cable's wind-up)."""
+    robot, seg = config.robot, config.waypoints.segment
+    out = []
+    turning = ~np.asarray(robot.prismatic)
+    for i in np.flatnonzero(seg[1:] != seg[:-1]) + 1:
+        step = np.degrees(np.abs(q[i] - q[i - 1]))
+        big = [j for j in np.argsort(-step) if turning[j] and step[j] > REPOSITION_DEG]
+        if big:
+            turns = ", ".join(f"{robot.joint_label(j)} by {step[j]:.0f}°" for j in big)
+            out.append(f"between path[{seg[i - 1] + 1}] and path[{seg[i] + 1}] (before frame {i}) the robot "
+                       f"repositions: {turns}")
+    return out
 
 
 def collision_model(config: ScanConfig) -> CollisionModel:
