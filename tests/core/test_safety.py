@@ -108,9 +108,11 @@ def test_a_move_down_into_a_block_is_reported_at_its_deepest_not_where_it_first_
     scanner.move_to(((0.0, 0.0, 60.0), (0.0, 180.0, 0.0)))
     with pytest.raises(CollisionError) as err:
         scanner.move_to(((0.0, 0.0, 20.0), (0.0, 180.0, 0.0)))
-    # A step of the Scanner has no frames to name: the motion is "on the way there".
-    assert "move refused, nothing moved: on the way there: the probe touches the workpiece" in str(err.value), \
-        str(err.value)
+    # A step of the Scanner has no frames to name: the motion is "on the way there", and the
+    # pose it ends at, 10 mm inside the block, collides too (a cell designer's trial: the
+    # message said only "on the way there" of a target inside the part).
+    assert ("move refused, nothing moved: on the way there and at the pose moved to: the probe touches the "
+            "workpiece") in str(err.value), str(err.value)
     cfg = scanner.config
     model = CollisionModel(cfg.cell.robot, cfg.probe, cfg.table, cfg.workpiece.mesh)
     down = [cfg.cell.ik(_beam_down_at(z), scanner.q, relative_to="table", table_angle_rad=0.0).q for z in (60.0, 20.0)]
@@ -407,3 +409,26 @@ def test_a_joint_turning_far_between_path_entries_is_said():
     (line,) = said["half"]
     assert line.startswith("between path[1] and path[2] (before frame 20) the robot repositions: J6 by ")
     assert float(line.split("J6 by ")[1].split("°")[0]) == pytest.approx(180.0, abs=1.0)
+
+
+def test_a_collision_on_the_way_from_the_start_pose_says_it_is_the_approach():
+    """The probe looking at the demo's sphere from one side (the start pose) and then from the
+    other (frame 0), 40 mm above the table: each pose is clear, the joint motion between them
+    is not, and the refusal names the approach from the start pose, not frame 0 (a cell
+    designer's trial: "moving to frame 0" read as frame 0 itself)."""
+    from addon.core.scan.plan import check_motion
+
+    cfg = load_scan_config("demo")
+
+    def looking_across(y):
+        T = np.eye(4)
+        beam, x = np.array([0.0, -np.sign(y), 0.0]), np.array([1.0, 0.0, 0.0])
+        T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, np.cross(beam, x), beam, [0.0, y, 40.0]
+        return T
+
+    q_start = cfg.cell.ik(looking_across(-110.0), cfg.q_start, relative_to="table", table_angle_rad=0.0).q
+    q0 = cfg.cell.ik(looking_across(110.0), q_start, relative_to="table", table_angle_rad=0.0).q
+    for q in (q_start, q0):
+        assert check_motion(cfg, np.stack([q, q]), np.zeros(2), np.zeros(2, int)).ok
+    with pytest.raises(CollisionError, match="^moving from the start pose to frame 0: "):
+        check_motion(cfg, np.stack([q0, q0]), np.zeros(2), np.zeros(2, int), q_start)

@@ -99,10 +99,11 @@ class PathClearance:
         worst = self.deepest[self.collisions.index(hit)] if len(self.deepest) == len(self.collisions) else first
         if self.moved_from and self.waypoints == 1 and first.position > -1:
             # One step of a Scanner (move_to, turn_table, ...): it has no frames to name.
-            where = "at the pose moved to" if first.position == 0 else "on the way there"
+            where = ("at the pose moved to" if first.position == 0 else
+                     "on the way there and at the pose moved to" if last.position >= 0 else "on the way there")
         elif first.position < 0:  # the pose the motion starts from
             on = "" if last.frame <= 0 else f" and on to frame {last.frame}"
-            where = f"at the start pose{on}" if first.position <= -1 else f"moving to frame 0{on}"
+            where = f"at the start pose{on}" if first.position <= -1 else f"moving from the start pose to frame 0{on}"
         else:
             frames = f"frame {first.frame}" if first.frame == last.frame else f"frames {first.frame}-{last.frame}"
             where = f"at {frames}" if float(first.position).is_integer() else f"moving to {frames}"
