@@ -432,3 +432,22 @@ def test_a_collision_on_the_way_from_the_start_pose_says_it_is_the_approach():
         assert check_motion(cfg, np.stack([q, q]), np.zeros(2), np.zeros(2, int)).ok
     with pytest.raises(CollisionError, match="^moving from the start pose to frame 0: "):
         check_motion(cfg, np.stack([q0, q0]), np.zeros(2), np.zeros(2, int), q_start)
+
+
+def test_a_collision_on_a_configs_path_names_the_path_entry():
+    """A post on the table 110-130 mm from the demo's axis, at the probe's height: the table
+    turn (path[1]) keeps the probe's origin 12 mm from the axis, so its body (the boxes reach
+    at most 77.6 mm across from the origin) stays 20 mm short; the sweep (path[2]) takes the
+    origin to x = 40 mm and the housing's 75 mm half-length into the post. The refusal names
+    the sweep's entry beside its frames."""
+    from addon.core.config.rigs import load_probe
+    from addon.core.safety import Fixture
+
+    reach = max(float(np.hypot(abs(c[0]) + e[0] / 2, abs(c[1]) + e[1] / 2))
+                for _, e, c in load_probe("default").body_boxes())
+    assert 12.0 + reach < 110.0 - 2.0 < 40.0 + 75.0
+    post = trimesh.creation.box([20.0, 40.0, 60.0])
+    post.apply_translation([120.0, 0.0, 230.0])
+    cfg = replace(load_scan_config("demo"), fixtures=(Fixture("fixture post", post, "table"),))
+    with pytest.raises(CollisionError, match=r"^moving to frames \d+-179 \(path\[2\]\): the probe touches fixture post"):
+        plan_scan(cfg)

@@ -90,8 +90,9 @@ class PathClearance:
     def first_collision(self) -> tuple[Contact, Contact] | None:
         return min(self.collisions, key=lambda c: c[0].position) if self.collisions else None
 
-    def message(self) -> str:
-        """One line naming the first frames and the two bodies ('' when the path is clear)."""
+    def message(self, segment=None) -> str:
+        """One line naming the first frames and the two bodies ('' when the path is clear);
+        with ``segment`` (n,) (each frame's path entry), the entries those frames belong to."""
         hit = self.first_collision
         if hit is None:
             return ""
@@ -106,6 +107,9 @@ class PathClearance:
             where = f"at the start pose{on}" if first.position <= -1 else f"moving from the start pose to frame 0{on}"
         else:
             frames = f"frame {first.frame}" if first.frame == last.frame else f"frames {first.frame}-{last.frame}"
+            if segment is not None and 0 <= first.frame <= last.frame < len(segment):
+                a, b = int(segment[first.frame]) + 1, int(segment[last.frame]) + 1
+                frames += f" (path[{a}])" if a == b else f" (path[{a}] to path[{b}])"
             where = f"at {frames}" if float(first.position).is_integer() else f"moving to {frames}"
         # The nearest the run comes, not where it starts: a probe that dives into the part
         # first passes the limit at about the limit.

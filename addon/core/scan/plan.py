@@ -128,7 +128,7 @@ def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, t
         return None
     result = collision_model(config).check(q, table_rad, segment, q_start, table_start, nearest=nearest)
     if not result.ok:
-        raise CollisionError(result.message())
+        raise CollisionError(result.message(segment))  # a config's path: its entries named too
     return result
 
 
