@@ -15,7 +15,7 @@ the profile budget is spent. The ground truth is used only afterwards, to score.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -23,6 +23,7 @@ from .core.config.scan import MAX_PROFILES
 from .core.errors import CollisionError, InputError, UnreachablePose
 from .core.geometry.known_space import UNKNOWN, KnownSpace
 from .core.geometry.metrics import NearMesh
+from .core.kinematics.path import path_entry
 from .core.scan import next_view
 from .core.scan.plan import table_fixtures
 
@@ -54,6 +55,7 @@ class AdaptiveStep:
     refused: int
     coverage_estimate: float = 0.0
     setup_s: float = 0.0
+    path: dict = field(default_factory=dict)  # the view as a scan config's [[path]] entry
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -350,7 +352,7 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
                 log(f"  refused {why}")
         if chosen is None:
             if log:
-                log(f"adaptive: stopping after {len(steps)} sweeps: no reachable sweep promises {min_gain} new "
+                log(f"adaptive: stopping after {len(steps)} sweeps: no reachable sweep promises {min_gain} unseen "
                     f"cells within the budget")
             break
         say("adaptive", taken, max_profiles)  # ... or during the planning
@@ -362,11 +364,13 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
         taken += len(profiles)
         estimate = planner.coverage_estimate()
         step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
-                            chosen.gain, planning, len(planner.refused), estimate, setup_s)
+                            chosen.gain, planning, len(planner.refused), estimate, setup_s,
+                            path_entry(chosen.wp, "sweep" if chosen.kind == "sweep" else "turntable"))
         steps.append(step)
         setup_s = 0.0
         if log:
-            log(f"adaptive: sweep {len(steps)}: {step.sweep}; learnt {step.new_cells} cells, coverage estimate "
+            log(f"adaptive: sweep {len(steps)}: {step.sweep}; the model learnt {step.new_cells} cells (air and "
+                f"surface), coverage estimate "
                 f"{estimate * 100:.0f} % (planned in {planning:.2f} s, {step.refused} refused)")
         if progress:
             progress("adaptive", taken, max_profiles)

@@ -2,6 +2,7 @@
 what its rays have taught it, given only a box around the part, and writes what a scan writes."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -358,3 +359,30 @@ def test_a_budget_or_box_the_planner_cannot_use_is_named_by_the_api_and_the_envi
     env = gym.make(f"headless.scan_env:{scan_env.ENV_ID}", config="demo", engine="raycast", max_profiles=10)
     with pytest.raises(InputError, match=r"max_profiles 10 is below the smallest view's \d+ profiles"):
         env.reset(seed=0)
+
+
+def test_every_view_the_planner_can_choose_is_a_path_entry_a_config_scans_again(tmp_path):
+    """Each candidate view as report.json gives it (each sweep's ``path``), written into a scan
+    config's [[path]] entries and read back by the config loader, gives the very waypoints the
+    planner would scan: sweeps and table turns, tilted and not, at every table angle (a cell
+    designer's trial: the views chosen could not be copied into a config)."""
+    import re
+
+    from addon import Scanner
+    from addon.adaptive import NextBestView, part_box
+    from addon.core.kinematics.path import path_entry
+
+    scanner = Scanner.from_config("step_block", engine="raycast")
+    pool = NextBestView(scanner, *part_box(scanner.config)).pool
+    assert {c.kind for c in pool} == {"sweep", "turn"} and len({c.tilt_deg for c in pool}) > 2
+    entries = [path_entry(c.wp, "sweep" if c.kind == "sweep" else "turntable") for c in pool]
+    base = (Path(__file__).resolve().parents[2] / "rigs" / "scenes" / "step_block.toml").read_text()
+    without_path = re.sub(r"\[\[path\]\]\n(?:[^\[\n][^\n]*\n|\n)*", "", base)
+    assert "[[path]]" in base and "[[path]]" not in without_path and "[workpiece]" in without_path
+    written = without_path + "".join(
+        "\n[[path]]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in e.items()) for e in entries)
+    (tmp_path / "views.toml").write_text(written)
+    wp = load_scan_config(tmp_path / "views.toml").waypoints
+    assert len(wp) == sum(c.frames for c in pool)
+    np.testing.assert_allclose(wp.probe2table, np.concatenate([c.wp.probe2table for c in pool]), atol=1e-5)
+    np.testing.assert_allclose(wp.table_rad, np.concatenate([c.wp.table_rad for c in pool]), atol=1e-7)

@@ -23,6 +23,7 @@ waypoints and joint jumps by index.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -107,6 +108,33 @@ def turntable(frames: int, probe_mm, beam=DOWN, line=None, start_rad: float = 0.
     angles = start_rad + turn_rad * np.arange(frames) / (frames if full_turn else max(frames - 1, 1))
     poses = table.base2table(angles) @ probe2base
     return Waypoints(poses, angles, np.full(frames, segment))
+
+
+def path_entry(wp: Waypoints, kind: str) -> dict:
+    """The scan config's [[path]] entry (keys as a config writes them, mm and degrees) that
+    gives ``wp``, a sweep's or a table turn's waypoints as :func:`sweep` and :func:`turntable`
+    make them (``kind``: "sweep" or "turntable"): a view an adaptive scan chose, to be scanned
+    again as a fixed path."""
+    P = wp.probe2table
+    first = P[0]
+
+    def xyz(v):
+        return [round(float(x), 6) + 0.0 for x in v]  # + 0.0: no -0.0
+
+    entry = {"kind": kind, "frames": int(len(P))}
+    if kind == "sweep":
+        entry.update(from_mm=xyz(first[:3, 3]), to_mm=xyz(P[-1, :3, 3]), table_deg=round(math.degrees(wp.table_rad[0]), 6))
+    elif kind == "turntable":
+        step = float(wp.table_rad[1] - wp.table_rad[0]) if len(P) > 1 else 0.0
+        turn = step * len(P)
+        if abs(abs(turn) - 2 * np.pi) > 1e-9:  # not a full turn: its last frame is its end
+            turn = step * (len(P) - 1)
+        entry.update(probe_mm=xyz(first[:3, 3]), start_deg=round(math.degrees(wp.table_rad[0]), 6),
+                     turn_deg=round(math.degrees(turn), 6))
+    else:
+        raise InputError(f"a path entry is a sweep or a turntable, got {kind!r}")
+    entry.update(beam=xyz(first[:3, 2]), line=xyz(first[:3, 1]))
+    return entry
 
 
 def concatenate(parts: list[Waypoints]) -> Waypoints:

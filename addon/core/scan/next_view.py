@@ -72,7 +72,7 @@ class Candidate:
         what = "sweep" if self.kind == "sweep" else "table turn"
         text = f"{what} at table {self.table_deg:.0f} deg, tilt {self.tilt_deg:.0f} deg, {self.frames} profiles"
         # Only a ranked candidate has a gain; one picked by hand (an agent's action) has none yet.
-        return text + (f", about {self.gain} new cells" if self.seconds > 0 else "")
+        return text + (f", promising about {self.gain} unseen cells" if self.seconds > 0 else "")
 
 
 def robot_side(cell, table_deg: float) -> np.ndarray:
