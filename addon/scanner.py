@@ -256,6 +256,22 @@ class Scanner:
         new joints; raises UnreachablePose where the pose cannot be reached and CollisionError
         where the pose or the motion to it comes too near the table, the part or a fixture (or
         the robot to itself), naming the two bodies: in either case nothing moves."""
+        q = self._joints_for(pose, relative_to)
+        self._check_move(q, self._table_rad)
+        self._q = q
+        return self.q
+
+    def check_move_to(self, pose, relative_to: str = "table"):
+        """What :meth:`move_to` would do, with nothing moved: (the joints it would take, the
+        clearance of the motion there: a PathClearance whose ``nearest`` gives the smallest
+        distance to the table, the part or a fixture, None where the config turns the checks
+        off). Raises as move_to does where the pose cannot be reached or the motion collides."""
+        q = self._joints_for(pose, relative_to)
+        return q, self._check_path(q[None, :], np.array([self._table_rad]), "move")
+
+    def _joints_for(self, pose, relative_to: str) -> np.ndarray:
+        """The joints that put the probe at ``pose`` (the IK branch nearest the current joints),
+        or UnreachablePose naming the pose."""
         T = self._as_pose(pose)
         if relative_to not in RELATIVE_TO:
             raise InputError(f"relative_to must be one of {', '.join(RELATIVE_TO)}, got {relative_to!r}")
@@ -265,9 +281,7 @@ class Scanner:
             raise UnreachablePose(f"probe pose {np.round(xyz, 3).tolist()} mm, YZZ' "
                                   f"{np.round(np.degrees(yzz), 3).tolist()} deg relative to the {relative_to} "
                                   f"cannot be reached: {res.message}", res)
-        self._check_move(np.asarray(res.q, dtype=np.float64), self._table_rad)
-        self._q = np.array(res.q, dtype=np.float64)
-        return self.q
+        return np.array(res.q, dtype=np.float64)
 
     def move_joints(self, q) -> np.ndarray:
         """Set the robot's joints (6,) rad; raises UnreachablePose outside the limits and
@@ -290,6 +304,13 @@ class Scanner:
         self._check_move(self._q, self._table_rad + math.radians(deg))
         self._table_rad += math.radians(deg)
         return self.table_deg
+
+    def turn_table_to(self, deg: float) -> float:
+        """Turn the table to the angle ``deg`` (degrees; :meth:`turn_table` turns it by an angle);
+        returns the new angle. Raises CollisionError (and turns nothing) as turn_table does."""
+        if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg):
+            raise InputError(f"table angle must be a finite number of degrees, got {deg!r}")
+        return self.turn_table(float(deg) - self.table_deg)
 
     def _check_move(self, q: np.ndarray, table_rad: float) -> None:
         """Collision checks on the motion from the current joints and table angle to these."""

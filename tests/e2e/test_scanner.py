@@ -324,3 +324,29 @@ def test_a_path_that_measures_little_of_a_large_part_says_so():
     turn.run()
     report = turn.report().to_dict()
     assert report["measurable_share"] > 0.05 and not any("can measure only" in w for w in report["warnings"])
+
+
+def test_a_move_can_be_checked_before_it_is_made_and_the_table_turned_to_an_angle():
+    """check_move_to answers what move_to would do with nothing moved: the same joints, and
+    the clearance of the motion (the probe 150 mm above the sphere's top, looking down: its
+    heads, 2 mm ahead of the probe's origin, are 148 mm from it, nearer than the table). A
+    pose with the probe inside the sphere is refused by both, and nothing moves. The table
+    turns to an angle from any angle (a cell designer's trial: only relative turns)."""
+    from addon.core.errors import CollisionError
+
+    s = Scanner.from_config("demo", engine="raycast")
+    q_before = s.q
+    above = ([0.0, 0.0, 210.0], [90.0, 180.0, 0.0])
+    q, clearance = s.check_move_to(above)
+    np.testing.assert_array_equal(s.q, q_before)
+    nearest = clearance.nearest[0]
+    assert {nearest.body_a, nearest.body_b} == {"probe", "workpiece"}
+    assert nearest.distance_mm == pytest.approx(210.0 - 60.0 - 2.0, abs=0.5)
+    np.testing.assert_allclose(s.move_to(above), q, atol=1e-12)
+    with pytest.raises(CollisionError, match="probe touches the workpiece"):
+        s.check_move_to(([0.0, 0.0, 40.0], [90.0, 180.0, 0.0]))  # the probe's origin inside the sphere
+    np.testing.assert_allclose(s.q, q, atol=1e-12)
+    assert s.turn_table_to(90.0) == pytest.approx(90.0)
+    assert s.turn_table_to(-30.0) == pytest.approx(-30.0) and s.table_deg == pytest.approx(-30.0)
+    with pytest.raises(InputError, match="table angle"):
+        s.turn_table_to(float("nan"))
