@@ -451,3 +451,22 @@ def test_a_collision_on_a_configs_path_names_the_path_entry():
     cfg = replace(load_scan_config("demo"), fixtures=(Fixture("fixture post", post, "table"),))
     with pytest.raises(CollisionError, match=r"^moving to frames \d+-179 \(path\[2\]\): the probe touches fixture post"):
         plan_scan(cfg)
+
+
+def test_a_path_out_of_the_probes_range_is_told_which_way_to_move():
+    """A probe looking down at the demo's table 50 mm below it, 100 mm from the sphere, sees its
+    nearest surface 50 mm away, nearer than the 70 mm the probe's range starts at; over the
+    sphere (its top 60 mm above the table) at 330 mm the nearest is 270 mm away, beyond the
+    250 mm it ends at. Each refusal says which way to move."""
+    from addon.core.errors import ScannerError
+    from addon.core.kinematics import path as kp
+
+    cfg = load_scan_config("demo")
+    for y, z, said in ((100.0, 50.0, "the laser meets a surface 50 mm from the probe, nearer than its 70 mm: move "
+                                     "the path away from it"),
+                       (0.0, 330.0, "the nearest surface lies 270 mm away, beyond the probe's 250 mm: move the path "
+                                    "closer")):
+        wp = kp.sweep(2, [-0.5, y, z], [0.5, y, z])
+        with pytest.raises(ScannerError, match="2 of 2 waypoints put no surface inside the probe's range 70-250 mm") as err:
+            plan_scan(replace(cfg, waypoints=wp))
+        assert said in str(err.value), str(err.value)

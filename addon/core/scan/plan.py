@@ -147,8 +147,7 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
         z0, z1 = config.probe.z_range_mm
         raise ScannerError(f"{len(foot.empty_frames)} of {n} waypoints put no surface inside the probe's "
                            f"range {z0:.0f}-{z1:.0f} mm (frames {frame_ranges(foot.empty_frames)}): "
-                           "move the path closer to or farther from the part (or from whatever the laser meets "
-                           "first there: the table, a fixture)")
+                           f"{out_of_range_text(foot, z0, z1)}")
     cameras = foot.cameras_needed() if config.leave_out.skip_blind_cameras or allow_blind else (0, 1)
     if not cameras and not allow_blind:
         raise ScannerError("neither camera sees the laser line anywhere on the path (hidden or off the sensors)")
@@ -169,6 +168,35 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
 FIXTURE_RAYS = 256
 
 _FIXTURE_CASTERS: list = []  # (the config's fixtures tuple, [(world fixture name, SurfaceCaster)])
+
+
+def out_of_range_text(foot, z0: float, z1: float) -> str:
+    """Why the footprint's empty frames measure nothing and which way to move: the laser's
+    nearest surface nearer than the range, farther, or none at all."""
+    depth = foot.depth_mm[foot.empty_frames]
+    with catch_warnings():
+        simplefilter("ignore", RuntimeWarning)  # frames that meet nothing: NaN, as meant
+        nearest = np.nanmin(depth, axis=1)
+    said = []
+    near, far = nearest < z0, nearest > z1
+
+    def span(d):
+        lo, hi = f"{np.min(d):.0f}", f"{np.max(d):.0f}"
+        return f"{lo} mm" if lo == hi else f"{lo}-{hi} mm"
+
+    if near.any():
+        said.append(f"{'on ' + str(int(near.sum())) + ' of them ' if not near.all() else ''}the laser meets a "
+                    f"surface {span(nearest[near])} from the probe, nearer than "
+                    f"its {z0:.0f} mm: move the path away from it")
+    if far.any():
+        said.append(f"{'on ' + str(int(far.sum())) + ' of them ' if not far.all() else ''}the nearest surface lies "
+                    f"{span(nearest[far])} away, beyond the probe's "
+                    f"{z1:.0f} mm: move the path closer")
+    none = np.isnan(nearest)
+    if none.any():
+        said.append(f"{'on ' + str(int(none.sum())) + ' of them ' if not none.all() else ''}the laser meets "
+                    "nothing: aim it at the part")
+    return "; ".join(said) + " (the surface the laser meets first: the part, the table or a fixture)"
 
 
 def fixtures_in_the_way(config: ScanConfig, probe2table: np.ndarray, table_rad: np.ndarray,
