@@ -58,3 +58,24 @@ def test_the_preview_draws_points_on_fixtures_in_their_own_colour():
     with_fixture = render_preview(box, table, err, off, "t", size=(400, 300), on_fixture=fixture)
     assert _count(without, FIXTURE_BGR) == 0 and _count(with_fixture, FIXTURE_BGR) > 100
     assert _count(with_fixture, (150, 150, 150)) < _count(without, (150, 150, 150))
+
+
+def test_points_far_beyond_the_colour_scale_stand_out_and_are_counted():
+    """Most of a box's top read 1-2 µm and the scale ends at their 95th percentile; 12 points
+    at 130 µm (a rim's error) would be drawn in the scale's top colour, like the best points'
+    worst 5 %. They are drawn in their own colour instead, over the rest, and only they."""
+    from addon.core.scan.preview import BEYOND_BGR, render_preview
+
+    box = trimesh.creation.box([40.0, 40.0, 20.0])
+    box.apply_translation([0.0, 0.0, 10.0])
+    g = np.linspace(-18.0, 18.0, 40)
+    x, y = np.meshgrid(g, g)
+    top = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, 20.0)])
+    err = np.random.default_rng(0).uniform(1.0, 2.0, len(top))
+    on = np.ones(len(top), bool)
+    plain = render_preview(box, top, err, on, "t", size=(400, 300))
+    rim = np.argsort(top[:, 0])[-12:]  # the points along one edge
+    err[rim] = 130.0
+    marked = render_preview(box, top, err, on, "t", size=(400, 300))
+    assert _count(plain, BEYOND_BGR) == 0
+    assert _count(marked, BEYOND_BGR) >= 12 * 5  # each a dot of a few pixels, and the legend's
