@@ -704,5 +704,6 @@ class Scanner:
         from .core.files import check_output_folder
         from .core.scan.outputs import OUTPUT_FILES
 
-        check_output_folder(out_dir, OUTPUT_FILES.values())  # a file in the way, no permission: one line
+        # A file in the way, no permission, the part's own mesh where cloud.ply goes: one line.
+        check_output_folder(out_dir, OUTPUT_FILES.values(), inputs=self.config.input_files())
         return self.result(out_dir).files

@@ -161,7 +161,7 @@ def check_scheduler_answers(address: str, timeout_s: float = SCHEDULER_TIMEOUT_S
 def check_scan(config, out: str | Path, *, names=(), farm: bool = False, scheduler: str | None = None,
                force: bool = False) -> None:
     """Every check above for a scan of ``config`` into ``out``."""
-    check_output_folder(out, names, "--out")
+    check_output_folder(out, names, "--out", config.input_files())
     if farm:
         shards = Path(out) / "shards"
         if shards.exists() and not shards.is_dir():

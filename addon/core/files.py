@@ -97,10 +97,11 @@ def write_png(path: str | Path, bgr) -> Path:
     return write_bytes_atomic(path, png_bytes(bgr))
 
 
-def check_output_folder(folder: str | Path, names=(), what: str = "output folder") -> Path:
+def check_output_folder(folder: str | Path, names=(), what: str = "output folder", inputs=()) -> Path:
     """Refuse, in one line, an output folder a scan could not write into: a file where the
-    folder should be or above it, a place that is not writable, or a sub-folder where one of
-    the files ``names`` goes. Nothing is left behind (a trial folder is made and removed)."""
+    folder should be or above it, a place that is not writable, a sub-folder where one of
+    the files ``names`` goes, or one of ``inputs`` (files the scan reads: its part's mesh)
+    where one of them goes. Nothing is left behind (a trial folder is made and removed)."""
     p = Path(folder)
     if p.exists() and not p.is_dir():
         raise InputError(f"{what} {p} is a file; give a folder (it is made when missing)")
@@ -125,6 +126,14 @@ def check_output_folder(folder: str | Path, names=(), what: str = "output folder
         if target.exists() and not target.is_file():
             raise InputError(f"{what} {p}: {target} is a folder where the scan writes its {name}; "
                              f"move it away or choose another folder")
+        for source in inputs:
+            try:
+                same = target.is_file() and Path(source).is_file() and os.path.samefile(target, source)
+            except OSError:
+                same = False
+            if same:
+                raise InputError(f"{what} {p}: the scan would write its {name} over {source}, a file it reads; "
+                                 f"choose another folder (or move that file)")
     return p
 
 

@@ -265,7 +265,7 @@ def _report_warnings(op, report: dict) -> str:
     return f" ({len(warnings)} warning{'s' if len(warnings) != 1 else ''}: see the Info editor or report.json)"
 
 
-def _checked_output(folder: str, config_name: str):
+def _checked_output(folder: str, config_name: str, inputs=()):
     """The output folder a scan will write into, refused before any rendering where it cannot
     be written, or where it is relative (//...) to a .blend never saved (it would land
     wherever Blender was started)."""
@@ -275,7 +275,7 @@ def _checked_output(folder: str, config_name: str):
     if folder.startswith("//") and not bpy.data.filepath:
         raise InputError(f"the output folder {folder} is relative to the .blend file, which is not saved yet: "
                          f"save it first, or give an absolute folder")
-    return check_output_folder(models.output_dir(folder, config_name), OUTPUT_FILES.values())
+    return check_output_folder(models.output_dir(folder, config_name), OUTPUT_FILES.values(), inputs=inputs)
 
 
 def _error_text(e: dict) -> str:
@@ -504,7 +504,8 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
         from ..scanner import Scanner
 
         config = self._config(context)
-        self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, config.name)
+        self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, config.name,
+                                       config.input_files())
         scanner = Scanner(config=config, scene=context.scene)
         return scanner, scanner.run_steps()
 
@@ -631,7 +632,8 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
         s = context.scene.scanner
         cfg = _with_engine(context, _panel_config(context, self.config), self.engine)
         self._budget = self.max_profiles or s.adaptive_budget or cfg.adaptive.max_profiles
-        self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, f"{cfg.name} adaptive")
+        self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, f"{cfg.name} adaptive",
+                                       cfg.input_files())
         scanner = Scanner(config=cfg, scene=context.scene)
         return scanner, scanner.adaptive_steps(max_profiles=self._budget,
                                                target_coverage=self.target_coverage or None)

@@ -314,6 +314,15 @@ CASES = [
     ("config: safety clearance negative", demo_plus("[safety]\nmin_clearance_mm = -2.0"), 2,
      "min_clearance_mm"),
     ("config: fixture without file", demo_plus("[[fixture]]\nname = 'clamp'"), 2, "file"),
+    ("output: --out holds the part's own mesh where cloud.ply goes", lambda t: (
+        t.joinpath("out").mkdir(), t.joinpath("out", "cloud.ply").write_bytes(cube_mm().export(file_type="ply")),
+        ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0', f'file = "{t / "out" / "cloud.ply"}"')),
+         "--out", str(t / "out")])[2], 2, "would write its cloud.ply over"),
+    ("output: --out holds a fixture's mesh where cloud.ply goes", lambda t: (
+        t.joinpath("out").mkdir(), t.joinpath("out", "cloud.ply").write_bytes(cube_mm(10.0).export(file_type="ply")),
+        ["scan", scene(t, DEMO + f'\n[[fixture]]\nname = "stop"\nfile = "{t / "out" / "cloud.ply"}"\n'
+                              f'pose.xyz_mm = [100.0, 0.0, 0.0]\n'), "--out", str(t / "out")])[2],
+     2, "a file it reads"),
     ("config: fixture colliding", lambda t: (t.joinpath("block.stl").write_bytes(cube_mm(400.0).export(
         file_type="stl")), ["scan", scene(t, DEMO + f'\n[[fixture]]\nname = "wall"\nfile = "{t / "block.stl"}"\n')])[1],
      2, ""),

@@ -209,6 +209,12 @@ class ScanConfig:
                        material=self.material if material is None else material,
                        roughness=self.roughness if roughness is None else float(roughness))
 
+    def input_files(self) -> list[str]:
+        """The files this scan reads that an output could overwrite: the config, the part's
+        and the fixtures' mesh files."""
+        sources = [self.source, self.workpiece.source] + [f.source for f in self.fixtures]
+        return [s for s in sources if s and not s.startswith(("builtin:", "bench:", "test:"))]
+
     def raycast_refusal(self) -> str | None:
         """With engine raycast: why this scan needs Cycles instead (see
         :func:`~addon.core.config.render.raycast_mismatch`), else None."""
@@ -445,7 +451,8 @@ def _fixtures(top: Table, base: Path) -> tuple:
         on = t.string("on", default="table", choices=list(FIXTURE_CARRIERS))
         pose = t.pose("pose")  # its own errors name its own keys
         try:
-            mesh = load_workpiece(f if f.is_absolute() else base / f, pose, scale, role="fixture").mesh
+            f = f if f.is_absolute() else base / f
+            mesh = load_workpiece(f, pose, scale, role="fixture").mesh
         except (InputError, ConfigError) as exc:
             raise t.error("file", str(exc)) from None
         if on == "table" and mesh.bounds[1][2] <= 0.0:
@@ -460,7 +467,7 @@ def _fixtures(top: Table, base: Path) -> tuple:
                                 f"turns: place it on the table (pose xyz_mm in the table frame), or give "
                                 f"on = \"world\" for a fixture that stands beside the cell")
         t.finish()
-        out.append(Fixture(name, mesh, on))
+        out.append(Fixture(name, mesh, on, str(f)))
     return tuple(out)
 
 

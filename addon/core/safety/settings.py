@@ -19,6 +19,7 @@ class Fixture:
     name: str
     mesh: trimesh.Trimesh
     on: str = "table"
+    source: str = ""  # the mesh file it was read from ("": made in code)
 
 
 @dataclass(frozen=True)
