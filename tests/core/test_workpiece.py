@@ -147,3 +147,22 @@ def test_a_closed_mesh_that_cannot_be_signed_is_named_with_the_right_reason():
                         (turned, "is not wound consistently")):
         warned = part_warnings(replace(config, workpiece=Workpiece("m", mesh, mesh, "test", np.eye(4))))
         assert any(words in w for w in warned), warned
+
+
+def test_a_mesh_wound_inside_out_is_turned_right_side_out_and_said_so(tmp_path):
+    """A 40 mm cube whose faces all face inward: loaded, its inside is the cube's inside again
+    (a point 5 mm inside the top face has signed distance -5 mm, negative inside, as the report
+    defines the bias), and the load says what it changed; the right way out says nothing."""
+    cube = trimesh.creation.box([40.0, 40.0, 40.0])
+    cube.apply_translation([0.0, 0.0, 20.0])
+    inverted = cube.copy()
+    inverted.invert()
+    assert inverted.volume < 0
+    for name, mesh in (("right.stl", cube), ("inside_out.stl", inverted)):
+        mesh.export(tmp_path / name)
+    right, wrong = load_workpiece(tmp_path / "right.stl"), load_workpiece(tmp_path / "inside_out.stl")
+    inside = np.array([[0.0, 0.0, 35.0]])
+    for wp in (right, wrong):
+        assert wp.mesh.volume == pytest.approx(64000.0)
+        assert distances(inside, wp.truth)[1][0] == pytest.approx(-5.0, abs=1e-9)
+    assert right.notes == () and len(wrong.notes) == 1 and "inside out" in wrong.notes[0]

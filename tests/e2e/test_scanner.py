@@ -293,9 +293,9 @@ def test_a_path_that_measures_little_of_a_large_part_says_so():
     """A 200 mm plate scanned by a path of two profiles: each lights one line at most the
     plate's diagonal (283 mm) long, and coverage counts 1 mm either side of it, so at most
     2 × 2 × 283 mm² of the plate's 83 200 mm² (1.4 %) can be measurable: the report says the
-    path misses most of the part. The same two profiles taken step by step say nothing (a
-    step-by-step scan has only begun); the demo's own first table turn measures far more of
-    its sphere and says nothing of the kind either."""
+    path misses most of the part. The same two profiles taken step by step, or two frames
+    picked from a longer path, say nothing (a scan only begun, a path not all scanned); the
+    demo's own first table turn measures far more of its sphere and says nothing either."""
     from dataclasses import replace
 
     import trimesh
@@ -303,11 +303,14 @@ def test_a_path_that_measures_little_of_a_large_part_says_so():
     from addon.core.config.scan import load_scan_config
     from addon.core.geometry.workpiece import Workpiece
 
+    from addon.core.kinematics.path import sweep
+
     plate = trimesh.creation.box([200.0, 200.0, 4.0])
     plate.apply_translation([0.0, 0.0, 2.0])
     base = load_scan_config("demo").with_overrides(engine="raycast")
-    cfg = replace(base, workpiece=Workpiece("plate", plate, plate, "test:plate", np.eye(4)))
-    s = Scanner(config=cfg.with_overrides(frames=slice(0, 2)))
+    cfg = replace(base, workpiece=Workpiece("plate", plate, plate, "test:plate", np.eye(4)),
+                  waypoints=sweep(2, [-1.0, 0.0, 150.0], [1.0, 0.0, 150.0]))
+    s = Scanner(config=cfg)
     s.run()
     report = s.report().to_dict()
     assert 0 < report["measurable_share"] <= 2 * 2 * 283 / plate.area
@@ -318,6 +321,12 @@ def test_a_path_that_measures_little_of_a_large_part_says_so():
     steps.move_to(s.pose())
     steps.measure()
     report = steps.report().to_dict()
+    assert 0 < report["measurable_share"] < 0.05 and not any("can measure only" in w for w in report["warnings"])
+
+    # Frames picked from a longer path (--frames) say nothing either: the path is not all scanned.
+    picked = Scanner(config=replace(base, workpiece=cfg.workpiece).with_overrides(frames=slice(0, 2)))
+    picked.run()
+    report = picked.report().to_dict()
     assert 0 < report["measurable_share"] < 0.05 and not any("can measure only" in w for w in report["warnings"])
 
     turn = Scanner.from_config("demo", engine="raycast", frames=slice(0, 60))

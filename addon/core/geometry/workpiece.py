@@ -51,6 +51,7 @@ class Workpiece:
     truth: object
     source: str
     pose: np.ndarray = field(default_factory=lambda: np.eye(4))
+    notes: tuple = ()  # what loading it changed, for the scan's warnings (a mesh turned right side out)
 
     @property
     def is_analytic(self) -> bool:
@@ -66,7 +67,7 @@ def turned_on_table(wp: Workpiece, deg: float) -> Workpiece:
     mesh = wp.mesh.copy()
     mesh.apply_transform(R)
     truth = replace(wp.truth, pose=R @ wp.truth.pose) if wp.is_analytic else mesh
-    return Workpiece(wp.name, mesh, truth, wp.source, R @ wp.pose)
+    return Workpiece(wp.name, mesh, truth, wp.source, R @ wp.pose, wp.notes)
 
 
 def builtin_workpiece(kind: str, pose=None, **params) -> Workpiece:
@@ -141,9 +142,16 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
                          f"Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches"
                          f"{'; in the panel, its Scale field' if role == 'part' else ''})")
     check_mesh(mesh, str(path))
+    notes = ()
+    if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume < 0:
+        # Faces wound inward: the signed distance would call the part's outside its inside and
+        # every bias would change sign. The surface is the same; its outside is not in doubt.
+        mesh.invert()
+        notes = (f"the {role} mesh {path.name} was wound inside out (its faces facing inward); it was turned "
+                 "right side out, so that inside and outside, and the bias's sign, are the part's",)
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)
-    return Workpiece(path.stem, mesh, mesh, str(path), pose)
+    return Workpiece(path.stem, mesh, mesh, str(path), pose, notes)
 
 
 SINK_TOLERANCE_MM = 0.05  # a part may reach this far below the table top (a mesh's rounding)
@@ -166,7 +174,7 @@ def resting_on_table(wp: Workpiece) -> tuple[Workpiece, float]:
     T[2, 3] = lift
     mesh = wp.mesh.copy()
     mesh.apply_transform(T)
-    return Workpiece(wp.name, mesh, mesh, wp.source, T @ wp.pose), lift
+    return Workpiece(wp.name, mesh, mesh, wp.source, T @ wp.pose, wp.notes), lift
 
 
 def lift_text(lift_mm: float, decimals: int = 1) -> str | None:

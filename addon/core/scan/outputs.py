@@ -83,8 +83,8 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
              t_start: float, extra: dict | None = None, step_by_step: bool = False) -> ScanResult:
     """The scan's result from its cloud and counters: error against the truth, the report,
     and (with ``out_dir``) cloud.ply, report.json and preview.png written atomically.
-    ``step_by_step``: frames a Scanner took one by one (not a path), which say nothing of
-    how much of the part a path measures."""
+    ``step_by_step``: frames a Scanner took one by one (not a path), which, like frames picked
+    from a path (``config.path_frames``), say nothing of how much of the part a path measures."""
     probe = config.probe
     timing = dict(timing)
     t = time.perf_counter()
@@ -99,9 +99,9 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     r = config.render
     warnings = list(plan.warnings) + fixture_warnings(plan.fixture_frames, len(plan.q))
     share = quality.get("measurable_share", 0.0)
-    if n and 0 < share < SMALL_SHARE and not step_by_step:
+    if n and 0 < share < SMALL_SHARE and not step_by_step and config.path_frames is None:
         warnings.append(f"the path can measure only {share * 100:.1f} % of the part's surface (whole-part coverage "
-                        f"{quality['coverage'] * 100:.1f} %): the part reaches far beyond what the path scans; "
+                        f"{quality['coverage'] * 100:.1f} %): most of the part lies outside what it scans; "
                         "a path of the part's own size: [[path]] entries, or the adaptive planner")
     used = (extra or {}).get("render_device")
     if r.engine == "cycles" and r.device != "CPU" and used == "CPU":

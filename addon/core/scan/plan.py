@@ -303,7 +303,7 @@ def part_warnings(config: ScanConfig) -> list[str]:
     if known is not None:
         return list(known)
     wp = config.workpiece
-    out = []
+    out = list(wp.notes)
     if not wp.is_analytic and not has_inside(wp.mesh):
         if not wp.mesh.is_watertight:
             _, faces_per_edge = np.unique(wp.mesh.edges_sorted, axis=0, return_counts=True)
