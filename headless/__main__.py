@@ -1,5 +1,6 @@
 """``python -m headless``: see headless/cli.py."""
 
+import os
 import sys
 
 from headless.bootstrap import missing_package_line
@@ -14,4 +15,13 @@ except ModuleNotFoundError as exc:
         raise
     print(line, file=sys.stderr)
     code = 2
-sys.exit(code)
+# The command is over and everything it writes is written: leave now. The interpreter's own
+# teardown (modules, Blender's and Dask's exit hooks) takes tens of milliseconds in which a
+# Ctrl-C, with Python's handler back, kills the process by the signal (or prints a traceback
+# from a thread's join) after a scan that finished and wrote its results.
+try:
+    sys.stdout.flush()
+    sys.stderr.flush()
+except (BrokenPipeError, OSError):  # whoever read the output has gone (see cli.main)
+    pass
+os._exit(code)

@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
         finally:
             progress.bar.finish()
         if stops is not None:
-            stops.check()
+            stops.finish()  # as a scan's: a stop from here waits for the results to be written
         if not steps:
             raise InputError(f"no view was scanned: none the robot can do fits the budget of {settings.max_profiles} "
                              f"profiles and promises {settings.min_gain} unseen cells (raise --max-profiles, or check "

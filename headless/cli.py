@@ -167,6 +167,7 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
     stops.temp = temp
     args.stops = stops
     pipeline.set_default_progress(args.stops.progress)  # scans started without one (the benchmarks')
+    code = None
     try:
         stops.record_only = False
         stops.check()  # Ctrl-C while the command started
@@ -178,18 +179,22 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
         return code
     except FolderBusy as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_BUSY
+        code = EXIT_BUSY
+        return code
     except ScannerError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_USER_ERROR
+        code = EXIT_USER_ERROR
+        return code
     except Interrupted as exc:
         # A benchmark writes its figures and files once all is measured: none yet.
         where = " of the scan under way: nothing written" if getattr(args, "bench", None) else ""
         print(exc.describe() + where, file=sys.stderr)
-        return exc.exit_code
+        code = exc.exit_code
+        return code
     except KeyboardInterrupt:
         print("interrupted (Ctrl-C)", file=sys.stderr)
-        return 130
+        code = 130
+        return code
     except BrokenPipeError:
         # Whoever read the output (``| head``) has gone: that is no failure of the scan, and
         # files already written (all of a set or none) stay. Exit as a process killed by
@@ -201,12 +206,17 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
             print("stopped: the program reading the output closed it (broken pipe)", file=sys.stderr, flush=True)
         except OSError:  # stderr went into the same closed pipe (2>&1)
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
-        return 128 + signal.SIGPIPE
+        code = 128 + signal.SIGPIPE
+        return code
     except OSError as exc:  # a disk full, a folder that vanished, a permission taken away mid-run
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"error: {where}{exc.strerror or exc} (nothing was written)", file=sys.stderr)
-        return EXIT_USER_ERROR
+        code = EXIT_USER_ERROR
+        return code
     finally:
-        temp.close()  # a second Ctrl-C meanwhile still ends the process cleanly (exit 130)
-        args.stops.restore()
+        # The command is over: from here a signal ends the process with its code (see
+        # StopRequests.leaving); a second Ctrl-C after a stop still ends it cleanly (exit 130).
+        sys.stderr.flush()
+        args.stops.restore(code)
+        temp.close()
         pipeline.set_default_progress(None)

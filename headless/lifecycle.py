@@ -113,6 +113,13 @@ class StopRequests:
         # catch-all ``except`` (trimesh does) would otherwise swallow the KeyboardInterrupt,
         # and the command would run on as if nobody had asked.
         self.record_only = False
+        # Once every frame is measured (``finishing``) a stop waits for the results to be
+        # written, as a stop under way waits for the frames being rendered: raised anywhere in
+        # the metrics or the writing, it would leave a lock behind, or say "nothing written"
+        # of files that were. ``leaving``: the command is over and exits with this code; a
+        # signal now ends the process with it at once, without a traceback from the teardown.
+        self.finishing = False
+        self.leaving: int | None = None
 
     def install(self) -> "StopRequests":
         """Take SIGINT and SIGTERM, except one the process was started with ignored: a job a
@@ -127,11 +134,14 @@ class StopRequests:
                 pass
         return self
 
-    def restore(self) -> None:
-        """Give the signals back to their old handlers, unless a stop was asked for in a process
-        that exits after the command (``exiting``): it is then on its way out, and a second
-        Ctrl-C before it is gone must still end it as one stop (exit 128 + signal), not as
-        Python's KeyboardInterrupt from wherever it lands."""
+    def restore(self, code: int | None = None) -> None:
+        """Give the signals back to their old handlers, unless the process exits after the
+        command (``exiting``): it is then on its way out, and a signal before it is gone ends it
+        with the command's ``code`` (see ``leaving``), or, after a stop with no code, as that one
+        stop (exit 128 + signal), never as Python's KeyboardInterrupt from wherever it lands."""
+        if self.exiting and code is not None:
+            self.leaving = int(code)
+            return
         if self.signum is not None and self.exiting:
             return
         for s, old in self._old.items():
@@ -145,9 +155,14 @@ class StopRequests:
         self.restore()
 
     def _on_signal(self, signum, frame) -> None:
+        if self.leaving is not None:  # the command is over: its results stand, its code too
+            if self.temp is not None:
+                self.temp.close()
+            os._exit(self.leaving)
         if self.signum is not None:  # the second one: stop now
-            print(f"\n{self.interrupted().describe()}: stopped at once, nothing written", file=self.stream,
-                  flush=True)
+            said = ("stopped at once while the results were being written (the output folder may hold them)"
+                    if self.finishing else "stopped at once, nothing written")
+            print(f"\n{self.interrupted().describe()}: {said}", file=self.stream, flush=True)
             for undo in reversed(self.cleanups):
                 try:
                     undo()
@@ -159,6 +174,10 @@ class StopRequests:
         self.signum = signum
         if self.record_only:
             return
+        if self.finishing:
+            print(f"\n{SIGNAL_NAMES.get(signum)}: every frame is measured, so the results are written first "
+                  f"({SIGNAL_NAMES.get(signum)} again to stop at once)", file=self.stream, flush=True)
+            return
         if "bpy" not in sys.modules:
             raise self.interrupted()
         print(f"\nstopping when the frames being rendered are done ({SIGNAL_NAMES.get(signum)} again to stop "
@@ -168,8 +187,14 @@ class StopRequests:
         return Interrupted(self.signum or signal.SIGINT, self.done, self.total, self.unit)
 
     def check(self) -> None:
-        if self.signum is not None:
+        if self.signum is not None and not self.finishing:
             raise self.interrupted()
+
+    def finish(self) -> None:
+        """Every frame is measured: a stop asked for before now ends the command (nothing
+        written); one from now on waits for the results to be written (see ``finishing``)."""
+        self.check()
+        self.finishing = True
 
     def progress(self, stage: str, done: int, total: int) -> None:
         self.done, self.total = done, total

@@ -292,7 +292,7 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
         scanner = Scanner(config=config)
         scanner.run(progress=progress)
         if stops is not None:
-            stops.check()  # a stop asked for during the last frames: still nothing written
+            stops.finish()  # a stop asked for during the last frames: still nothing written; later: results first
         result = scanner.result(out)
     wall = time.perf_counter() - t
     print_summary(result, wall)

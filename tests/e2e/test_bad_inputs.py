@@ -669,8 +669,23 @@ def case_broken_pipe_free_exit_on_bad_config(tmp):
     assert proc.returncode == 2 and len(stderr.strip().splitlines()) == 1 and _temp_left(tmp) == []
 
 
+def case_ctrl_c_once_the_results_are_written(tmp):
+    # A QA trial's Ctrl-C as the summary printed (the files written): it said "nothing written"
+    # of three files, left the folder's lock, or died with a traceback from the teardown. The
+    # scan by ray casting, whose process has no Blender to hold the signal back.
+    out = tmp / "out"
+    proc = _start(["scan", "demo", "--engine", "raycast", "--quiet", "--out", str(out)], tmp)
+    _wait_for(proc, "  points", stream="stdout")
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 0, stderr
+    assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "preview.png", "report.json"], stderr
+    assert "nothing written" not in stderr and "Traceback" not in stderr, stderr
+    assert _temp_left(tmp) == []
+
+
 PROCESS_CASES = [case_ctrl_c_once, case_ctrl_c_twice, case_sigterm, case_ctrl_c_farm, case_ctrl_c_bench,
-                 case_file_size_limit, case_stale_temp_folders_are_removed, case_broken_pipe_free_exit_on_bad_config]
+                 case_ctrl_c_once_the_results_are_written, case_file_size_limit, case_stale_temp_folders_are_removed, case_broken_pipe_free_exit_on_bad_config]
 
 
 @pytest.mark.parametrize("case", PROCESS_CASES, ids=[c.__name__[5:] for c in PROCESS_CASES])
