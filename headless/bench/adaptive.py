@@ -24,6 +24,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from headless.bench import whole
 
 
 GROWTH_PNG = Path(__file__).resolve().parents[1] / "gallery" / "adaptive_growth.png"
@@ -31,7 +32,7 @@ GROWTH_PANELS = 5   # at most; the views between are left out, the last one alwa
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--budget", type=int, default=450, help="profiles per method and part (default 450)")
+    parser.add_argument("--budget", type=whole(), default=450, help="profiles per method and part (default 450)")
     parser.add_argument("--only", default="", help="only the parts whose name holds this text (comma-separated)")
     parser.add_argument("--readme", action="store_true", help="put the table and the plot into docs/adaptive.md")
     parser.add_argument("--growth", action="store_true",

@@ -18,13 +18,14 @@ import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
+from headless.bench import whole
 
 VIEWS = (5, 10, 20, 40)
 SCENES = (("tilted_plane", slice(None, None, 3), "plate"), ("demo", slice(None, None, 6), "sphere"))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--views", type=int, nargs="+", default=list(VIEWS), help="board poses per calibration")
+    parser.add_argument("--views", type=whole(), nargs="+", default=list(VIEWS), help="board poses per calibration")
     parser.add_argument("--ideal-only", action="store_true", help="leave out the realistic sensor's rows")
     parser.add_argument("--readme", action="store_true", help="put the tables and the plot into docs/calibration.md")
     parser.set_defaults(run=run)

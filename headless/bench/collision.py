@@ -13,11 +13,12 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from headless.bench import whole
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=int, default=10_000, help="frames in the path (default 10000)")
-    parser.add_argument("--repeats", type=int, default=3, help="timed repeats; the median is printed")
+    parser.add_argument("--frames", type=whole(), default=10_000, help="frames in the path (default 10000)")
+    parser.add_argument("--repeats", type=whole(), default=3, help="timed repeats; the median is printed")
     parser.add_argument("--readme", action="store_true", help="put the figures into docs/safety.md")
     parser.set_defaults(run=run)
 

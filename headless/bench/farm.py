@@ -21,12 +21,13 @@ import time
 from dataclasses import replace
 
 import numpy as np
+from headless.bench import whole
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=int, default=120, help="frames of the 160x160 scenario (default 120)")
-    parser.add_argument("--hires-frames", type=int, default=60, help="frames of the 1280x1024 scenario (default 60)")
-    parser.add_argument("--repeats", type=int, default=2,
+    parser.add_argument("--frames", type=whole(), default=120, help="frames of the 160x160 scenario (default 120)")
+    parser.add_argument("--hires-frames", type=whole(), default=60, help="frames of the 1280x1024 scenario (default 60)")
+    parser.add_argument("--repeats", type=whole(), default=2,
                         help="runs of each layout, in rounds; the median counts (default 2)")
     parser.add_argument("--readme", action="store_true", help="also put the table into docs/farm.md")
     parser.set_defaults(run=run)

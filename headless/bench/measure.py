@@ -11,14 +11,15 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from headless.bench import whole
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", default="demo", help="scan config (default demo)")
     parser.add_argument("--engine", choices=("cycles", "raycast"), default="cycles",
                         help="render engine (default cycles; raycast: Embree, without Blender)")
-    parser.add_argument("--measures", type=int, default=30, help="measure() calls per round (default 30)")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds; medians count (default 3)")
+    parser.add_argument("--measures", type=whole(), default=30, help="measure() calls per round (default 30)")
+    parser.add_argument("--rounds", type=whole(), default=3, help="rounds; medians count (default 3)")
     parser.set_defaults(run=run)
 
 

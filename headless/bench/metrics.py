@@ -10,12 +10,13 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from headless.bench import whole
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--points", type=int, default=25000, help="points (default 25000)")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds; medians count (default 3)")
-    parser.add_argument("--trimesh-points", type=int, default=500, help="points given to trimesh (default 500)")
+    parser.add_argument("--points", type=whole(), default=25000, help="points (default 25000)")
+    parser.add_argument("--rounds", type=whole(), default=3, help="rounds; medians count (default 3)")
+    parser.add_argument("--trimesh-points", type=whole(), default=500, help="points given to trimesh (default 500)")
     parser.set_defaults(run=run)
 
 

@@ -22,10 +22,11 @@ from addon.core.kinematics.path import AROUND_PART_STANDOFF_MM as STANDOFF_MM
 from addon.core.kinematics.path import around_part as part_path
 
 from addon.core.geometry.metrics import OUTLIER_MM  # the real-parts goal: nothing farther from the part
+from headless.bench import whole
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=int, default=60, help="frames per table turn (default 60; the sweep has half)")
+    parser.add_argument("--frames", type=whole(), default=60, help="frames per table turn (default 60; the sweep has half)")
     parser.add_argument("--only", default="", help="scan only the parts whose name contains this text (several: comma-separated)")
     parser.add_argument("--probe", default="default", help="probe rig (default: default; hires: the 1280-row probe)")
     parser.add_argument("--readme", action="store_true", help="put the table and the picture into docs/accuracy.md")

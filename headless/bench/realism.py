@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import statistics
 from dataclasses import replace
+from headless.bench import whole
 
 EFFECTS = {
     "pixel integration": dict(integrate_pixels=True),
@@ -40,12 +41,12 @@ ALL_SCENE = dict(material="glossy", roughness=0.15, bounces=2, ambient=0.3)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=int, default=30, help="frames per scan (default 30)")
-    parser.add_argument("--repeats", type=int, default=1, help="runs per row; the median time counts")
+    parser.add_argument("--frames", type=whole(), default=30, help="frames per scan (default 30)")
+    parser.add_argument("--repeats", type=whole(), default=1, help="runs per row; the median time counts")
     parser.add_argument("--scenes", default="demo,step_block", help="scan configs, comma-separated "
                                                                      "(default demo,step_block)")
     parser.add_argument("--only", choices=("scans", "noise"), help="run one part: the scans or the noise comparison")
-    parser.add_argument("--noise-frames", type=int, default=20, help="noisy frames per level (default 20)")
+    parser.add_argument("--noise-frames", type=whole(), default=20, help="noisy frames per level (default 20)")
     parser.add_argument("--readme", action="store_true", help="also put the tables into docs/realism.md")
     parser.set_defaults(run=run)
 

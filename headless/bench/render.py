@@ -12,12 +12,13 @@ import time
 from dataclasses import replace
 
 from headless.bench.timing import fmt_time
+from headless.bench import whole
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=int, default=24, help="frames in the path (default 24)")
+    parser.add_argument("--frames", type=whole(), default=24, help="frames in the path (default 24)")
     parser.add_argument("--probe", default="default", help="probe name or file (default: default)")
-    parser.add_argument("--repeats", type=int, default=3, help="repeats of each way (default 3)")
+    parser.add_argument("--repeats", type=whole(), default=3, help="repeats of each way (default 3)")
     parser.set_defaults(run=run)
 
 

@@ -16,6 +16,7 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from headless.bench import whole
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -23,7 +24,7 @@ REPO = Path(__file__).resolve().parents[2]
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("pythons", nargs="*", metavar="PYTHON",
                         help="interpreters to compare (default: this one); each needs bpy and the project's packages")
-    parser.add_argument("--rounds", type=int, default=5, help="demo runs per interpreter; medians count (default 5)")
+    parser.add_argument("--rounds", type=whole(), default=5, help="demo runs per interpreter; medians count (default 5)")
     parser.add_argument("--frames", default=None, help="part of the demo path, as A:B:STEP (default: all 180)")
     parser.set_defaults(run=run)
 
