@@ -76,11 +76,18 @@ class Profile:
         return np.where(self.camera == 3, 1.0, 0.5)
 
 
+MAX_TABLE_TURN_DEG = 3600.0  # the most a table turns (or is turned to) in one move: ten turns
+
+
 def _robot(value) -> Robot:
+    if not isinstance(value, (Robot, str, Path)):
+        raise InputError(f"robot must be a Robot, a bundled rig's name or a rig or URDF file's path, got {value!r}")
     return value if isinstance(value, Robot) else load_robot(value)
 
 
 def _probe(value) -> Probe:
+    if not isinstance(value, (Probe, str, Path)):
+        raise InputError(f"probe must be a Probe, a bundled probe's name or a probe file's path, got {value!r}")
     return value if isinstance(value, Probe) else load_probe(value)
 
 
@@ -91,6 +98,9 @@ def _workpiece(value) -> tuple[Workpiece, str | None]:
     if isinstance(value, Workpiece):
         check_on_table(value, "move it up (its mesh and truth in the table frame, z = 0 the table top)")
         return value, None
+    if not isinstance(value, (str, Path)):
+        raise InputError(f"workpiece must be a Workpiece, a built-in shape's name ({', '.join(BUILTINS)}) or a mesh "
+                         f"file's path, got {value!r}")
     if value in BUILTINS:
         return builtin_workpiece(value), None
     part, lift = resting_on_table(load_workpiece(value))
@@ -121,6 +131,13 @@ class Scanner:
                  render: RenderOptions | None = None, detect: str = "gauss", *, config: ScanConfig | None = None,
                  scene=None):
         moved = None
+        if table is not None and not isinstance(table, Turntable):
+            raise InputError(f"table must be a Turntable (None: the paper's), got {table!r}")
+        if config is not None and not isinstance(config, ScanConfig):
+            raise InputError(f"config must be a ScanConfig (load_scan_config(name or path)), got {config!r}")
+        if render is not None and not isinstance(render, RenderOptions):
+            raise InputError(f"render must be a RenderOptions (None: the demo's), got {render!r}; for another "
+                             f"engine: Scanner.from_config(config, engine=...) or config.with_overrides(engine=...)")
         if config is None:
             base = load_scan_config("demo")  # the detection, filter and leave-out defaults of a scan
             part, moved = _workpiece(workpiece)
@@ -237,6 +254,8 @@ class Scanner:
         """Every profile measured from frame ``first`` on, in order, as (its frame, the probe's
         pose in the table frame (4, 4), its points (n, 3), table frame): what a planner that
         joins a scan under way learns from."""
+        first = check_whole(int(first) if isinstance(first, np.integer) else first,
+                            "measurements(first): the frame to start from", 0, 2**62)
         if first >= self._frames:
             return
         q = np.concatenate([p[0] for p in self._poses])[first:]
@@ -299,8 +318,10 @@ class Scanner:
     def turn_table(self, deg: float) -> float:
         """Turn the table by ``deg`` degrees; returns its new angle (degrees). Raises
         CollisionError (and turns nothing) where the part or a fixture would hit the robot."""
-        if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg):
-            raise InputError(f"table turn must be a finite number of degrees, got {deg!r}")
+        if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg) \
+                or abs(deg) > MAX_TABLE_TURN_DEG:
+            raise InputError(f"table turn must be a finite number of degrees within ±{MAX_TABLE_TURN_DEG:g} "
+                             f"(ten turns), got {deg!r}")
         self._check_move(self._q, self._table_rad + math.radians(deg))
         self._table_rad += math.radians(deg)
         return self.table_deg
@@ -308,8 +329,10 @@ class Scanner:
     def turn_table_to(self, deg: float) -> float:
         """Turn the table to the angle ``deg`` (degrees; :meth:`turn_table` turns it by an angle);
         returns the new angle. Raises CollisionError (and turns nothing) as turn_table does."""
-        if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg):
-            raise InputError(f"table angle must be a finite number of degrees, got {deg!r}")
+        if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg) \
+                or abs(deg) > MAX_TABLE_TURN_DEG:
+            raise InputError(f"table angle must be a finite number of degrees within ±{MAX_TABLE_TURN_DEG:g}, "
+                             f"got {deg!r}")
         return self.turn_table(float(deg) - self.table_deg)
 
     def _check_move(self, q: np.ndarray, table_rad: float) -> None:

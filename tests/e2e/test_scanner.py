@@ -359,3 +359,31 @@ def test_a_move_can_be_checked_before_it_is_made_and_the_table_turned_to_an_angl
     assert s.turn_table_to(-30.0) == pytest.approx(-30.0) and s.table_deg == pytest.approx(-30.0)
     with pytest.raises(InputError, match="table angle"):
         s.turn_table_to(float("nan"))
+
+
+@pytest.mark.parametrize("call,words", [
+    (lambda: Scanner(workpiece=42), "workpiece must be"),
+    (lambda: Scanner(table="x"), "table must be a Turntable"),
+    (lambda: Scanner(render="raycast"), "engine=..."),
+    (lambda: Scanner(robot=3), "robot must be"),
+    (lambda: Scanner(probe=None), "probe must be"),
+    (lambda: Scanner(config="demo"), "load_scan_config"),
+    (lambda: Scanner.from_config("demo", samples="4"), "--samples (samples)"),
+    (lambda: Scanner.from_config("demo", resolution="160x160"), "(width, height)"),
+    (lambda: Scanner.from_config("demo", frames=1000), "must be a slice"),
+    (lambda: Scanner.from_config("demo", frames=1.5), "must be a slice"),
+    (lambda: Scanner.from_config("demo", frames=slice(0, 10, 0)), "the step must be"),
+    (lambda: Scanner.from_config("demo", engine="raycast").turn_table(1e20), "within ±3600"),
+    (lambda: Scanner.from_config("demo", engine="raycast").turn_table_to(-1e300), "within ±3600"),
+    (lambda: list(Scanner.from_config("demo", engine="raycast").measurements(first=-5)), "measurements(first)"),
+])
+def test_a_wrong_argument_to_the_api_is_named_in_the_projects_own_error(call, words):
+    """A script's mistakes (a QA trial: a TypeError, an AttributeError, an IndexError, numpy's
+    "Maximum allowed size exceeded") are InputErrors naming what was wrong and what is allowed."""
+    with pytest.raises(InputError) as err:
+        call()
+    assert words in str(err.value), str(err.value)
+
+
+def test_frames_may_be_given_as_the_command_lines_text():
+    assert Scanner.from_config("demo", engine="raycast", frames="10:14").config.path_frames.tolist() == [10, 11, 12, 13]

@@ -62,7 +62,7 @@ from ..kinematics.ik_remote import DEFAULT_PORT, Controller, ControllerIK
 from .toml import Table, load_toml, resolve_rig
 from ..optics.detect import METHODS as DETECT_METHODS
 from ..optics.detect import DetectParams
-from ..errors import ConfigError, InputError
+from ..errors import ConfigError, InputError, check_whole
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
 from ..optics.probe import Probe
@@ -246,18 +246,30 @@ class ScanConfig:
                              f"{render.engine} ({'OpenGL' if render.engine == 'eevee' else 'Embree on the CPU'}): "
                              f"leave --device out, or add --engine cycles")
         if samples is not None:
-            if not 1 <= samples <= 65536:
-                raise InputError(f"--samples must be in [1, 65536], got {samples}")
+            samples = check_whole(_whole(samples), "--samples (samples)", 1, 65536)
             render = replace(render, samples=samples)
         cfg = replace(cfg, render=render)
         if resolution is not None:
-            W, H = resolution
+            size = resolution if isinstance(resolution, (tuple, list)) else ()
+            if len(size) != 2 or not all(isinstance(_whole(v), int) and not isinstance(v, bool) and 2 <= v <= 100_000
+                                         for v in size):
+                raise InputError(f"--resolution (resolution) must be two whole numbers (width, height) of 2 to "
+                                 f"100000 pixels, got {resolution!r}")
+            W, H = (int(v) for v in size)
             cfg = replace(cfg, probe=cfg.probe.with_resolution(H, W))
         if detect is not None:
             if detect not in DETECT_METHODS:
                 raise InputError(f"--detect {detect!r} is not one of: {', '.join(DETECT_METHODS)}")
             cfg = replace(cfg, detect_method=detect)
         if frames is not None:
+            if isinstance(frames, str):
+                frames = parse_frames(frames, "--frames (frames)")
+            if not isinstance(frames, slice) or not all(v is None or isinstance(_whole(v), int)
+                                                        for v in (frames.start, frames.stop, frames.step)):
+                raise InputError(f"--frames (frames) must be a slice of the path with whole numbers (slice(0, 40), "
+                                 f"or as text \"0:40\"), got {frames!r}")
+            if frames.step is not None and frames.step < 1:
+                raise InputError(f"--frames (frames): the step must be a whole number of at least 1, got {frames.step}")
             picked = np.arange(len(cfg.waypoints))[frames]
             if picked.size == 0:
                 asked = frames if not isinstance(frames, slice) else ":".join(
@@ -268,6 +280,11 @@ class ScanConfig:
             numbers = np.arange(len(cfg.waypoints)) if cfg.path_frames is None else cfg.path_frames
             cfg = replace(cfg, waypoints=cfg.waypoints.select(picked), path_frames=numbers[picked])
         return cfg
+
+
+def _whole(v):
+    """numpy's whole numbers as Python's (a loop's np.int64); anything else as it is."""
+    return int(v) if isinstance(v, np.integer) else v
 
 
 def parse_frames(text: str | None, what: str = "frames") -> slice | None:
