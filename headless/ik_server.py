@@ -58,8 +58,12 @@ class _Handler(socketserver.StreamRequestHandler):
         for raw in self.rfile:
             try:
                 request = json.loads(raw.decode("utf-8"))
-            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            except json.JSONDecodeError as exc:
                 reply = {"id": None, "success": False, "reason": f"malformed request: not JSON ({exc.msg})"}
+            except UnicodeDecodeError:
+                reply = {"id": None, "success": False, "reason": "malformed request: not UTF-8 text"}
+            except RecursionError:
+                reply = {"id": None, "success": False, "reason": "malformed request: JSON nested too deep"}
             else:
                 reply = answer(self.server.robot, request)
             self.wfile.write((json.dumps(reply) + "\n").encode("utf-8"))

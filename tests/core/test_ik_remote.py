@@ -108,6 +108,7 @@ def _fake_server(reply):
      .encode(), "'joints_rad' must be 6 finite numbers"),
     (lambda req: (json.dumps({"id": req["id"]}) + "\n").encode(), "lacks 'success'"),
     (lambda req: None, "no answer within 0.3 s (twice)"),
+    (lambda req: b"[" * 200_000 + b"\n", "the answer is not JSON"),  # nested deeper than any parser goes
 ])
 def test_bad_answers_and_silence_are_one_line_naming_host_and_port(reply, message):
     srv, stop = _fake_server(reply)
@@ -134,3 +135,54 @@ def test_a_scan_planned_through_the_bridge_gets_the_local_joints(server, tmp_pat
     assert bridged.robot.ik_via is not None
     a, b = plan_scan(bridged), plan_scan(local)
     np.testing.assert_allclose(a.q, b.q, atol=1e-9)
+
+
+def test_a_controller_that_trickles_an_answer_it_never_ends_times_out_as_silence():
+    """A byte every 0.1 s and never a line's end: the 0.3 s are for the whole answer, not for
+    each byte (a QA trial's fake controller held the scan for as long as it kept sending)."""
+    import time
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen()
+    stop = threading.Event()
+
+    def trickle():
+        srv.settimeout(0.2)
+        while not stop.is_set():
+            try:
+                conn, _ = srv.accept()
+            except OSError:
+                continue
+            with conn:
+                while not stop.is_set():
+                    try:
+                        conn.sendall(b" ")
+                    except OSError:
+                        break
+                    time.sleep(0.1)
+
+    threading.Thread(target=trickle, daemon=True).start()
+    port = srv.getsockname()[1]
+    robot = replace(load_robot("adept_viper_s650"), ik_via=_client(port, 0.3))
+    t = time.monotonic()
+    try:
+        with pytest.raises(ControllerError, match="no answer within 0.3 s"):
+            robot.ik(robot.fk(np.zeros(6)), np.zeros(6))
+    finally:
+        stop.set()
+        srv.close()
+    assert time.monotonic() - t < 5.0
+
+
+@pytest.mark.parametrize("line, reason", [(b"\xff\xfe not text\n", "not UTF-8"),
+                                          (b"[" * 200_000 + b"\n", "nested too deep"),
+                                          (b"{not json\n", "not JSON")])
+def test_the_server_answers_an_unreadable_request_and_goes_on(server, line, reason):
+    with socket.create_connection(server.server_address, timeout=5.0) as conn:
+        reader = conn.makefile("rb")
+        conn.sendall(line)
+        reply = json.loads(reader.readline())
+        assert reply["success"] is False and reply["reason"].startswith("malformed request") and reason in reply["reason"]
+        conn.sendall((json.dumps({"id": 7, "op": "ping"}) + "\n").encode())  # the same connection still serves
+        assert json.loads(reader.readline())["id"] == 7

@@ -27,6 +27,7 @@ from __future__ import annotations
 import json
 import math
 import socket
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,7 +91,14 @@ class ControllerIK:
     def _exchange(self, line: bytes) -> bytes:
         sock = self._connect()
         sock.sendall(line)
+        # The timeout holds for the whole answer, not for each piece of it: a controller that
+        # sends a byte now and then and never ends its line would otherwise hold the scan.
+        deadline = time.monotonic() + self.controller.timeout_s
         while b"\n" not in self._buffer:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise socket.timeout("no whole answer in time")
+            sock.settimeout(left)
             chunk = sock.recv(65536)
             if not chunk:
                 raise ConnectionResetError("the controller closed the connection")
@@ -126,7 +134,7 @@ class ControllerIK:
                     raise ControllerError(f"IK controller at {where}: {exc.strerror or exc} (twice)") from None
         try:
             answer = json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError):
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):  # nested too deep for the parser too
             self.close()
             raise ControllerError(f"IK controller at {where}: the answer is not JSON: {raw[:80]!r}") from None
         if not isinstance(answer, dict) or answer.get("id") != request["id"]:
