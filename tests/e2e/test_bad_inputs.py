@@ -323,6 +323,18 @@ CASES = [
         ["scan", scene(t, DEMO + f'\n[[fixture]]\nname = "stop"\nfile = "{t / "out" / "cloud.ply"}"\n'
                               f'pose.xyz_mm = [100.0, 0.0, 0.0]\n'), "--out", str(t / "out")])[2],
      2, "a file it reads"),
+    # Settings that would measure nothing at all, refused before the first render (a QA trial:
+    # each ran to the end with an empty cloud and exit 0).
+    ("probe: a laser line no pixel can catch", probe_with("line_width_mm = 1.2", "line_width_mm = 1e-9"), 2,
+     "too thin for any pixel"),
+    ("probe: a laser line wider than the detector takes", probe_with("line_width_mm = 1.2", "line_width_mm = 100.0"),
+     2, "wider than the detector takes"),
+    ("config: edge_px dropping every column", demo_with("fuse = true", "fuse = true\nedge_px = 1000"), 2,
+     "every point would go"),
+    ("config: min_peak above the laser's peak", demo_with('method = "gauss"', 'method = "gauss"\nmin_peak = 1000'), 2,
+     "ever bright enough to count"),
+    ("option: --resolution with rows the line spans by hundreds",
+     lambda t: ["scan", "demo", "--engine", "raycast", "--resolution", "160x100000"], 2, "wider than the detector"),
     ("config: fixture colliding", lambda t: (t.joinpath("block.stl").write_bytes(cube_mm(400.0).export(
         file_type="stl")), ["scan", scene(t, DEMO + f'\n[[fixture]]\nname = "wall"\nfile = "{t / "block.stl"}"\n')])[1],
      2, ""),

@@ -13,13 +13,14 @@ from warnings import catch_warnings, simplefilter
 
 import numpy as np
 
-from ..config.scan import ScanConfig
+from ..config.scan import DEFAULT_FILTER, ScanConfig
 from ..errors import CollisionError, InputError, ScannerError, UnreachablePose
 from ..geometry import metrics
 from ..geometry.footprint import OCCLUSION_EPS_MM, SurfaceCaster, fan_rays, laser_footprint, seen_by
 from ..kinematics.path import solve_path
 from ..kinematics.turntable import table_top_mesh
 from ..optics.probe import CAMERAS
+from ..optics.surfaces import DIFFUSE_SURFACES
 from ..safety import CollisionModel, PathClearance
 
 
@@ -132,12 +133,52 @@ def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, t
     return result
 
 
+FWHM_PER_WIDTH = math.sqrt(2.0 * math.log(2.0)) / 2.0  # a Gaussian's FWHM over its 1/e² full width
+MIN_LINE_PX = 0.01  # a line narrower than this on the sensor is never seen (the pixel centres miss it)
+
+
+def blind_settings(config: ScanConfig) -> str | None:
+    """A setting that leaves every column of every frame without a point, known before the
+    first render: the laser line narrower on the sensor than any pixel can catch or wider
+    than the detector takes everywhere in the range, a detection threshold above the
+    laser's own peak, or segment ends that drop every column. None where there is none."""
+    probe, detect, cleaning = config.probe, config.detect_params, config.profile_filter
+    if 2 * cleaning.edge_px >= probe.cols_px:
+        return (f"[triangulate] edge_px = {cleaning.edge_px} drops that many columns at each end of every run of "
+                f"points, and the sensor has {probe.cols_px}: every point would go; give fewer (default "
+                f"{DEFAULT_FILTER.edge_px})")
+    if detect.min_peak >= config.render.laser_peak and config.material in DIFFUSE_SURFACES:
+        # A diffuse part is never brighter than the line's peak (a glossy one may glint above it).
+        return (f"[detect] min_peak = {detect.min_peak:g} is not below the laser's peak {config.render.laser_peak:g} "
+                f"([render] laser_peak): no line on a diffuse part is ever bright enough to count; lower min_peak "
+                f"or raise laser_peak")
+    z0, z1 = probe.z_range_mm
+    widths = []
+    step = 1e-3  # mm across the laser plane: the line's width is its image's rows per mm times its mm
+    for z in np.linspace(z0, z1, 9)[1:-1]:
+        width = probe.line_width_mm * z / (0.5 * (z0 + z1))  # the line keeps its angular width
+        uv = probe.project(np.array([[step, 0.0, z], [-step, 0.0, z]]), 0)
+        if np.isfinite(uv).all():
+            widths.append(abs(uv[0, 1] - uv[1, 1]) / (2 * step) * width * FWHM_PER_WIDTH)
+    if widths and min(widths) > detect.max_width_px:
+        return (f"the laser line is {min(widths):.3g}-{max(widths):.3g} px wide (FWHM) on the probe's {probe.rows_px}-row "
+                f"sensor across its range, wider than the detector takes ([detect] max_width_px "
+                f"{detect.max_width_px:g}): a narrower line (line_width_mm) or fewer rows")
+    if widths and max(widths) < MIN_LINE_PX:
+        return (f"the laser line is at most {max(widths):.3g} px wide (FWHM) on the probe's {probe.rows_px}-row sensor, "
+                f"too thin for any pixel to catch: a wider line (line_width_mm {probe.line_width_mm:g}) or more rows")
+    return None
+
+
 def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_blind: bool = False,
                 warnings: list | None = None, surfaces: SurfaceCaster | None = None) -> Plan:
     """The plan for frames whose joints are known (q (n, 6), table_rad (n,)): the laser fan cast
     against the part and the table (``surfaces``, built here when not given) for the cameras to
     render and the rows the line can fall on, and against the fixtures (``fixture_frames``,
     the frames' indices)."""
+    blind = blind_settings(config)
+    if blind:
+        raise InputError(f"nothing could be measured: {blind}")
     wp_probe2table = config.cell.probe2table(q, table_rad)
     surfaces = surfaces or cell_surfaces(config)
     foot = laser_footprint(config.probe, wp_probe2table, surfaces)
