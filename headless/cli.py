@@ -151,6 +151,14 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
     they are given back whatever happened."""
     from headless.lifecycle import SIGNAL_NAMES, Interrupted, PrivateTemp, StopRequests
 
+    # A terminal or a log that cannot show a character (a path in another script under an
+    # ASCII locale) gets it escaped, not a UnicodeEncodeError in the middle of a scan.
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError, OSError):  # a replaced stream (pytest's capture) keeps its own
+            pass
+
     # The signals are taken before the heavy imports (see StopRequests.record_only).
     stops = StopRequests(exiting=exiting)
     stops.record_only = True

@@ -170,7 +170,7 @@ class ScanPlanningEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         a = np.asarray(action)
         if a.shape != (3,) or a.dtype.kind not in "iu" or not self.action_space.contains(a.astype(np.int64)):
-            raise ValueError(f"action {action!r} is not in the action space {self.action_space}: three whole "
+            raise InputError(f"action {action!r} is not in the action space {self.action_space}: three whole "
                              f"numbers, a table step 0..{next_view.TABLE_STEPS - 1}, a view 0..{len(self.tilts) - 1} "
                              f"and the kind (0 a sweep, 1 a table turn)")
         table_step, view, kind = (int(v) for v in a)

@@ -400,6 +400,8 @@ def _six(tmp_path, **kw):
     ("no such file", "no such file"),
     ("xacro named .urdf", "holds xacro macros.*expand it first"),
     ("xacro file", "a xacro file.*expand it first"),
+    ("a link twice", "link 'l2' is defined 2 times"),
+    ("a joint twice", "joint 'extra' is defined 2 times"),
 ])
 def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     kw = {}
@@ -432,6 +434,13 @@ def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
         path.write_text(path.read_text().replace(
             "<robot ", '<robot xmlns:xacro="http://www.ros.org/wiki/xacro" ', 1).replace(
             '<link name="l2"/>', '<xacro:property name="r" value="0.05"/><link name="l2"/>'))
+    elif case == "a link twice":
+        path = _six(tmp_path)
+        path.write_text(path.read_text().replace('<link name="l2"/>', '<link name="l2"/><link name="l2"/>', 1))
+    elif case == "a joint twice":
+        extra = '<link name="cam{k}"/><joint name="extra" type="fixed"><parent link="l2"/><child link="cam{k}"/></joint>'
+        path = _six(tmp_path, extra=extra.format(k=1) + extra.format(k=2))
+        kw = {"tool_link": "l6"}
     elif case == "xacro file":
         path = tmp_path / "arm.urdf.xacro"
         path.write_text(_six(tmp_path).read_text())

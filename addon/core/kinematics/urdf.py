@@ -74,7 +74,17 @@ class UrdfChain:
 
     def __init__(self, urdf, path: Path, base_link: str | None, tool_link: str | None):
         robot = urdf.robot
-        links = {link.name for link in robot.links}
+        names = [link.name for link in robot.links]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ConfigError(f"{path}: link {twice[0]!r} is defined {names.count(twice[0])} times; each link needs "
+                              f"a name of its own")
+        joint_names = [j.name for j in robot.joints]
+        twice = sorted({n for n in joint_names if joint_names.count(n) > 1})
+        if twice:
+            raise ConfigError(f"{path}: joint {twice[0]!r} is defined {joint_names.count(twice[0])} times; each joint "
+                              f"needs a name of its own")
+        links = set(names)
         parent_joint = {}
         children: dict[str, list] = {}
         for j in robot.joints:
