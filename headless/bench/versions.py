@@ -38,9 +38,10 @@ def _one(python: str, out: Path, frames: str | None) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from addon.core.config.scan import load_scan_config, parse_frames
+
     pythons = args.pythons or [sys.executable]
-    if args.rounds < 1:
-        raise SystemExit("error: --rounds must be at least 1")
+    load_scan_config("demo").with_overrides(frames=parse_frames(args.frames, "--frames"))  # refused here, in one line
     names = []
     for py in pythons:
         res = subprocess.run([py, "-c", "import bpy, sys; print(bpy.app.version_string, '|', sys.version.split()[0])"],
