@@ -147,8 +147,9 @@ def blind_settings(config: ScanConfig) -> str | None:
         return (f"[triangulate] edge_px = {cleaning.edge_px} drops that many columns at each end of every run of "
                 f"points, and the sensor has {probe.cols_px}: every point would go; give fewer (default "
                 f"{DEFAULT_FILTER.edge_px})")
-    if detect.min_peak >= config.render.laser_peak and config.material in DIFFUSE_SURFACES:
-        # A diffuse part is never brighter than the line's peak (a glossy one may glint above it).
+    if detect.min_peak >= config.render.laser_peak and config.material in DIFFUSE_SURFACES and config.sensor.ideal:
+        # A diffuse part is never brighter than the line's peak (a glossy one may glint above
+        # it, and a realistic sensor's exposure and gain scale the image).
         return (f"[detect] min_peak = {detect.min_peak:g} is not below the laser's peak {config.render.laser_peak:g} "
                 f"([render] laser_peak): no line on a diffuse part is ever bright enough to count; lower min_peak "
                 f"or raise laser_peak")
