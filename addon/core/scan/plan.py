@@ -165,7 +165,8 @@ def blind_settings(config: ScanConfig) -> str | None:
         return (f"the laser line is {min(widths):.3g}-{max(widths):.3g} px wide (FWHM) on the probe's {probe.rows_px}-row "
                 f"sensor across its range, wider than the detector takes ([detect] max_width_px "
                 f"{detect.max_width_px:g}): a narrower line (line_width_mm) or fewer rows")
-    if widths and max(widths) < MIN_LINE_PX:
+    point_sampled = config.sensor.ideal and config.render.filter_width_px < 0.5  # no pixel gathers a thin line's light
+    if widths and max(widths) < MIN_LINE_PX and point_sampled:
         return (f"the laser line is at most {max(widths):.3g} px wide (FWHM) on the probe's {probe.rows_px}-row sensor, "
                 f"too thin for any pixel to catch: a wider line (line_width_mm {probe.line_width_mm:g}) or more rows")
     return None
