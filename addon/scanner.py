@@ -79,6 +79,13 @@ class Profile:
 MAX_TABLE_TURN_DEG = 3600.0  # the most a table turns (or is turned to) in one move: ten turns
 
 
+def _check_table_deg(deg, what: str) -> None:
+    if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg) \
+            or abs(deg) > MAX_TABLE_TURN_DEG:
+        raise InputError(f"{what} must be a finite number of degrees within ±{MAX_TABLE_TURN_DEG:g} (ten turns), "
+                         f"got {deg!r}")
+
+
 def _robot(value) -> Robot:
     if not isinstance(value, (Robot, str, Path)):
         raise InputError(f"robot must be a Robot, a bundled rig's name or a rig or URDF file's path, got {value!r}")
@@ -318,22 +325,19 @@ class Scanner:
     def turn_table(self, deg: float) -> float:
         """Turn the table by ``deg`` degrees; returns its new angle (degrees). Raises
         CollisionError (and turns nothing) where the part or a fixture would hit the robot."""
-        if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg) \
-                or abs(deg) > MAX_TABLE_TURN_DEG:
-            raise InputError(f"table turn must be a finite number of degrees within ±{MAX_TABLE_TURN_DEG:g} "
-                             f"(ten turns), got {deg!r}")
-        self._check_move(self._q, self._table_rad + math.radians(deg))
-        self._table_rad += math.radians(deg)
+        _check_table_deg(deg, "table turn")
+        return self._turn_table_by(math.radians(deg))
+
+    def _turn_table_by(self, rad: float) -> float:
+        self._check_move(self._q, self._table_rad + rad)
+        self._table_rad += rad
         return self.table_deg
 
     def turn_table_to(self, deg: float) -> float:
         """Turn the table to the angle ``deg`` (degrees; :meth:`turn_table` turns it by an angle);
         returns the new angle. Raises CollisionError (and turns nothing) as turn_table does."""
-        if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg) \
-                or abs(deg) > MAX_TABLE_TURN_DEG:
-            raise InputError(f"table angle must be a finite number of degrees within ±{MAX_TABLE_TURN_DEG:g}, "
-                             f"got {deg!r}")
-        return self.turn_table(float(deg) - self.table_deg)
+        _check_table_deg(deg, "table angle")
+        return self._turn_table_by(math.radians(float(deg)) - self._table_rad)
 
     def _check_move(self, q: np.ndarray, table_rad: float) -> None:
         """Collision checks on the motion from the current joints and table angle to these."""

@@ -124,8 +124,10 @@ def run_one_shard(config, out_dir: str | Path, shard_frames: int, index: int) ->
 def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | None = None,
              shard_frames: int | None = None, log: Callable[[str], None] = print,
              progress: Callable[[str, int, int], None] | None = None, merge_only: bool = False,
-             render_threads: int | None = None):
+             render_threads: int | None = None, measured: Callable[[], None] | None = None):
     """Scan ``config`` in shards on Dask; returns the merged ScanResult (files written in ``out_dir``).
+    ``measured``: called once every shard is there, before they are merged and written (the
+    command line's stop handling: a stop from then on waits for the results).
     ``merge_only``: compute nothing; merge the shards when all are there and valid (the
     last task of a render-farm job), else say which are missing or invalid.
     ``render_threads``: Cycles threads per worker (default: on a local cluster, the
@@ -212,6 +214,8 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
                 log(f"  shard {info['shard']} done: {info['points']} points in {info['seconds']:.1f} s "
                     f"(worker pid {info['pid']}{', cell reused' if info['reused_cell'] else ''})")
     wall = time.perf_counter() - t_farm
+    if measured is not None:
+        measured()
     results = [shards.read(folder / s.file_name(), s, fp) for s in parts]  # checked again before merging
     expected = {s.file_name() for s in parts}
     others = sorted(p.name for p in folder.glob("shard_*.npz") if p.name not in expected)

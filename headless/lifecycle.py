@@ -15,6 +15,9 @@ SIGTERM instead: the first one asks the scan to stop, which it does when the
 frames being rendered are done (render calls are sized to last about a second,
 see ``addon.pipeline``); the second stops at once. Either way the command exits
 128 + the signal's number (130 for Ctrl-C) and writes nothing into ``--out``.
+Once every frame is measured (``StopRequests.finish``), a stop waits for the results
+to be written and the command finishes (exit 0); once the command is over, a signal
+ends the process with the command's own exit code.
 """
 
 from __future__ import annotations

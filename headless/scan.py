@@ -285,7 +285,8 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
         result = run_farm(config, out, workers=args.workers if args.workers is not None else 2,
                           scheduler=args.scheduler, shard_frames=args.shard_frames,
                           log=(lambda m: None) if args.quiet else (lambda m: print(m, flush=True)),
-                          progress=progress, merge_only=args.merge)
+                          progress=progress, merge_only=args.merge,
+                          measured=None if stops is None else stops.finish)
     else:
         from addon import Scanner
 

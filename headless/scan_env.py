@@ -38,8 +38,9 @@ Scanner over a part that only its bounding box reveals.
   are still refused where they would collide, at a third of the cost.
 
 Scans are deterministic, so equal actions give equal episodes: the part, its pose and the
-cell are the config's in every episode, and ``reset(seed=...)`` only seeds ``env.np_random``
-(Gymnasium's generator, for a policy that wants one). With ``turn_part=True`` each reset puts
+cell are the config's in every episode (unless ``turn_part``, below), and ``reset(seed=...)``
+only seeds ``env.np_random`` (Gymnasium's generator, for a policy that wants one). With
+``turn_part=True`` each reset puts
 the part down at an angle about the table's axis drawn from ``env.np_random`` (so the seed
 decides it, and equal seeds still give equal episodes): a policy that learnt one pose by
 heart meets others. The planner is told the box of the turned part (grown by 10 %), or the

@@ -460,3 +460,34 @@ def test_an_adaptive_budget_below_every_view_names_the_smallest_and_that_budget_
     import json
 
     assert 0 < json.loads((tmp_path / "enough" / "report.json").read_text())["frames"] <= smallest
+
+
+def test_a_stop_once_every_frame_is_measured_waits_for_the_results_and_one_after_the_command_keeps_its_code():
+    """A process without Blender (a scan by ray casting), which a signal would interrupt at once:
+    after finish() a Ctrl-C is recorded and the results are still written; once the command
+    has returned (restore with its code) a signal ends the process with that code, quietly."""
+    script = (
+        "import io, os, signal, sys, time\n"
+        "from headless.lifecycle import Interrupted, StopRequests\n"
+        "early = StopRequests(stream=io.StringIO())\n"
+        "early.signum = signal.SIGINT\n"
+        "try:\n"
+        "    early.finish()\n"
+        "    print('finish let an earlier stop through')\n"
+        "except Interrupted:\n"
+        "    pass\n"
+        "stops = StopRequests(exiting=True).install()\n"
+        "stops.finish()\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.2)\n"
+        "stops.check()\n"
+        "print('written', stops.signum == signal.SIGINT, flush=True)\n"
+        "stops.restore(0)\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.5)\n"
+        "print('survived the teardown signal')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True)
+    assert out.returncode == 0, (out.returncode, out.stderr)
+    assert out.stdout.splitlines() == ["written True"], out.stdout
+    assert "results are written first" in out.stderr and "Traceback" not in out.stderr

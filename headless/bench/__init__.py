@@ -3,6 +3,7 @@
 import argparse
 
 MAX_COUNT = 10_000_000  # the most of anything a benchmark option asks for (targets, points, frames)
+MAX_SEED = 2**32 - 1  # numpy's seeds: any 32-bit number (a date, 20240101, is a common one)
 
 
 def whole(lo: int = 1, hi: int = MAX_COUNT):

@@ -17,7 +17,7 @@ import numpy as np
 from addon.core.optics.detect import METHODS, DetectParams, detect_line
 from headless.synthetic import line_image
 from headless.bench.timing import fmt_time, median_seconds
-from headless.bench import whole
+from headless.bench import MAX_SEED, whole
 
 SIGMAS = (0.7, 1.0, 1.5, 2.0, 3.0)
 NOISES = (0.0, 0.01, 0.02, 0.05)
@@ -27,7 +27,7 @@ GOALS = "Goals: gauss and steger ≤ 0.01 px noise-free and ≤ 0.05 px at 2 % n
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--images", type=whole(), default=5, help="images per setting (default 5)")
     parser.add_argument("--cols", type=whole(), default=400, help="columns per accuracy image (default 400)")
-    parser.add_argument("--seed", type=whole(0), default=0)
+    parser.add_argument("--seed", type=whole(0, MAX_SEED), default=0)
     parser.set_defaults(run=run)
 
 

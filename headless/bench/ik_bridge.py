@@ -17,7 +17,7 @@ from headless.bench import whole
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--targets", type=whole(), default=500, help="random reachable tool poses (default 500)")
-    parser.add_argument("--seeds", type=whole(0), default=3, help="seeds per target (default 3)")
+    parser.add_argument("--seeds", type=whole(), default=3, help="seeds per target (default 3)")
     parser.add_argument("--robot", default="adept_viper_s650", help="robot rig")
     parser.add_argument("--readme", action="store_true", help="put the figures into docs/safety.md")
     parser.set_defaults(run=run)

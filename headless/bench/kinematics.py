@@ -22,7 +22,7 @@ from addon.core.kinematics.robot import Robot
 from addon.core.config.rigs import load_robot
 from addon.core.kinematics.transforms import rot_x, rot_z, trans
 from headless.bench.timing import fmt_time, median_seconds, median_single_call, per_call_seconds
-from headless.bench import whole
+from headless.bench import MAX_SEED, whole
 
 # The three bundled DH tables, and the UR5 again from its URDF file (the same arm through
 # the URDF loader: its DH form, base and tool, and the UR closed form).
@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--near", type=whole(), default=1_000, help="near-singular targets per robot (default 1000)")
     parser.add_argument("--unreachable", type=whole(), default=1_000, help="unreachable targets per robot (default 1000)")
     parser.add_argument("--fk-batch", type=whole(), default=1_000_000, help="poses per batched FK call (default 1e6)")
-    parser.add_argument("--seed", type=whole(0), default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=whole(0, MAX_SEED), default=0, help="random seed (default 0)")
     parser.set_defaults(run=run)
 
 

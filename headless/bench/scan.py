@@ -155,7 +155,7 @@ def measure_calls(args) -> dict[str, float]:
         times = []
         for k in picks:
             scanner.move_joints(plan.q[k])
-            scanner.turn_table(math.degrees(plan.table_rad[k]))
+            scanner.turn_table_to(math.degrees(plan.table_rad[k]))
             t = time.perf_counter()
             scanner.measure()
             times.append(time.perf_counter() - t)

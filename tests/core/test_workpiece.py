@@ -166,3 +166,21 @@ def test_a_mesh_wound_inside_out_is_turned_right_side_out_and_said_so(tmp_path):
         assert wp.mesh.volume == pytest.approx(64000.0)
         assert distances(inside, wp.truth)[1][0] == pytest.approx(-5.0, abs=1e-9)
     assert right.notes == () and len(wrong.notes) == 1 and "inside out" in wrong.notes[0]
+
+
+def test_only_the_bodies_wound_inside_out_are_turned(tmp_path):
+    """A 40 mm cube wound inside out beside a 10 mm cube wound rightly (the whole mesh's volume
+    negative): each is judged on its own, and both end right side out."""
+    big = trimesh.creation.box([40.0, 40.0, 40.0])
+    big.apply_translation([0.0, 0.0, 20.0])
+    big.invert()
+    small = trimesh.creation.box([10.0, 10.0, 10.0])
+    small.apply_translation([60.0, 0.0, 5.0])
+    both = trimesh.util.concatenate([big, small])
+    assert both.volume < 0
+    path = tmp_path / "two.stl"
+    both.export(path)
+    wp = load_workpiece(path)
+    volumes = sorted(b.volume for b in wp.mesh.split(only_watertight=False))
+    assert volumes == pytest.approx([1000.0, 64000.0])
+    assert "1 of its 2 bodies" in wp.notes[0]

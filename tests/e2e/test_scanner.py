@@ -329,9 +329,11 @@ def test_a_path_that_measures_little_of_a_large_part_says_so():
     report = picked.report().to_dict()
     assert 0 < report["measurable_share"] < 0.05 and not any("can measure only" in w for w in report["warnings"])
 
-    turn = Scanner.from_config("demo", engine="raycast", frames=slice(0, 60))
-    turn.run()
+    demo = load_scan_config("demo").with_overrides(engine="raycast")
+    turn = Scanner(config=replace(demo, waypoints=demo.waypoints.select(np.flatnonzero(demo.waypoints.segment == 0))))
+    turn.run()  # the demo's table turn as a path of its own
     report = turn.report().to_dict()
+    assert report["config"]["path_frames"] is None
     assert report["measurable_share"] > 0.05 and not any("can measure only" in w for w in report["warnings"])
 
 
@@ -359,6 +361,8 @@ def test_a_move_can_be_checked_before_it_is_made_and_the_table_turned_to_an_angl
     assert s.turn_table_to(-30.0) == pytest.approx(-30.0) and s.table_deg == pytest.approx(-30.0)
     with pytest.raises(InputError, match="table angle"):
         s.turn_table_to(float("nan"))
+    s.turn_table(3000.0)
+    assert s.turn_table_to(-3000.0) == pytest.approx(-3000.0)  # the limit is the angle's, not the turn's
 
 
 @pytest.mark.parametrize("call,words", [

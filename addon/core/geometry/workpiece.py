@@ -61,7 +61,7 @@ class Workpiece:
 def turned_on_table(wp: Workpiece, deg: float) -> Workpiece:
     """``wp`` turned by ``deg`` degrees about the table's axis, its exact truth with it: the
     same part put down at another angle."""
-    if isinstance(deg, bool) or not isinstance(deg, (int, float, np.floating)) or not np.isfinite(deg):
+    if isinstance(deg, bool) or not isinstance(deg, (int, float, np.integer, np.floating)) or not np.isfinite(deg):
         raise InputError(f"a workpiece's turn must be a finite number of degrees, got {deg!r}")
     R = rot_z(np.radians(float(deg)))
     mesh = wp.mesh.copy()
@@ -143,12 +143,20 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
                          f"{'; in the panel, its Scale field' if role == 'part' else ''})")
     check_mesh(mesh, str(path))
     notes = ()
-    if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume < 0:
-        # Faces wound inward: the signed distance would call the part's outside its inside and
-        # every bias would change sign. The surface is the same; its outside is not in doubt.
-        mesh.invert()
-        notes = (f"the {role} mesh {path.name} was wound inside out (its faces facing inward); it was turned "
-                 "right side out, so that inside and outside, and the bias's sign, are the part's",)
+    if mesh.is_watertight and mesh.is_winding_consistent:
+        # A body wound inward: the signed distance would call its outside its inside, and the
+        # bias would change sign. The surface is the same; its outside is not in doubt. Each
+        # separate body is judged on its own (one may be right, another inside out).
+        bodies = mesh.split(only_watertight=False)
+        inverted = sum(1 for b in bodies if b.volume < 0)
+        if inverted:
+            if len(bodies) == 1:
+                mesh.invert()
+            else:
+                trimesh.repair.fix_normals(mesh, multibody=True)
+            which = "" if len(bodies) == 1 else f" ({inverted} of its {len(bodies)} bodies)"
+            notes = (f"the {role} mesh {path.name} was wound inside out{which}, its faces facing inward; it was "
+                     "turned right side out, so that inside and outside, and the bias's sign, are the part's",)
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)
     return Workpiece(path.stem, mesh, mesh, str(path), pose, notes)

@@ -90,6 +90,7 @@ class ControllerIK:
 
     def _exchange(self, line: bytes) -> bytes:
         sock = self._connect()
+        sock.settimeout(self.controller.timeout_s)  # the last answer may have left it shorter
         sock.sendall(line)
         # The timeout holds for the whole answer, not for each piece of it: a controller that
         # sends a byte now and then and never ends its line would otherwise hold the scan.

@@ -135,6 +135,7 @@ def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, t
 
 FWHM_PER_WIDTH = math.sqrt(2.0 * math.log(2.0)) / 2.0  # a Gaussian's FWHM over its 1/e² full width
 MIN_LINE_PX = 0.01  # a line narrower than this on the sensor is never seen (the pixel centres miss it)
+WIDE_MARGIN = 3.0  # a line this many times wider than the detector takes, on a surface square to the beam, is never taken
 
 
 def blind_settings(config: ScanConfig) -> str | None:
@@ -161,10 +162,12 @@ def blind_settings(config: ScanConfig) -> str | None:
         uv = probe.project(np.array([[step, 0.0, z], [-step, 0.0, z]]), 0)
         if np.isfinite(uv).all():
             widths.append(abs(uv[0, 1] - uv[1, 1]) / (2 * step) * width * FWHM_PER_WIDTH)
-    if widths and min(widths) > detect.max_width_px:
+    # A surface tilted towards a camera narrows the line's image: refuse only a line that stays
+    # too wide even so (three times over, more than the incidence limit's foreshortening gives).
+    if widths and min(widths) > WIDE_MARGIN * detect.max_width_px:
         return (f"the laser line is {min(widths):.3g}-{max(widths):.3g} px wide (FWHM) on the probe's {probe.rows_px}-row "
-                f"sensor across its range, wider than the detector takes ([detect] max_width_px "
-                f"{detect.max_width_px:g}): a narrower line (line_width_mm) or fewer rows")
+                f"sensor across its range, over {WIDE_MARGIN:g} times what the detector takes ([detect] max_width_px "
+                f"{detect.max_width_px:g}) on any surface: a narrower line (line_width_mm) or fewer rows")
     point_sampled = config.sensor.ideal and config.render.filter_width_px < 0.5  # no pixel gathers a thin line's light
     if widths and max(widths) < MIN_LINE_PX and point_sampled:
         return (f"the laser line is at most {max(widths):.3g} px wide (FWHM) on the probe's {probe.rows_px}-row sensor, "
