@@ -159,6 +159,11 @@ class StopRequests:
 
     def _on_signal(self, signum, frame) -> None:
         if self.leaving is not None:  # the command is over: its results stand, its code too
+            for stream in (sys.stdout, sys.stderr):
+                try:
+                    stream.flush()
+                except (OSError, ValueError):  # a closed pipe or stream: nothing more to say there
+                    pass
             if self.temp is not None:
                 self.temp.close()
             os._exit(self.leaving)
