@@ -92,6 +92,17 @@ class Interrupted(KeyboardInterrupt):
         return f"interrupted ({what}) before the first frame"
 
 
+def _importing(frame) -> bool:
+    """Whether the interrupted code is inside an import: an exception raised there can leave an
+    extension module (Blender's bpy, as it loads) half made, and the process crashes on its
+    way out. The stop is then only recorded, and the next ``check()`` raises it."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
 class StopRequests:
     """SIGINT and SIGTERM as requests to stop (see the module's docstring).
 
@@ -186,7 +197,7 @@ class StopRequests:
             print(f"\n{SIGNAL_NAMES.get(signum)}: every frame is measured, so the results are written first "
                   f"({SIGNAL_NAMES.get(signum)} again to stop at once)", file=self.stream, flush=True)
             return
-        if "bpy" not in sys.modules:
+        if "bpy" not in sys.modules and not _importing(frame):
             raise self.interrupted()
         print(f"\nstopping when the frames being rendered are done ({SIGNAL_NAMES.get(signum)} again to stop "
               f"at once)", file=self.stream, flush=True)

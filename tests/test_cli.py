@@ -491,3 +491,35 @@ def test_a_stop_once_every_frame_is_measured_waits_for_the_results_and_one_after
     assert out.returncode == 0, (out.returncode, out.stderr)
     assert out.stdout.splitlines() == ["written True"], out.stdout
     assert "results are written first" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_a_stop_during_an_import_is_recorded_not_raised_there(tmp_path, monkeypatch):
+    """An exception raised inside an import can leave an extension module half made (a QA
+    trial's Ctrl-C while Blender's bpy loaded crashed the process on its way out): the handler
+    sees the import on the stack, records the stop, and the next check raises it."""
+    import io
+    import signal
+
+    from headless.lifecycle import Interrupted, StopRequests
+
+    monkeypatch.delitem(sys.modules, "bpy", raising=False)  # a process without Blender: a stop raises at once
+    stops = StopRequests(stream=io.StringIO())
+    (tmp_path / "slow_module.py").write_text(
+        "import sys\n"
+        "STOPS._on_signal(__import__('signal').SIGINT, sys._getframe())\n"
+        "LOADED = True\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import builtins
+
+    monkeypatch.setattr(builtins, "STOPS", stops, raising=False)
+    try:
+        import slow_module  # noqa: F401
+    except Interrupted:
+        pytest.fail("the stop was raised inside the import")
+
+    assert slow_module.LOADED and stops.signum == signal.SIGINT
+    with pytest.raises(Interrupted):
+        stops.check()
+    outside = StopRequests(stream=io.StringIO())
+    with pytest.raises(Interrupted):  # outside an import it does
+        outside._on_signal(signal.SIGINT, sys._getframe())
