@@ -222,6 +222,12 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
                                     ("--merge", args.merge or None)) if v is not None)
         raise InputError(f"--shard K runs one shard in this process, so {given} has nothing to do with it; "
                          f"leave {given} out, or run the whole job without --shard")
+    if args.merge and (args.workers is not None or args.scheduler is not None):
+        from addon.core.errors import InputError
+
+        given = "--workers" if args.workers is not None else "--scheduler"
+        raise InputError(f"--merge computes nothing (it merges the shard files the job's tasks wrote), so {given} "
+                         f"has nothing to do with it; leave {given} out")
     if args.shard_frames is not None and not 1 <= args.shard_frames <= len(config.waypoints):
         from addon.core.errors import InputError
 

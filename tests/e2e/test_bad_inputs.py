@@ -471,6 +471,8 @@ CASES = [
     ("option: --shard negative", demo("--shard", "-1", "--shard-frames", "60"), 2, "--shard"),
     ("option: --merge with no shards", lambda t: ["demo", "--merge", "--shard-frames", "60", "--out",
                                                   str(t / "out")], 2, "not ready"),
+    ("option: --workers with --merge", demo("--merge", "--shard-frames", "60", "--workers", "2"), 2,
+     "--merge computes nothing"),
     ("option: --workers zero", demo("--workers", "0"), 2, "--workers"),
     ("option: --workers with --shard", demo("--shard", "0", "--shard-frames", "60", "--workers", "2"), 2,
      "has nothing to do"),

@@ -126,7 +126,9 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         bad = int(np.sum(~np.isfinite(mesh.vertices).all(axis=1)))
         raise InputError(f"{path}: {bad} {'vertex has' if bad == 1 else 'vertices have'} NaN or infinite "
                          f"coordinates; a workpiece needs finite ones")
-    mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
+    with np.errstate(all="ignore"), warnings.catch_warnings():  # huge coordinates: said below, not as warnings
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
     if scale is None:
         scale = 1000.0 if path.suffix.lower() in METRE_FORMATS else 1.0
     if not np.isfinite(scale) or scale <= 0:
