@@ -67,8 +67,8 @@ def test_nothing_listening_is_one_line_naming_host_and_port():
         _client(port).ping()
 
 
-def _fake_server(reply):
-    """A server that answers every line with ``reply(line)`` (None: never answers)."""
+def _serving(talk):
+    """A server on loopback that runs ``talk(conn, stop)`` for each connection, until stopped."""
     srv = socket.socket()
     srv.bind(("127.0.0.1", 0))
     srv.listen()
@@ -82,24 +82,32 @@ def _fake_server(reply):
             except OSError:
                 continue
             with conn:
-                buf = b""
-                conn.settimeout(0.2)
-                while not stop.is_set():
-                    try:
-                        chunk = conn.recv(4096)
-                    except OSError:
-                        continue
-                    if not chunk:
-                        break
-                    buf += chunk
-                    while b"\n" in buf:
-                        line, buf = buf.split(b"\n", 1)
-                        out = reply(json.loads(line))
-                        if out is not None:
-                            conn.sendall(out)
+                talk(conn, stop)
 
     threading.Thread(target=serve, daemon=True).start()
     return srv, stop
+
+
+def _fake_server(reply):
+    """A server that answers every line with ``reply(line)`` (None: never answers)."""
+    def talk(conn, stop):
+        buf = b""
+        conn.settimeout(0.2)
+        while not stop.is_set():
+            try:
+                chunk = conn.recv(4096)
+            except OSError:
+                continue
+            if not chunk:
+                break
+            buf += chunk
+            while b"\n" in buf:
+                line, buf = buf.split(b"\n", 1)
+                out = reply(json.loads(line))
+                if out is not None:
+                    conn.sendall(out)
+
+    return _serving(talk)
 
 
 @pytest.mark.parametrize("reply, message", [
@@ -142,27 +150,15 @@ def test_a_controller_that_trickles_an_answer_it_never_ends_times_out_as_silence
     each byte (a QA trial's fake controller held the scan for as long as it kept sending)."""
     import time
 
-    srv = socket.socket()
-    srv.bind(("127.0.0.1", 0))
-    srv.listen()
-    stop = threading.Event()
-
-    def trickle():
-        srv.settimeout(0.2)
+    def trickle(conn, stop):
         while not stop.is_set():
             try:
-                conn, _ = srv.accept()
+                conn.sendall(b" ")
             except OSError:
-                continue
-            with conn:
-                while not stop.is_set():
-                    try:
-                        conn.sendall(b" ")
-                    except OSError:
-                        break
-                    time.sleep(0.1)
+                break
+            time.sleep(0.1)
 
-    threading.Thread(target=trickle, daemon=True).start()
+    srv, stop = _serving(trickle)
     port = srv.getsockname()[1]
     robot = replace(load_robot("adept_viper_s650"), ik_via=_client(port, 0.3))
     t = time.monotonic()
