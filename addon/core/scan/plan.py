@@ -19,6 +19,7 @@ from ..geometry import metrics
 from ..geometry.footprint import OCCLUSION_EPS_MM, SurfaceCaster, fan_rays, laser_footprint, seen_by
 from ..kinematics.path import solve_path
 from ..kinematics.turntable import table_top_mesh
+from ..optics.laser_profile import angular_sigma_rad
 from ..optics.probe import CAMERAS
 from ..optics.surfaces import DIFFUSE_SURFACES
 from ..safety import CollisionModel, PathClearance
@@ -133,7 +134,7 @@ def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, t
     return result
 
 
-FWHM_PER_WIDTH = math.sqrt(2.0 * math.log(2.0)) / 2.0  # a Gaussian's FWHM over its 1/e² full width
+FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))  # a Gaussian's full width at half maximum, in σ
 MIN_LINE_PX = 0.01  # a line narrower than this on the sensor is never seen (the pixel centres miss it)
 WIDE_MARGIN = 3.0  # a line this many times wider than the detector takes, on a surface square to the beam, is never taken
 
@@ -158,10 +159,10 @@ def blind_settings(config: ScanConfig) -> str | None:
     widths = []
     step = 1e-3  # mm across the laser plane: the line's width is its image's rows per mm times its mm
     for z in np.linspace(z0, z1, 9)[1:-1]:
-        width = probe.line_width_mm * z / (0.5 * (z0 + z1))  # the line keeps its angular width
+        fwhm_mm = FWHM_PER_SIGMA * angular_sigma_rad(probe) * z  # the line keeps its angular width
         uv = probe.project(np.array([[step, 0.0, z], [-step, 0.0, z]]), 0)
         if np.isfinite(uv).all():
-            widths.append(abs(uv[0, 1] - uv[1, 1]) / (2 * step) * width * FWHM_PER_WIDTH)
+            widths.append(abs(uv[0, 1] - uv[1, 1]) / (2 * step) * fwhm_mm)
     # A surface tilted towards a camera narrows the line's image: refuse only a line that stays
     # too wide even so (three times over, more than the incidence limit's foreshortening gives).
     if widths and min(widths) > WIDE_MARGIN * detect.max_width_px:
