@@ -23,7 +23,6 @@ from .core.config.scan import MAX_PROFILES
 from .core.errors import CollisionError, InputError, UnreachablePose
 from .core.geometry.known_space import UNKNOWN, KnownSpace
 from .core.geometry.metrics import NearMesh
-from .core.kinematics.path import path_entry
 from .core.scan import next_view
 from .core.scan.plan import table_fixtures
 
@@ -365,7 +364,7 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
         estimate = planner.coverage_estimate()
         step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
                             chosen.gain, planning, len(planner.refused), estimate, setup_s,
-                            path_entry(chosen.wp, "sweep" if chosen.kind == "sweep" else "turntable"))
+                            chosen.path_entry())
         steps.append(step)
         setup_s = 0.0
         if log:

@@ -261,8 +261,7 @@ class Scanner:
         """Every profile measured from frame ``first`` on, in order, as (its frame, the probe's
         pose in the table frame (4, 4), its points (n, 3), table frame): what a planner that
         joins a scan under way learns from."""
-        first = check_whole(int(first) if isinstance(first, np.integer) else first,
-                            "measurements(first): the frame to start from", 0, 2**62)
+        first = check_whole(first, "measurements(first): the frame to start from", 0, 2**62)
         if first >= self._frames:
             return
         q = np.concatenate([p[0] for p in self._poses])[first:]

@@ -149,7 +149,7 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
     ``exiting``: the process exits with the returned code right after (``python -m
     headless``), so after a stop the signals stay with the stop until it is gone; otherwise
     they are given back whatever happened."""
-    from headless.lifecycle import SIGNAL_NAMES, Interrupted, PrivateTemp, StopRequests
+    from headless.lifecycle import PrivateTemp, StopRequests
 
     # A terminal or a log that cannot show a character (a path in another script under an
     # ASCII locale) gets it escaped, not a UnicodeEncodeError in the middle of a scan.
@@ -177,6 +177,22 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
     pipeline.set_default_progress(args.stops.progress)  # scans started without one (the benchmarks')
     code = None
     try:
+        code = _exit_code(args, stops)
+        return code
+    finally:
+        # The command is over: from here a signal ends the process with its code (see
+        # StopRequests.leaving); a second Ctrl-C after a stop still ends it cleanly (exit 130).
+        sys.stderr.flush()
+        args.stops.restore(code)
+        temp.close()
+        pipeline.set_default_progress(None)
+
+
+def _exit_code(args: argparse.Namespace, stops) -> int:
+    """Run the command; its exit code, with a user's error, a stop or a closed pipe said in one line."""
+    from headless.lifecycle import SIGNAL_NAMES, Interrupted
+
+    try:
         stops.record_only = False
         stops.check()  # Ctrl-C while the command started
         code = args.run(args)
@@ -187,22 +203,18 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
         return code
     except FolderBusy as exc:
         print(f"error: {exc}", file=sys.stderr)
-        code = EXIT_BUSY
-        return code
+        return EXIT_BUSY
     except ScannerError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        code = EXIT_USER_ERROR
-        return code
+        return EXIT_USER_ERROR
     except Interrupted as exc:
         # A benchmark writes its figures and files once all is measured: none yet.
         where = " of the scan under way: nothing written" if getattr(args, "bench", None) else ""
         print(exc.describe() + where, file=sys.stderr)
-        code = exc.exit_code
-        return code
+        return exc.exit_code
     except KeyboardInterrupt:
         print("interrupted (Ctrl-C)", file=sys.stderr)
-        code = 130
-        return code
+        return 130
     except BrokenPipeError:
         # Whoever read the output (``| head``) has gone: that is no failure of the scan, and
         # files already written (all of a set or none) stay. Exit as a process killed by
@@ -214,17 +226,8 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
             print("stopped: the program reading the output closed it (broken pipe)", file=sys.stderr, flush=True)
         except OSError:  # stderr went into the same closed pipe (2>&1)
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
-        code = 128 + signal.SIGPIPE
-        return code
+        return 128 + signal.SIGPIPE
     except OSError as exc:  # a disk full, a folder that vanished, a permission taken away mid-run
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"error: {where}{exc.strerror or exc} (nothing was written)", file=sys.stderr)
-        code = EXIT_USER_ERROR
-        return code
-    finally:
-        # The command is over: from here a signal ends the process with its code (see
-        # StopRequests.leaving); a second Ctrl-C after a stop still ends it cleanly (exit 130).
-        sys.stderr.flush()
-        args.stops.restore(code)
-        temp.close()
-        pipeline.set_default_progress(None)
+        return EXIT_USER_ERROR

@@ -79,12 +79,10 @@ class ScanPlanningEnv(gym.Env):
                  turn_part: bool = False):
         from addon.core.config.scan import load_scan_config
 
-        def whole(v):  # numpy's integers too (a training loop's sweep passes np.int64)
-            return int(v) if isinstance(v, numbers.Integral) and not isinstance(v, bool) else v
-
-        max_profiles = check_whole(whole(max_profiles), "max_profiles (the episode's profile budget)", 1, MAX_PROFILES)
-        grid = check_whole(whole(grid), "grid (cells per side of the observation)", 2, 256)
-        max_steps = check_whole(whole(max_steps), "max_steps (sweeps per episode)", 1, 10**5)
+        # numpy's integers too (check_whole takes them: a training loop's sweep passes np.int64)
+        max_profiles = check_whole(max_profiles, "max_profiles (the episode's profile budget)", 1, MAX_PROFILES)
+        grid = check_whole(grid, "grid (cells per side of the observation)", 2, 256)
+        max_steps = check_whole(max_steps, "max_steps (sweeps per episode)", 1, 10**5)
         for value, what in ((time_cost, "time_cost"), (refusal_cost, "refusal_cost")):
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < float("inf"):
                 raise InputError(f"{what} must be a finite number ≥ 0, got {value!r}")
@@ -121,9 +119,9 @@ class ScanPlanningEnv(gym.Env):
         super().reset(seed=seed)
         from addon import Scanner
 
-        config = self.config
-        self.part_turn_deg = float(self.np_random.uniform(0.0, 360.0)) if self.turn_part else 0.0
+        config, self.part_turn_deg = self.config, 0.0
         if self.turn_part:
+            self.part_turn_deg = float(self.np_random.uniform(0.0, 360.0))
             config = turned_part(config, self.part_turn_deg)
         self.scanner = Scanner(config=config)
         self.scanner.keep_clearance = False  # collisions are still refused; the report's clearance is not measured
@@ -140,8 +138,8 @@ class ScanPlanningEnv(gym.Env):
 
     def _info(self, info: dict, learnt: int, found: int) -> dict:
         """The step's ``info``: the same keys after reset and after every step."""
-        return {**info, "part_turn_deg": self.part_turn_deg, "profiles": self.profiles, "learnt": int(learnt), "new_surface_cells": int(found),
-                "surface_cells": self._surface_cells(), "coverage_estimate": self.planner.coverage_estimate(),
+        return {**info, "part_turn_deg": self.part_turn_deg, "profiles": self.profiles, "learnt": int(learnt),
+                "new_surface_cells": int(found), "surface_cells": self._surface_cells(), "coverage_estimate": self.planner.coverage_estimate(),
                 "action_mask": self.action_mask()}
 
     def action_mask(self) -> np.ndarray:
@@ -245,13 +243,13 @@ def turned_part(config, deg: float):
     from addon.core.geometry.workpiece import turned_on_table
     from addon.core.kinematics.transforms import rot_z
 
+    import trimesh
+
+    R = rot_z(np.radians(deg))
     adaptive = config.adaptive
     if adaptive.box is not None:
-        lo, hi = (np.asarray(v, dtype=np.float64) for v in adaptive.box)
-        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-        corners = corners @ rot_z(np.radians(deg))[:3, :3].T  # the box's bounds once turned
-        adaptive = replace(adaptive, box=(corners.min(axis=0), corners.max(axis=0)))
-    R = rot_z(np.radians(deg))
+        corners = trimesh.bounds.corners(np.asarray(adaptive.box, dtype=np.float64)) @ R[:3, :3].T
+        adaptive = replace(adaptive, box=(corners.min(axis=0), corners.max(axis=0)))  # the box's bounds once turned
     fixtures = tuple(replace(f, mesh=f.mesh.copy().apply_transform(R)) if f.on == "table" else f
                      for f in config.fixtures)
     return replace(config, workpiece=turned_on_table(config.workpiece, deg), adaptive=adaptive, fixtures=fixtures)

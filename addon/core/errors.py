@@ -6,6 +6,8 @@ what is allowed. The command line prints the message on one line and exits
 non-zero; the Blender panel shows it in the status bar.
 """
 
+import numbers
+
 
 class ScannerError(Exception):
     """Base class of all errors the simulator raises on purpose."""
@@ -47,9 +49,14 @@ class UnreachablePose(ScannerError):
         self.result = result
 
 
+def is_whole(value) -> bool:
+    """Whether ``value`` is a whole number: Python's or numpy's (a loop's np.int64), not a bool."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
 def check_whole(value, what: str, lo: int, hi: int) -> int:
-    """``value`` when it is a whole number (not a bool) in [lo, hi]; otherwise an
-    InputError that names ``what`` and the allowed range."""
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+    """``value`` as an int when it is a whole number (:func:`is_whole`) in [lo, hi]; otherwise
+    an InputError that names ``what`` and the allowed range."""
+    if not is_whole(value) or not lo <= value <= hi:
         raise InputError(f"{what} must be a whole number in [{lo}, {hi}], got {value!r}")
-    return value
+    return int(value)

@@ -62,7 +62,7 @@ from ..kinematics.ik_remote import DEFAULT_PORT, Controller, ControllerIK
 from .toml import Table, load_toml, resolve_rig
 from ..optics.detect import METHODS as DETECT_METHODS
 from ..optics.detect import DetectParams
-from ..errors import ConfigError, InputError, check_whole
+from ..errors import ConfigError, InputError, check_whole, is_whole
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
 from ..optics.probe import Probe
@@ -246,12 +246,12 @@ class ScanConfig:
                              f"{render.engine} ({'OpenGL' if render.engine == 'eevee' else 'Embree on the CPU'}): "
                              f"leave --device out, or add --engine cycles")
         if samples is not None:
-            samples = check_whole(_whole(samples), "--samples (samples)", 1, 65536)
+            samples = check_whole(samples, "--samples (samples)", 1, 65536)
             render = replace(render, samples=samples)
         cfg = replace(cfg, render=render)
         if resolution is not None:
             size = resolution if isinstance(resolution, (tuple, list)) else ()
-            if len(size) != 2 or not all(isinstance(_whole(v), int) and not isinstance(v, bool) and 2 <= v <= 100_000
+            if len(size) != 2 or not all(is_whole(v) and 2 <= v <= 100_000
                                          for v in size):
                 raise InputError(f"--resolution (resolution) must be two whole numbers (width, height) of 2 to "
                                  f"100000 pixels, got {resolution!r}")
@@ -264,7 +264,7 @@ class ScanConfig:
         if frames is not None:
             if isinstance(frames, str):
                 frames = parse_frames(frames, "--frames (frames)")
-            if not isinstance(frames, slice) or not all(v is None or isinstance(_whole(v), int)
+            if not isinstance(frames, slice) or not all(v is None or is_whole(v)
                                                         for v in (frames.start, frames.stop, frames.step)):
                 raise InputError(f"--frames (frames) must be a slice of the path with whole numbers (slice(0, 40), "
                                  f"or as text \"0:40\"), got {frames!r}")
@@ -280,11 +280,6 @@ class ScanConfig:
             numbers = np.arange(len(cfg.waypoints)) if cfg.path_frames is None else cfg.path_frames
             cfg = replace(cfg, waypoints=cfg.waypoints.select(picked), path_frames=numbers[picked])
         return cfg
-
-
-def _whole(v):
-    """numpy's whole numbers as Python's (a loop's np.int64); anything else as it is."""
-    return int(v) if isinstance(v, np.integer) else v
 
 
 def parse_frames(text: str | None, what: str = "frames") -> slice | None:

@@ -35,6 +35,8 @@ with their scale, and boxes, cylinders and spheres.
 
 from __future__ import annotations
 
+from collections import Counter
+
 from pathlib import Path
 
 import numpy as np
@@ -74,17 +76,13 @@ class UrdfChain:
 
     def __init__(self, urdf, path: Path, base_link: str | None, tool_link: str | None):
         robot = urdf.robot
-        names = [link.name for link in robot.links]
-        twice = sorted({n for n in names if names.count(n) > 1})
-        if twice:
-            raise ConfigError(f"{path}: link {twice[0]!r} is defined {names.count(twice[0])} times; each link needs "
-                              f"a name of its own")
-        joint_names = [j.name for j in robot.joints]
-        twice = sorted({n for n in joint_names if joint_names.count(n) > 1})
-        if twice:
-            raise ConfigError(f"{path}: joint {twice[0]!r} is defined {joint_names.count(twice[0])} times; each joint "
-                              f"needs a name of its own")
-        links = set(names)
+        for kind, names in (("link", [link.name for link in robot.links]), ("joint", [j.name for j in robot.joints])):
+            counts = Counter(names)
+            twice = sorted(n for n, k in counts.items() if k > 1)
+            if twice:
+                raise ConfigError(f"{path}: {kind} {twice[0]!r} is defined {counts[twice[0]]} times; each {kind} "
+                                  f"needs a name of its own")
+        links = {link.name for link in robot.links}
         parent_joint = {}
         children: dict[str, list] = {}
         for j in robot.joints:

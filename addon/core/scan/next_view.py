@@ -68,6 +68,10 @@ class Candidate:
     def waypoints(self) -> scanpath.Waypoints:
         return self.wp
 
+    def path_entry(self) -> dict:
+        """The view as a scan config's [[path]] entry (kinematics.path.path_entry)."""
+        return scanpath.path_entry(self.wp, "sweep" if self.kind == "sweep" else "turntable")
+
     def describe(self) -> str:
         what = "sweep" if self.kind == "sweep" else "table turn"
         text = f"{what} at table {self.table_deg:.0f} deg, tilt {self.tilt_deg:.0f} deg, {self.frames} profiles"

@@ -86,8 +86,8 @@ def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: n
     top = scale_um if scale_um else (float(np.percentile(error_um[on_part], 95)) if error_um is not None
                                      and on_part.any() else 1.0)
     top = max(top, 1e-6)
+    far = on_part & (error_um > BEYOND_SCALE * top) if error_um is not None else np.zeros(len(pts), bool)
     order = np.argsort(pz)
-    beyond = []
     for k in order:
         if not visible[k]:
             continue
@@ -95,25 +95,22 @@ def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: n
         if not on_part[k] or error_um is None:
             img[y, x] = FIXTURE_BGR if on_fixture is not None and on_fixture[k] else (150, 150, 150)
             continue
-        if error_um[k] > BEYOND_SCALE * top:
-            beyond.append(k)
+        if far[k]:  # drawn after the rest
             continue
         c = _colour(min(error_um[k] / top, 1.0))
         cv2.circle(img, (int(x), int(y)), 1, c, -1)
     # The scale ends at the 95th percentile, so a rim's 130 µm would read as its top: points far
     # beyond it are drawn over the rest in their own colour, and the bar says how many.
-    for k in beyond:
+    for k in order[far[order] & visible[order]]:
         cv2.circle(img, (int(ij[k, 0]), int(ij[k, 1])), 2, BEYOND_BGR, -1)
     _colour_bar(img, W - bar_w + 10, 60, 22, H - 120, top)
-    if error_um is not None and on_part.any():
-        far = on_part & (error_um > BEYOND_SCALE * top)
-        if far.any():
-            x0, y0 = W - bar_w + 4, H - 44
-            cv2.circle(img, (x0 + 4, y0 - 4), 3, BEYOND_BGR, -1)
-            cv2.putText(img, f"> {bar_label(BEYOND_SCALE * top, BEYOND_SCALE * top)}", (x0 + 12, y0),
-                        cv2.FONT_HERSHEY_SIMPLEX, 0.4, (30, 30, 30), 1, cv2.LINE_AA)
-            cv2.putText(img, f"{int(far.sum())} pts, max {error_um[far].max():.0f}", (x0 - 2, y0 + 16),
-                        cv2.FONT_HERSHEY_SIMPLEX, 0.35, (30, 30, 30), 1, cv2.LINE_AA)
+    if far.any():
+        x0, y0 = W - bar_w + 4, H - 44
+        cv2.circle(img, (x0 + 4, y0 - 4), 3, BEYOND_BGR, -1)
+        cv2.putText(img, f"> {bar_label(BEYOND_SCALE * top, BEYOND_SCALE * top)}", (x0 + 12, y0),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.4, (30, 30, 30), 1, cv2.LINE_AA)
+        cv2.putText(img, f"{int(far.sum())} pts, max {error_um[far].max():.0f}", (x0 - 2, y0 + 16),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.35, (30, 30, 30), 1, cv2.LINE_AA)
     cv2.putText(img, title, (12, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (20, 20, 20), 1, cv2.LINE_AA)
     return img
 
