@@ -38,7 +38,8 @@ FIXTURE_NEAR_MM = 0.5  # a point this near one of the table's fixtures is the fi
 @dataclass(frozen=True)
 class AdaptiveStep:
     """One decision: the sweep chosen (its description), the profiles it took, the cells it
-    taught the model, the planning time, the candidates refused as unreachable or colliding,
+    taught the model (``new_cells``: air and surface; ``new_surface_cells``: surface only, the
+    unit of ``expected_cells``, the new surface the ranking promised), the planning time, the candidates refused as unreachable or colliding,
     and the model's coverage estimate after it (KnownSpace.coverage_estimate: the part's
     surface seen, as the model alone tells it); on the first decision, ``setup_s``: the
     planner's one-off set-up before it (the model, the candidate sweeps, the cell's collision
@@ -55,6 +56,7 @@ class AdaptiveStep:
     coverage_estimate: float = 0.0
     setup_s: float = 0.0
     path: dict = field(default_factory=dict)  # the view as a scan config's [[path]] entry
+    new_surface_cells: int = 0
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -265,6 +267,9 @@ class NextBestView:
 
     def scan_steps(self, scanner, c, progress=None):
         """:meth:`scan` as a generator: yields (frames done, frames in all) after each chunk."""
+        if not callable(getattr(c, "waypoints", None)):
+            raise InputError(f"scan: expected a view (a candidate from live() or choose()), got {c!r}"
+                             + (": choose() gives None when no view is left worth scanning" if c is None else ""))
         before = self.space.counts()["unknown"]
         expected = next_view.new_cells(self.space, self.probe, c.waypoints().probe2table)
         profiles = yield from scanner.scan_path_steps(c.waypoints(), progress)
@@ -351,12 +356,13 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
                 log(f"  refused {why}")
         if chosen is None:
             if log:
-                log(f"adaptive: stopping after {len(steps)} sweeps: no reachable sweep promises {min_gain} unseen "
+                log(f"adaptive: stopping after {len(steps)} sweeps: no reachable sweep promises {min_gain} new surface "
                     f"cells within the budget")
             break
         say("adaptive", taken, max_profiles)  # ... or during the planning
         yield taken
         before = taken
+        surface = planner.space.counts()["surface"]
         chunks = planner.scan_steps(scanner, chosen,
                                     lambda stage, done, total: say("adaptive", before + done, max_profiles))
         profiles, learnt = yield from _profiles_taken(chunks, before)
@@ -364,12 +370,12 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
         estimate = planner.coverage_estimate()
         step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
                             chosen.gain, planning, len(planner.refused), estimate, setup_s,
-                            chosen.path_entry())
+                            chosen.path_entry(), planner.space.counts()["surface"] - surface)
         steps.append(step)
         setup_s = 0.0
         if log:
-            log(f"adaptive: sweep {len(steps)}: {step.sweep}; the model learnt {step.new_cells} cells (air and "
-                f"surface), coverage estimate "
+            log(f"adaptive: sweep {len(steps)}: {step.sweep}; it found {step.new_surface_cells} new surface "
+                f"cells (the model learnt {step.new_cells} cells, air and surface), coverage estimate "
                 f"{estimate * 100:.0f} % (planned in {planning:.2f} s, {step.refused} refused)")
         if progress:
             progress("adaptive", taken, max_profiles)

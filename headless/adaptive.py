@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
             stops.finish()  # as a scan's: a stop from here waits for the results to be written
         if not steps:
             raise InputError(f"no view was scanned: none the robot can do fits the budget of {settings.max_profiles} "
-                             f"profiles and promises {settings.min_gain} unseen cells (raise --max-profiles, or check "
+                             f"profiles and promises {settings.min_gain} new surface cells (raise --max-profiles, or check "
                              f"that the [adaptive] box {lo.round(1).tolist()} .. {hi.round(1).tolist()} mm is the "
                              f"part's, on the table within the robot's reach); nothing written")
         result = scanner.result(out)

@@ -28,8 +28,8 @@ Scanner over a part that only its bounding box reveals.
   it finds next to nothing and costs its time only, a small penalty next to a new view's
   reward, so an agent that ignores the mask learns little from its repeats. (Free air the laser crossed teaches the model too,
   ``info["learnt"]``, but earns nothing.)
-- the episode ends when the profile budget is spent or every view has been scanned
-  (terminated), or after ``max_steps`` steps (truncated); ``info`` has the same keys after ``reset`` and every ``step``: the sweep
+- the episode ends when the profiles left in the budget fit no view (its smallest as laid out
+  now), or every view has been scanned (terminated), or after ``max_steps`` steps (truncated); ``info`` has the same keys after ``reset`` and every ``step``: the sweep
   (None after reset) and why it was refused (None: it was scanned), the profiles so far, the
   cells learnt and the surface cells found by the last step, the model's surface cells and its
   own coverage estimate (``KnownSpace.coverage_estimate``, a guide that runs above the truth).

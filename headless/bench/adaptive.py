@@ -7,7 +7,10 @@ booleans and real meshes). Methods, each with ``--budget`` profiles:
 - **planner**: addon.adaptive (told only the part's box grown by 10 %);
 - **turns**: full table turns at three probe heights (from above, 45° down at mid-height,
   70° down low at the sides), a third of the budget each: what an engineer sets up blind;
-- **raster**: parallel sweeps straight down across the box at two table angles 90° apart.
+- **raster**: parallel sweeps straight down across the box at two table angles 90° apart;
+- **yours** (with ``--planner FILE.py:NAME``): a planner of your own, run as the reference is
+  (``NAME(scanner, lo, hi)`` told the same box, then ``choose(scanner, profiles left)`` and
+  ``scan(scanner, view)`` until it chooses None or the budget is spent).
 
 Coverage is of the whole part (the truth used only to score), after each sweep or pass.
 "Reached with" is the share of the baseline's profiles the planner needed to reach the
@@ -29,11 +32,26 @@ from headless.bench import whole
 
 GROWTH_PNG = Path(__file__).resolve().parents[1] / "gallery" / "adaptive_growth.png"
 GROWTH_PANELS = 5   # at most; the views between are left out, the last one always in
+METHODS = ("planner", "turns", "raster", "yours")
+ADAPTIVE = ("planner", "yours")  # the methods that choose their views (the others are fixed paths)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--budget", type=whole(), default=450, help="profiles per method and part (default 450)")
-    parser.add_argument("--only", default="", help="only the parts whose name holds this text (comma-separated)")
+    parser.add_argument("--only", default="", help="only the parts whose name holds this text (comma-separated; "
+                                                   "--list names them)")
+    parser.add_argument("--list", action="store_true", help="name the parts and stop")
+    parser.add_argument("--planner", default="",
+                        help="a planner of your own to compare: FILE.py:NAME or MODULE:NAME, where NAME(scanner, lo, "
+                             "hi) gives an object with choose(scanner, profiles_left) -> view or None and "
+                             "scan(scanner, view) (a subclass of addon.adaptive.NextBestView is one; see "
+                             "docs/adaptive.md)")
+    parser.add_argument("--methods", default="",
+                        help=f"the methods to run, comma-separated from {', '.join(METHODS)} (default: all; "
+                             f"yours only with --planner)")
+    parser.add_argument("--engine", choices=("cycles", "raycast"), default="cycles",
+                        help="render engine (default cycles; raycast: what Cycles renders under ideal conditions, "
+                             "without Blender, for a quick comparison)")
     parser.add_argument("--readme", action="store_true", help="put the table and the plot into docs/adaptive.md")
     parser.add_argument("--growth", action="store_true",
                         help="draw the planner's scan of the first part growing, view by view, into "
@@ -51,12 +69,60 @@ def parts() -> dict:
     return out
 
 
-def config_for(name: str, mesh):
+def config_for(name: str, mesh, engine: str = "cycles"):
+    """The bench's scan config for one part (``parts()``): the demo's cell, robot and probe
+    with the part on the table (so "step block" is that mesh in the demo's cell, not
+    rigs/scenes/step_block.toml)."""
     from addon.core.config.scan import load_scan_config
     from addon.core.geometry.workpiece import Workpiece
 
-    base = load_scan_config("demo")
+    base = load_scan_config("demo").with_overrides(engine=None if engine == "cycles" else engine)
     return replace(base, name=name, workpiece=Workpiece(name, mesh, mesh, f"bench:{name}", np.eye(4)))
+
+
+def load_planner(spec: str):
+    """The planner factory ``--planner`` names: FILE.py:NAME (a file of yours) or MODULE:NAME
+    (importable from here). Raises InputError naming what is missing."""
+    import importlib
+    import importlib.util
+
+    from addon.core.errors import InputError
+
+    where, _, name = spec.rpartition(":")
+    if not where or not name.isidentifier():
+        raise InputError(f"--planner {spec!r}: expected FILE.py:NAME or MODULE:NAME (NAME: your planner's class "
+                         f"or factory)")
+    if where.endswith(".py"):
+        path = Path(where)
+        if not path.is_file():
+            raise InputError(f"--planner {spec!r}: there is no file {where}")
+        module_spec = importlib.util.spec_from_file_location(f"your_planner_{path.stem}", path)
+        module = importlib.util.module_from_spec(module_spec)
+        try:
+            module_spec.loader.exec_module(module)
+        except Exception as exc:
+            raise InputError(f"--planner {spec!r}: {where} failed to load: {_where_failed(exc, where)}") from None
+    else:
+        try:
+            module = importlib.import_module(where)
+        except Exception as exc:
+            raise InputError(f"--planner {spec!r}: cannot import {where}: {type(exc).__name__}: {exc}") from None
+    factory = getattr(module, name, None)
+    if not callable(factory):
+        raise InputError(f"--planner {spec!r}: {where} has no class or function {name}")
+    return factory
+
+
+def _where_failed(exc: BaseException, file: str | None = None) -> str:
+    """An exception in one line, with the innermost line of ``file`` (or of any file) it passed."""
+    import traceback
+
+    if isinstance(exc, SyntaxError):  # its message names the file and the line
+        return f"{type(exc).__name__}: {exc}"
+    frames = traceback.extract_tb(exc.__traceback__)
+    mine = [f for f in frames if file and Path(f.filename).resolve() == Path(file).resolve()] or frames[-1:]
+    at = f" (at {mine[-1].filename}:{mine[-1].lineno})" if mine else ""
+    return f"{type(exc).__name__}: {exc}{at}"
 
 
 def _path_length(scanner) -> float:
@@ -68,34 +134,70 @@ def _path_length(scanner) -> float:
     return float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
 
 
-def run_planner(config, budget: int) -> dict:
+def run_planner(config, budget: int, factory=None) -> dict:
+    """One adaptive planner on one part: ``factory(scanner, lo, hi)`` (default the reference,
+    addon.adaptive.NextBestView) told the part's box, asked for views until it has none or the
+    budget is spent. A planner of one's own (``--planner``) that fails or breaks the rules
+    raises InputError naming what it did."""
     from addon import Scanner
     from addon.adaptive import NextBestView, part_box
+    from addon.core.errors import InputError, ScannerError
+
+    own = factory is not None
+    factory = factory or NextBestView
+
+    def yours(what: str, call):
+        if not own:
+            return call()
+        try:
+            return call()
+        except ScannerError as exc:  # the Scanner refused what it was asked: its own one line
+            raise InputError(f"your planner {getattr(factory, '__name__', factory)!r}, {what}: {exc}") from None
+        except Exception as exc:
+            raise InputError(f"your planner {getattr(factory, '__name__', factory)!r} failed in {what}: "
+                             f"{_where_failed(exc)}") from None
 
     scanner = Scanner(config=config)
     lo, hi = part_box(config)
     t = time.perf_counter()
-    planner = NextBestView(scanner, lo, hi)  # the one-off set-up (model, candidates, collision model)
+    planner = yours("its set-up", lambda: factory(scanner, lo, hi))  # the one-off set-up (model, candidates, ...)
     setup = time.perf_counter() - t
     curve, plan_s, taken, views = [], [], 0, []
     while taken < budget:
         t = time.perf_counter()
-        c = planner.choose(scanner, budget - taken)
+        c = yours("choose()", lambda: planner.choose(scanner, budget - taken))
         plan_s.append(time.perf_counter() - t)
         if c is None:
             break
-        profiles, _ = planner.scan(scanner, c)
-        taken += len(profiles)
+        frames = getattr(c, "frames", None)
+        if own and not (isinstance(frames, (int, np.integer)) and 0 < frames <= budget - taken):
+            raise InputError(f"your planner chose {_describe(c)} with {frames!r} profiles while "
+                             f"{budget - taken} were left in the budget: choose() must return a view that fits "
+                             f"the profiles it is given, or None")
+        before = scanner._frames
+        yours("scan()", lambda: planner.scan(scanner, c))
+        taken += scanner._frames - before  # what the scanner took, whatever scan() returns
         curve.append((taken, scanner.result().report["coverage"]))
-        views.append(f"{'turn' if c.kind == 'turn' else 'sweep'}, tilt {c.tilt_deg:.0f} deg")
+        views.append(_describe(c))
     result = scanner.result()
     r = result.report
     part = result.cloud.select(result.on_part)
-    return dict(curve=curve, sweeps=len(curve), profiles=taken, path_mm=_path_length(scanner), views=views,
-                part_points=part.points, part_frames=part.frame,
-                plan_max=max(plan_s) if plan_s else 0.0, plan_median=float(np.median(plan_s)) if plan_s else 0.0,
-                setup=setup, rms=r["error_um"]["rms_um"], coverage=r["coverage"], measurable=r["coverage_measurable"],
-                estimate=planner.coverage_estimate())
+    estimate = getattr(planner, "coverage_estimate", None)
+    out = dict(curve=curve, sweeps=len(curve), profiles=taken, path_mm=_path_length(scanner), views=views,
+               part_points=part.points, part_frames=part.frame,
+               plan_max=max(plan_s) if plan_s else 0.0, plan_median=float(np.median(plan_s)) if plan_s else 0.0,
+               setup=setup, rms=r["error_um"]["rms_um"], coverage=r["coverage"], measurable=r["coverage_measurable"])
+    if callable(estimate):
+        out["estimate"] = float(yours("coverage_estimate()", estimate))
+    return out
+
+
+def _describe(view) -> str:
+    """A view for the growth picture's titles: kind and tilt where it has them."""
+    kind, tilt = getattr(view, "kind", None), getattr(view, "tilt_deg", None)
+    if kind is None or tilt is None:
+        return type(view).__name__
+    return f"{'turn' if kind == 'turn' else 'sweep'}, tilt {float(tilt):.0f} deg"
 
 
 def run_fixed(config, passes) -> dict:
@@ -167,20 +269,28 @@ def reached_with(planner_curve, target: float) -> float | None:
 
 
 def table(rows: list[dict]) -> str:
-    lines = ["| part | method | profiles | sweeps / passes | coverage, whole | coverage, measurable | "
-             "planner's own estimate | probe path | planning per decision (max / median; the set-up before the "
-             "first) | RMS µm | planner reaches this with |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    """The markdown table; with a planner of your own, a column of the profiles it needed to
+    reach each other method's final coverage beside the reference planner's."""
+    theirs = any(r["method"] == "yours" for r in rows)
+    head = ("| part | method | profiles | sweeps / passes | coverage, whole | coverage, measurable | "
+            "planner's own estimate | probe path | planning per decision (max / median; the set-up before the "
+            "first) | RMS µm | planner reaches this with |" + (" yours reaches this with |" if theirs else ""))
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
-        reach = r.get("reach")
-        reach = "" if reach is None else (f"{reach[0]} profiles ({reach[1] * 100:.0f} %)" if reach[0] else "never")
         plan = (f"{r['plan_max']:.2f} / {r['plan_median']:.2f} s (set-up {r['setup']:.2f} s)"
-                if r["method"] == "planner" else "")
+                if r["method"] in ADAPTIVE else "")
         estimate = f"{r['estimate'] * 100:.1f} %" if "estimate" in r else ""
+        reach = " | ".join(_reach_text(r.get(key)) for key in (("reach", "reach_yours") if theirs else ("reach",)))
         lines.append(f"| {r['part']} | {r['method']} | {r['profiles']} | {r['sweeps']} | {r['coverage'] * 100:.1f} % | "
                      f"{r['measurable'] * 100:.1f} % | {estimate} | {r['path_mm'] / 1000:.2f} m | {plan} | "
                      f"{r['rms']:.1f} | {reach} |")
     return "\n".join(lines)
+
+
+def _reach_text(reach) -> str:
+    if reach is None:
+        return ""
+    return f"{reach[0]} profiles ({reach[1] * 100:.0f} %)" if reach[0] else "never"
 
 
 def growth_picture(mesh, planner: dict, path) -> None:
@@ -222,35 +332,72 @@ def plot(results: dict, path) -> None:
     plt.close(fig)
 
 
+def chosen_methods(text: str, planner: str) -> list[str]:
+    """The methods ``--methods`` names (default: all, yours only with ``--planner``)."""
+    from addon.core.errors import InputError
+
+    if not text.strip():
+        return [m for m in METHODS if m != "yours" or planner]
+    names = [w.strip().lower() for w in text.split(",") if w.strip()]
+    unknown = [n for n in names if n not in METHODS]
+    if unknown:
+        raise InputError(f"--methods: {unknown[0]!r} is not one of {', '.join(METHODS)}")
+    if "yours" in names and not planner:
+        raise InputError("--methods yours needs --planner FILE.py:NAME (your planner)")
+    if planner and "yours" not in names:
+        names.append("yours")
+    return [m for m in METHODS if m in names]
+
+
 def run(args: argparse.Namespace) -> int:
+    from addon.core.errors import InputError
+
+    catalogue = parts()
+    if args.list:
+        for name, mesh in catalogue.items():
+            print(f"{name}: {len(mesh.faces)} faces, {np.ptp(mesh.bounds, axis=0).round(1).tolist()} mm")
+        return 0
+    methods_run = chosen_methods(args.methods, args.planner)
+    if args.readme and (methods_run != [m for m in METHODS if m != "yours"] or args.engine != "cycles" or args.only):
+        raise InputError("--readme writes the README's table: every part, the three methods, Cycles "
+                         "(leave out --only, --methods, --planner and --engine)")
+    factory = load_planner(args.planner) if args.planner else None
+    wanted = [w.strip().lower() for w in args.only.split(",") if w.strip()]
+    picked = {n: m for n, m in catalogue.items() if not wanted or any(w in n.lower() for w in wanted)}
+    if not picked:
+        raise InputError(f"--only {args.only!r}: no part's name holds it; the parts: {', '.join(catalogue)}")
     rows, results = [], {}
-    for name, mesh in parts().items():
-        if args.only and not any(w.strip().lower() in name.lower() for w in args.only.split(",")):
-            continue
-        config = config_for(name, mesh)
-        methods = {"planner": run_planner(config, args.budget),
-                   "turns": run_fixed(config, turns(config, args.budget)),
-                   "raster": run_fixed(config, raster(config, args.budget))}
+    for name, mesh in picked.items():
+        config = config_for(name, mesh, args.engine)
+        runs = {"planner": lambda: run_planner(config, args.budget),
+                "turns": lambda: run_fixed(config, turns(config, args.budget)),
+                "raster": lambda: run_fixed(config, raster(config, args.budget)),
+                "yours": lambda: run_planner(config, args.budget, factory)}
+        methods = {m: runs[m]() for m in methods_run}
         results[name] = methods
-        if args.growth and len(results) == 1 and methods["planner"]["curve"]:
-            growth_picture(mesh, methods["planner"], GROWTH_PNG)
-            print(f"{name}: the planner's scan growing, view by view: {GROWTH_PNG}", flush=True)
+        if args.growth and len(results) == 1:
+            grown = next((methods[m] for m in ADAPTIVE if m in methods and methods[m]["curve"]), None)
+            if grown is not None:
+                growth_picture(mesh, grown, GROWTH_PNG)
+                print(f"{name}: the scan growing, view by view: {GROWTH_PNG}", flush=True)
         for method, r in methods.items():
             row = dict(part=name, method=method, **{k: v for k, v in r.items() if k != "curve"})
-            if method != "planner":
-                got = reached_with(methods["planner"]["curve"], r["coverage"])
-                row["reach"] = (got, got / r["profiles"] if got else None)
+            for planner, key in (("planner", "reach"), ("yours", "reach_yours")):
+                if planner in methods and method != planner:
+                    got = reached_with(methods[planner]["curve"], r["coverage"])
+                    row[key] = (got, got / r["profiles"] if got else None)
             rows.append(row)
         print(f"{name}: " + "; ".join(f"{m} {r['coverage'] * 100:.1f} % in {r['profiles']} profiles"
                                       for m, r in methods.items()), flush=True)
-    if not rows:
-        raise SystemExit(f"error: no part's name holds {args.only!r}")
-    body = (f"Adaptive scanning against fixed paths (`python -m headless bench adaptive --budget {args.budget}`, "
-            f"2-core CPU, Cycles): coverage of the whole part (against its mesh, after the scan), of the "
-            f"surface the method's own path can measure, the planner's own coverage estimate from its model "
-            f"(what `--target-coverage` stops at), the probe's path length and the planner's time per "
-            f"decision; the last column: the profiles the planner needed to reach that baseline's final "
-            f"coverage, and their share of the baseline's.\n\n" + table(rows))
+    command = f"python -m headless bench adaptive --budget {args.budget}" + (
+        f" --planner {args.planner}" if args.planner else "") + (
+        " --engine raycast" if args.engine == "raycast" else "")
+    body = (f"Adaptive scanning against fixed paths (`{command}`, 2-core CPU, "
+            f"{'Cycles' if args.engine == 'cycles' else 'the raycast engine'}): coverage of the whole part (against "
+            f"its mesh, after the scan), of the surface the method's own path can measure, the planner's own "
+            f"coverage estimate from its model (what `--target-coverage` stops at), the probe's path length and the "
+            f"planner's time per decision; the last column: the profiles the planner needed to reach that "
+            f"method's final coverage, and their share of that method's.\n\n" + table(rows))
     print("\n" + body)
     if args.readme:
         from headless.bench import readme

@@ -116,3 +116,17 @@ def test_a_resampled_turn_keeps_the_probe_where_it_stands_in_the_world():
     assert np.allclose(world, world_old[0], atol=1e-9)
     with pytest.raises(ValueError, match="only a table turn"):
         next_view.resampled_turn(sweep_from_above(cfg, lo, hi), 40, cfg.cell.table)
+
+
+def test_rank_takes_the_probes_position_and_says_so_when_given_a_pose():
+    from addon.core.errors import InputError
+
+    cfg, lo, hi, space = setup()
+    top = sweep_from_above(cfg, lo, hi)
+    start = top.waypoints().probe2table[0]
+    near = next_view.rank(space, cfg.probe, [top], 0.0, start[:3, 3])
+    far = next_view.rank(space, cfg.probe, [top], 0.0, start[:3, 3] + [0.0, 0.0, 500.0])
+    assert near[0].gain == far[0].gain > 0 and far[0].seconds > near[0].seconds  # travel costs time
+    for wrong, said in ((start, "a 4x4 pose's position is pose[:3, 3]"), ([0.0, np.nan, 1.0], "must be finite")):
+        with pytest.raises(InputError, match=said.replace("[", r"\[").replace("]", r"\]")):
+            next_view.rank(space, cfg.probe, [top], 0.0, wrong)

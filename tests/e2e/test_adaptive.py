@@ -26,6 +26,9 @@ def test_the_planner_covers_the_sphere_from_a_box_alone(tmp_path, capsys):
     assert estimates[-1] >= 0.7 and all(e < 0.7 for e in estimates[:-1]) and estimates == sorted(estimates)
     assert "reached the target" in log and report["adaptive"]["target_coverage"] == 0.7
     assert all(s["new_cells"] > 0 for s in sweeps) and sweeps[0]["new_cells"] >= sweeps[-1]["new_cells"]
+    # What each view found in the unit it promised (new surface cells), beside what it taught.
+    assert all(0 < s["new_surface_cells"] < s["new_cells"] for s in sweeps)
+    assert all(f"found {s['new_surface_cells']} new surface cells" in log for s in sweeps)
     assert len({s["sweep"].split(",")[0] + str(s["tilt_deg"]) for s in sweeps}) == len(sweeps)  # never twice
     assert max(s["planning_s"] for s in sweeps) < 5.0
     # The one-off set-up is reported once, before the first decision, not inside it.
@@ -233,7 +236,9 @@ def test_a_stop_between_choosing_the_overview_and_scanning_it_leaves_it_to_be_ch
 def test_numpy_whole_numbers_are_taken_as_budget_and_gain():
     from addon import Scanner
 
-    config, _, _ = _raycast_planner("demo")
+    config, scanner, planner = _raycast_planner("demo")
+    with pytest.raises(InputError, match=r"scan: expected a view .*got None: choose\(\) gives None when no view"):
+        planner.scan(scanner, None)
     s = Scanner(config=config)
     steps = s.adaptive(max_profiles=np.int64(200), min_gain=np.int32(30))
     assert steps and s.report().to_dict()["adaptive"]["max_profiles"] == 200
@@ -342,7 +347,9 @@ def test_a_budget_or_box_the_planner_cannot_use_is_named_by_the_api_and_the_envi
     from addon import Scanner
     from addon.adaptive import BudgetBelowView
 
-    config, _, _ = _raycast_planner("demo")
+    config, scanner, planner = _raycast_planner("demo")
+    with pytest.raises(InputError, match=r"scan: expected a view .*got None: choose\(\) gives None when no view"):
+        planner.scan(scanner, None)
     s = Scanner(config=config)
     with pytest.raises(BudgetBelowView, match=r"budget of 10 profiles is below the smallest view's \d+") as exc:
         s.adaptive(max_profiles=10)
@@ -386,3 +393,65 @@ def test_every_view_the_planner_can_choose_is_a_path_entry_a_config_scans_again(
     assert len(wp) == sum(c.frames for c in pool)
     np.testing.assert_allclose(wp.probe2table, np.concatenate([c.wp.probe2table for c in pool]), atol=1e-5)
     np.testing.assert_allclose(wp.table_rad, np.concatenate([c.wp.table_rad for c in pool]), atol=1e-7)
+
+
+def _bench(*args):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    return subprocess.run([sys.executable, "-m", "headless", "bench", "adaptive", *args], cwd=repo,
+                          capture_output=True, text=True, timeout=900)
+
+
+def test_the_bench_runs_a_planner_of_ones_own_beside_the_reference():
+    """``--planner`` plugs a class into the bench the way the reference runs: given the
+    reference's own class, its row matches the reference's figure for figure, and each
+    method's "reaches this with" reads the other's curve."""
+    import re
+
+    out = _bench("--only", "sphere", "--engine", "raycast", "--budget", "150", "--methods", "planner",
+                 "--planner", "addon.adaptive:NextBestView")
+    assert out.returncode == 0, out.stderr[-2000:]
+    rows = {m.group(1): m.group(0).split(" | ") for m in re.finditer(r"^\| sphere \(demo\) \| (\w+) \|.*$",
+                                                                    out.stdout, re.M)}
+    assert set(rows) == {"planner", "yours"}, out.stdout
+    ref, yours = rows["planner"], rows["yours"]
+    # part, method, profiles, sweeps, coverage (whole), coverage (measurable), estimate, path, planning, RMS, ...
+    assert ref[2:8] == yours[2:8] and ref[9] == yours[9]
+    assert 0 < int(yours[2]) <= 150 and float(yours[4].rstrip(" %")) > 20.0
+    # Each reaches the other's final coverage with all of its own profiles (the same curve).
+    assert ref[-1].strip(" |") == f"{yours[2]} profiles (100 %)" == yours[-2].strip()
+
+
+def test_a_planner_of_ones_own_that_fails_or_overspends_is_named_in_one_line(tmp_path):
+    mine = tmp_path / "mine.py"
+    mine.write_text("class Raises:\n"
+                    "    def __init__(self, scanner, lo, hi):\n"
+                    "        self.lo = lo\n"
+                    "    def choose(self, scanner, left):\n"
+                    "        return self.lo[7]\n"
+                    "\n"
+                    "class Greedy:\n"
+                    "    frames = 10 ** 6\n"
+                    "    def __init__(self, scanner, lo, hi):\n"
+                    "        pass\n"
+                    "    def choose(self, scanner, left):\n"
+                    "        return self\n")
+    cases = {f"{mine}:Raises": f"failed in choose(): IndexError: index 7 is out of bounds for axis 0 with size 3 "
+                               f"(at {mine}:5)",
+             f"{mine}:Greedy": "chose Greedy with 1000000 profiles while 150 were left in the budget",
+             f"{mine}:Nothing": f"{mine} has no class or function Nothing",
+             f"{tmp_path / 'absent.py'}:X": "there is no file",
+             "no_such_module_here:X": "cannot import no_such_module_here",
+             "Greedy": "expected FILE.py:NAME or MODULE:NAME"}
+    for spec, said in cases.items():
+        out = _bench("--only", "sphere", "--engine", "raycast", "--budget", "150", "--methods", "yours",
+                     "--planner", spec)
+        assert out.returncode == 2 and said in out.stderr and "Traceback" not in out.stderr, (spec, out.stderr)
+        assert len(out.stderr.strip().splitlines()) == 1 and out.stdout.count("|") == 0, (spec, out.stderr)
+    out = _bench("--methods", "yours")
+    assert out.returncode == 2 and "--methods yours needs --planner" in out.stderr
+    out = _bench("--only", "no part has this name")
+    assert out.returncode == 2 and "sphere (demo), step block" in out.stderr

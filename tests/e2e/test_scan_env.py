@@ -77,7 +77,7 @@ def test_a_config_is_taken_as_a_path_too_and_an_agents_sweep_promises_no_cells_i
     assert env.config.name == ScanPlanningEnv("demo").config.name
     env.reset(seed=0)
     _, _, _, _, info = env.step(np.array([1, 2, 0]))
-    assert info["refused"] is None and "sweep at table" in info["sweep"] and "unseen cells" not in info["sweep"]
+    assert info["refused"] is None and "sweep at table" in info["sweep"] and "promising" not in info["sweep"]
     with pytest.raises(InputError, match="scan config"):
         ScanPlanningEnv(42)
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..errors import InputError
 from ..geometry.footprint import fan_rays
 from ..geometry.known_space import UNKNOWN, KnownSpace
 from ..kinematics import path as scanpath
@@ -76,7 +77,7 @@ class Candidate:
         what = "sweep" if self.kind == "sweep" else "table turn"
         text = f"{what} at table {self.table_deg:.0f} deg, tilt {self.tilt_deg:.0f} deg, {self.frames} profiles"
         # Only a ranked candidate has a gain; one picked by hand (an agent's action) has none yet.
-        return text + (f", promising about {self.gain} unseen cells" if self.seconds > 0 else "")
+        return text + (f", promising about {self.gain} new surface cells" if self.seconds > 0 else "")
 
 
 def robot_side(cell, table_deg: float) -> np.ndarray:
@@ -189,7 +190,15 @@ def sample_poses(c: Candidate) -> np.ndarray:
 def rank(space: KnownSpace, probe: Probe, cands: list[Candidate], table_deg_now: float,
          probe_now: np.ndarray | None, skip: np.ndarray | None = None) -> list[Candidate]:
     """The candidates with their gain and cost, best gain per second first (no gain: left out).
-    ``skip``: cells not to count as gain (see :func:`gain`)."""
+    ``probe_now``: where the probe is (table frame, mm, (3,); None: nowhere yet, no travel
+    counted). ``skip``: cells not to count as gain (see :func:`gain`)."""
+    if probe_now is not None:
+        where = np.asarray(probe_now, dtype=np.float64)
+        if where.shape != (3,) or not np.isfinite(where).all():
+            raise InputError(f"rank: probe_now is the probe's position (x, y, z) in the table frame, mm, or None; "
+                             f"got an array of shape {where.shape} (a 4x4 pose's position is pose[:3, 3])"
+                             if where.shape != (3,) else f"rank: probe_now must be finite, got {where.tolist()}")
+        probe_now = where
     out = []
     for c in cands:
         poses = sample_poses(c)
