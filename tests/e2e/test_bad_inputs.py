@@ -16,10 +16,12 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+import json
 
 import numpy as np
 import pytest
 
+from addon.core.geometry.cloud import load_ply
 from headless.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -314,6 +316,20 @@ CASES = [
     ("config: safety clearance negative", demo_plus("[safety]\nmin_clearance_mm = -2.0"), 2,
      "min_clearance_mm"),
     ("config: fixture without file", demo_plus("[[fixture]]\nname = 'clamp'"), 2, "file"),
+    # Extreme values that looked valid (a QA trial): a clearance no measuring probe can keep
+    # was accepted and then hung in the collision checks; one the start pose breaks was found
+    # only after every sample of the path (132 s); a probe whose cameras cannot image the line
+    # rendered and measured nothing; a blind probe was refused only after the motion checks.
+    ("config: a clearance the probe cannot keep and still measure", demo_plus("[safety]\nmin_clearance_mm = 250.0"),
+     2, "is not below the end of the probe's range (250 mm)"),
+    ("config: a clearance the start pose breaks", demo_plus("[safety]\nmin_clearance_mm = 200.0"), 2,
+     "at the start pose: the probe comes within"),
+    ("probe: cameras that cannot image the line (a baseline of a nanometre)", probe_with("a_mm = 60.0", "a_mm = 1e-6"),
+     2, "does not image the laser plane"),
+    ("probe: a line too thin to see on an unreachable path: the probe is named first", lambda t: (
+        t.joinpath("probe.toml").write_text(PROBE.replace("line_width_mm = 1.2", "line_width_mm = 1e-9", 1)),
+        ["scan", scene(t, DEMO.replace('rig = "default"', f'rig = "{t / "probe.toml"}"').replace(
+            "to_mm = [40.0, 0.0, 210.0]", "to_mm = [4000.0, 0.0, 210.0]"))])[1], 2, "too thin for any pixel"),
     ("output: --out holds the part's own mesh where cloud.ply goes", lambda t: (
         t.joinpath("out").mkdir(), t.joinpath("out", "cloud.ply").write_bytes(cube_mm().export(file_type="ply")),
         ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0', f'file = "{t / "out" / "cloud.ply"}"')),
@@ -727,3 +743,27 @@ def test_a_bad_value_in_a_table_names_its_own_key_once_not_the_file_it_sits_besi
     line = capsys.readouterr().err.strip()
     assert f"scene.toml: {key}" in line and line.count("scene.toml") == 1 and "robot.urdf:" not in line \
         and ".file:" not in line, line
+
+
+def test_a_scan_that_measures_nothing_of_the_part_says_so_and_counts_only_the_points_it_kept(tmp_path, capsys):
+    """A QA trial: scans that found no point on the part exited 0 without a word (the small-share
+    warning asked for a share above 0), and report.json counted fused points that the
+    neighbouring profiles had then dropped (10 points, 429 of them fused). ``max_sigma_mm = inf``,
+    which the docs give for "keep every point", is taken."""
+    tiny = scene(tmp_path, DEMO.replace("radius_mm = 30.0", "radius_mm = 0.005", 1).replace(
+        "fuse = true", "fuse = true\nmax_sigma_mm = inf", 1), "tiny.toml")
+    rc = main(["scan", tiny, "--engine", "raycast", "--frames", "0:4", "--out", str(tmp_path / "tiny"), "--quiet"])
+    report = json.loads((tmp_path / "tiny" / "report.json").read_text())
+    assert rc == 0 and report["points"] > 0 and report["points_on_part"] == 0
+    said = [w for w in report["warnings"] if w.startswith("the scan measured")]
+    assert said == [f"the scan measured {report['points']} points, none of them on the part: the path's laser meets "
+                    f"none of the part within the probe's range and a camera's view: a path onto the part ([[path]] "
+                    f"entries; the preview shows where the points are)"]
+    assert said[0] in capsys.readouterr().out
+    # Coarse rows: most fused points are dropped as uncertain once their neighbours are in.
+    rc = main(["scan", "demo", "--engine", "raycast", "--frames", "0:12", "--resolution", "160x96",
+               "--out", str(tmp_path / "coarse"), "--quiet"])
+    report = json.loads((tmp_path / "coarse" / "report.json").read_text())
+    assert rc == 0 and report["points_dropped"]["uncertain"] > report["points"] > 0
+    cloud = load_ply(tmp_path / "coarse" / "cloud.ply")
+    assert report["points_fused"] == int(np.sum(cloud.camera == 3)) <= report["points"] == len(cloud)

@@ -387,8 +387,8 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
         max_incidence_deg=tri.number("max_incidence_deg", default=DEFAULT_FILTER.max_incidence_deg, lo=0.0, hi=90.0,
                                      lo_open=True),
         edge_px=tri.integer("edge_px", default=DEFAULT_FILTER.edge_px, lo=0, hi=1000),
-        max_sigma_mm=tri.number("max_sigma_mm", default=DEFAULT_FILTER.max_sigma_mm, lo=0.0, hi=float("inf"),
-                                lo_open=True))
+        max_sigma_mm=tri.number("max_sigma_mm", default=DEFAULT_FILTER.max_sigma_mm, lo=0.0, lo_open=True,
+                                inf_ok=True))  # inf: keep every point
     tri.finish()
     lo = top.table("leave_out", default={})
     leave_out = LeaveOut(lo.boolean("render_band", default=True), lo.boolean("skip_blind_cameras", default=True),
@@ -399,6 +399,13 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     st = top.table("safety", default={})
     safety = Safety(st.boolean("check", default=True),
                     st.number("min_clearance_mm", default=Safety().min_clearance_mm, lo=0.0, hi=1e4))
+    if safety.check and safety.min_clearance_mm >= probe.z_range_mm[1] * (1.0 - 1e-9):
+        # The laser starts inside the probe, so the probe is nearer any point it measures than
+        # the point is to the laser: a clearance this large keeps every point out of range.
+        raise st.error("min_clearance_mm", f"{safety.min_clearance_mm:g} mm is not below the end of the probe's "
+                       f"range ({probe.z_range_mm[1]:g} mm): the probe could never come near enough the part to "
+                       f"measure it; allowed: 0 to under {probe.z_range_mm[1]:g} mm (default "
+                       f"{Safety().min_clearance_mm:g})")
     st.finish()
     fixtures = _fixtures(top, base)
     adaptive = _adaptive(top.table("adaptive", default={}))

@@ -120,13 +120,16 @@ class Table:
     # -- scalars --------------------------------------------------------------
     def number(self, key: str, default: Any = _MISSING, *, lo: float | None = None,
                hi: float | None = None, lo_open: bool = False, hi_open: bool = False,
-               nonzero: bool = False) -> float:
+               nonzero: bool = False, inf_ok: bool = False) -> float:
         """A finite number in [lo, hi] (or open ends); ints and floats accepted, bools not.
-        An absent key gives ``default`` unchecked (so None can mean "derive it")."""
+        An absent key gives ``default`` unchecked (so None can mean "derive it"). ``inf_ok``:
+        ``inf`` (no limit) is taken too."""
         if key not in self.data and default is not _MISSING:
             self._used.add(key)
             return default
         value = self._get(key, default)
+        if inf_ok and isinstance(value, float) and value == math.inf:
+            return value
         return self._check_number(key, value, lo, hi, lo_open, hi_open, nonzero)
 
     def _check_number(self, key, value, lo, hi, lo_open, hi_open, nonzero, where: str = "") -> float:

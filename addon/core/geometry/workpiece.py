@@ -81,12 +81,15 @@ def builtin_workpiece(kind: str, pose=None, **params) -> Workpiece:
         raise InputError(f"{kind}: unknown parameter(s) {', '.join(sorted(unknown))}; allowed: {', '.join(defaults)}")
     shape = make(pose, **{**defaults, **params})
     mesh = shape.mesh()
-    check_mesh(mesh, kind)
+    check_mesh(mesh, f"the built-in {kind}", f"give it a size from {MIN_EXTENT_MM:g} to {MAX_EXTENT_MM:g} mm "
+                                             f"across with its size keys ({', '.join(defaults)})")
     return Workpiece(kind, mesh, shape, f"builtin:{kind}", pose)
 
 
-def check_mesh(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
-    """Refuse meshes that cannot be a workpiece, naming what is wrong."""
+def check_mesh(mesh: trimesh.Trimesh, what: str, fix: str = "is it in another unit? Set the workpiece's scale key"
+               ) -> trimesh.Trimesh:
+    """Refuse meshes that cannot be a workpiece, naming what is wrong; ``fix``: what to do
+    about a size out of range (a file's unit; a built-in shape's own size keys)."""
     if len(mesh.vertices) == 0 or len(mesh.faces) == 0:
         raise InputError(f"{what}: the mesh is empty (no faces); a workpiece needs a surface")
     if not np.all(np.isfinite(mesh.vertices)):
@@ -95,11 +98,9 @@ def check_mesh(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
         raise InputError(f"{what}: {len(mesh.faces)} faces is more than the {MAX_FACES} allowed; decimate it first")
     extent = float(np.max(mesh.extents))
     if extent > MAX_EXTENT_MM:
-        raise InputError(f"{what}: the mesh is {extent:g} mm across, larger than {MAX_EXTENT_MM:g} mm: is it in "
-                         "another unit? Set the workpiece's scale key")
+        raise InputError(f"{what}: the mesh is {extent:g} mm across, larger than {MAX_EXTENT_MM:g} mm: {fix}")
     if extent < MIN_EXTENT_MM:
-        raise InputError(f"{what}: the mesh is only {extent:g} mm across (at least {MIN_EXTENT_MM:g} mm): is it in "
-                         "another unit? Set the workpiece's scale key")
+        raise InputError(f"{what}: the mesh is only {extent:g} mm across (at least {MIN_EXTENT_MM:g} mm): {fix}")
     return mesh
 
 

@@ -99,7 +99,15 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     r = config.render
     warnings = list(plan.warnings) + fixture_warnings(plan.fixture_frames, len(plan.q))
     share = quality.get("measurable_share", 0.0)
-    if n and 0 < share < SMALL_SHARE and not step_by_step and config.path_frames is None:
+    if n and not np.any(on_part):
+        what = "no point at all" if len(cloud) == 0 else f"{len(cloud)} points, none of them on the part"
+        why = ("the path's laser meets none of the part within the probe's range and a camera's view: a path onto "
+               "the part ([[path]] entries; the preview shows where the points are)" if share == 0 else
+               f"the laser meets {share * 100:.1f} % of the part within the probe's range, and every column there was "
+               f"dropped or found no line (see the points dropped after detection): the sensor's settings, the "
+               f"detector's, or the probe's view of the part")
+        warnings.append(f"the scan measured {what}: {why}")
+    elif n and 0 < share < SMALL_SHARE and not step_by_step and config.path_frames is None:
         warnings.append(f"the path can measure only {share * 100:.1f} % of the part's surface (whole-part coverage "
                         f"{quality['coverage'] * 100:.1f} %): most of the part lies outside what it scans; "
                         "a path of the part's own size: [[path]] entries, or the adaptive planner")
@@ -128,7 +136,9 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         # grazing the laser plane, out of the range, steep, a run's edge, the cameras in conflict),
         # and the points both cameras agreed on.
         "points_dropped": {k: v for k, v in sorted(stats.get("points", {}).items()) if k != "fused"},
-        "points_fused": int(stats.get("points", {}).get("fused", 0)),
+        # Counted in the cloud as written: fused points that the neighbouring profiles then
+        # dropped as uncertain are not in it (camera 3: both cameras, optics.triangulate).
+        "points_fused": int(np.sum(cloud.camera == 3)),
         "cameras_rendered": list(plan.cameras),
         "frames_rerendered_full": stats["rerendered"],
         "mean_rows_rendered": float(np.mean(stats["band_rows"])) if stats["band_rows"] else 0.0,

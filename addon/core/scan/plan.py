@@ -63,6 +63,9 @@ def plan_scan(config: ScanConfig, allow_blind: bool = False) -> Plan:
     ``allow_blind``: frames whose laser meets nothing in range are kept (a step-by-step
     scanner measures nothing there) instead of refusing the path; where no camera sees
     the line on any frame, ``cameras`` is empty and nothing needs rendering."""
+    blind = blind_settings(config)  # cheap, and nothing else matters if it holds
+    if blind:
+        raise InputError(f"nothing could be measured: {blind}")
     cell = config.cell
     wp = config.waypoints
     sol = solve_path(cell, wp, config.q_start)
@@ -128,7 +131,17 @@ def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, t
     checks off."""
     if not config.safety.check:
         return None
-    result = collision_model(config).check(q, table_rad, segment, q_start, table_start, nearest=nearest)
+    model = collision_model(config)
+    if q_start is not None:
+        # The pose the motion starts from, alone first: one that breaks the clearance is refused
+        # at once, not after every sample of a path that then breaks it all along (a large
+        # [safety] min_clearance_mm: every sample of every pair asks for an exact distance).
+        start = np.asarray(q_start, dtype=np.float64).reshape(1, 6)
+        t0 = float(np.asarray(table_rad, dtype=np.float64).reshape(-1)[0]) if table_start is None else table_start
+        at_start = model.check(start, np.array([t0]), None, start, t0, nearest=False)
+        if not at_start.ok:
+            raise CollisionError(at_start.message())
+    result = model.check(q, table_rad, segment, q_start, table_start, nearest=nearest)
     if not result.ok:
         raise CollisionError(result.message(segment))  # a config's path: its entries named too
     return result
@@ -163,6 +176,11 @@ def blind_settings(config: ScanConfig) -> str | None:
         uv = probe.project(np.array([[step, 0.0, z], [-step, 0.0, z]]), 0)
         if np.isfinite(uv).all():
             widths.append(abs(uv[0, 1] - uv[1, 1]) / (2 * step) * fwhm_mm)
+    if not widths:
+        return (f"camera 0 does not image the laser plane {step * 1e3:g} µm either side of the line's middle anywhere "
+                f"in the probe's range {z0:g}-{z1:g} mm (a_mm {probe.a_mm:g}, phi {math.degrees(probe.phi_rad):.3g}°, "
+                f"gamma {math.degrees(probe.gamma_rad):.3g}°): its view cannot hold the line; a wider baseline "
+                f"(a_mm) or a probe whose cameras look at the laser plane across its range")
     # A surface tilted towards a camera narrows the line's image: refuse only a line that stays
     # too wide even so (three times over, more than the incidence limit's foreshortening gives).
     if widths and min(widths) > WIDE_MARGIN * detect.max_width_px:
