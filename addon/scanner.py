@@ -714,7 +714,7 @@ class Scanner:
         z0, z1 = self.config.probe.z_range_mm
         n = len(self._empty_frames)
         return [f"{'frames' if n > 1 else 'frame'} {frame_ranges(self._empty_frames)} put no surface inside the "
-                f"probe's range {z0:.0f}-{z1:.0f} mm and measured nothing: the probe was too near or too far from "
+                f"probe's range {z0:.4g}-{z1:.4g} mm and measured nothing: the probe was too near or too far from "
                 f"the part and the table"]
 
     def report(self) -> ScanReport:

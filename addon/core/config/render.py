@@ -98,11 +98,11 @@ def raycast_mismatch(settings: RenderOptions, material: str, hide_robot: bool = 
         return f"{settings.bounces} light bounces need light transport: set bounces = 0 or use engine cycles"
     if settings.ambient > 0:
         return f"ambient light {settings.ambient:g} needs light transport: set ambient = 0 or use engine cycles"
+    if settings.motion_blur_shutter > 0:  # before the samples: motion blur brings its own
+        return "motion during the exposure needs engine cycles"
     if settings.samples != 1 or settings.filter_width_px > 0.01:
         return (f"it samples each pixel once at its centre; {settings.samples} samples with a "
                 f"{settings.filter_width_px:g} px filter (a sensor that integrates its pixels) need engine cycles")
-    if settings.motion_blur_shutter > 0:
-        return "motion during the exposure needs engine cycles"
     if material not in DIFFUSE_SURFACES:
         return f"the {material} surface is not diffuse ({', '.join(DIFFUSE_SURFACES)} are): use engine cycles"
     if not hide_robot:

@@ -402,10 +402,15 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     if safety.check and safety.min_clearance_mm >= probe.z_range_mm[1] * (1.0 - 1e-9):
         # The laser starts inside the probe, so the probe is nearer any point it measures than
         # the point is to the laser: a clearance this large keeps every point out of range.
+        z1 = probe.z_range_mm[1]
+        if "min_clearance_mm" not in st.data:  # the default: the probe's range is what is odd
+            raise st.error("min_clearance_mm", f"the probe's range ends {z1:.4g} mm from its laser, within the "
+                           f"{safety.min_clearance_mm:g} mm (the default) that the probe keeps from the part and the "
+                           f"table: it could never measure a point; a probe whose range reaches farther (its range_mm, "
+                           f"or phi and gamma), or a smaller min_clearance_mm")
         raise st.error("min_clearance_mm", f"{safety.min_clearance_mm:g} mm is not below the end of the probe's "
-                       f"range ({probe.z_range_mm[1]:g} mm): the probe could never come near enough the part to "
-                       f"measure it; allowed: 0 to under {probe.z_range_mm[1]:g} mm (default "
-                       f"{Safety().min_clearance_mm:g})")
+                       f"range ({z1:.4g} mm): the probe could never come near enough the part to measure it; "
+                       f"allowed: 0 to under {z1:.4g} mm (default {Safety().min_clearance_mm:g})")
     st.finish()
     fixtures = _fixtures(top, base)
     adaptive = _adaptive(top.table("adaptive", default={}))
@@ -535,7 +540,7 @@ def _paths(top: Table, table: Turntable) -> scanpath.Waypoints:
                                                 np.radians(p.number("turn_deg", default=360.0, lo=-1e5, hi=1e5)),
                                                 table, i))
         except InputError as exc:
-            raise p.error("kind", str(exc)) from None
+            raise p.table_error(str(exc)) from None  # the message names the key
         p.finish()
     if not parts:
         raise top.error("path", "at least one [[path]] is needed")

@@ -154,7 +154,11 @@ class SensorModel:
         f = self.focal_mm(probe)
         zf = self.focus_depth_mm(probe)
         if zf <= f:
-            raise InputError(f"focus_mm {zf:g} must lie beyond the lens's focal length ({f:.1f} mm)")
+            given = "[sensor] focus_mm" if self.focus_mm is not None else \
+                "the depth in focus (where the blur at both ends of the range is equal: [sensor] focus_mm is not set)"
+            raise InputError(f"defocus: {given} {zf:g} mm must lie beyond the lens's focal length ({f:.4g} mm, from "
+                             f"[sensor] pixel_pitch_um {self.pitch_um(probe):g} and the probe's field of view): a smaller "
+                             f"pixel pitch or a farther focus")
         z = np.asarray(depth_mm, dtype=np.float64)
         c_mm = (f / self.f_number) * f * np.abs(z - zf) / (z * (zf - f))
         return c_mm / (self.pitch_um(probe) * 1e-3) / 2.355

@@ -211,7 +211,7 @@ def plan_frames(config: ScanConfig, q: np.ndarray, table_rad: np.ndarray, allow_
     if foot.empty_frames and not allow_blind:
         z0, z1 = config.probe.z_range_mm
         raise ScannerError(f"{len(foot.empty_frames)} of {n} waypoints put no surface inside the probe's "
-                           f"range {z0:.0f}-{z1:.0f} mm (frames {frame_ranges(foot.empty_frames)}): "
+                           f"range {z0:.4g}-{z1:.4g} mm (frames {frame_ranges(foot.empty_frames)}): "
                            f"{out_of_range_text(foot, z0, z1)}")
     cameras = foot.cameras_needed() if config.leave_out.skip_blind_cameras or allow_blind else (0, 1)
     if not cameras and not allow_blind:
@@ -252,7 +252,7 @@ def out_of_range_text(foot, z0: float, z1: float) -> str:
     if near.any():
         said.append(f"{'on ' + str(int(near.sum())) + ' of them ' if not near.all() else ''}the laser meets a "
                     f"surface {span(nearest[near])} from the probe, nearer than "
-                    f"its {z0:.0f} mm: move the path away from it")
+                    f"its {z0:.4g} mm: move the path away from it")
     if far.any():
         said.append(f"{'on ' + str(int(far.sum())) + ' of them ' if not far.all() else ''}the nearest surface lies "
                     f"{span(nearest[far])} away, beyond the probe's "
@@ -344,7 +344,7 @@ def frames_in_range(config: ScanConfig) -> ScanConfig:
     if not len(keep):
         z0, z1 = config.probe.z_range_mm
         raise InputError(f"none of the {len(config.waypoints)} frames of the path puts the part, the table or a "
-                         f"fixture inside the probe's range {z0:.0f}-{z1:.0f} mm: check the probe's optics "
+                         f"fixture inside the probe's range {z0:.4g}-{z1:.4g} mm: check the probe's optics "
                          f"(a, b, φ, γ) and the part's size")
     from dataclasses import replace
 
