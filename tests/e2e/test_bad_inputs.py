@@ -324,6 +324,10 @@ CASES = [
      2, "is not below the end of the probe's range (250 mm)"),
     ("config: a clearance the start pose breaks", demo_plus("[safety]\nmin_clearance_mm = 200.0"), 2,
      "at the start pose: the probe comes within"),
+    ("config: a clearance the whole path breaks (no start pose)", lambda t: ["scan", scene(t, "\n".join(
+        ln for ln in DEMO.splitlines() if not ln.startswith("start_deg = [")) + "\n[safety]\nmin_clearance_mm = 150.0\n"),
+        "--engine", "raycast"], 2, "at frames 0-179 (path[1] to path[2]): the probe comes within 148.00 mm of the "
+                                   "workpiece"),
     ("probe: cameras that cannot image the line (a baseline of a nanometre)", probe_with("a_mm = 60.0", "a_mm = 1e-6"),
      2, "does not image the laser plane"),
     ("probe: a line too thin to see on an unreachable path: the probe is named first", lambda t: (

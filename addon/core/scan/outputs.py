@@ -99,7 +99,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     r = config.render
     warnings = list(plan.warnings) + fixture_warnings(plan.fixture_frames, len(plan.q))
     share = quality.get("measurable_share", 0.0)
-    if n and not np.any(on_part):
+    if n and not np.any(on_part) and not step_by_step:  # (a planner's poses may see nothing on purpose)
         what = "no point at all" if len(cloud) == 0 else f"{len(cloud)} points, none of them on the part"
         why = ("the path's laser meets none of the part within the probe's range and a camera's view: a path onto "
                "the part ([[path]] entries; the preview shows where the points are)" if share == 0 else
