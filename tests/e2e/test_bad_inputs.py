@@ -424,7 +424,7 @@ CASES = [
     ("mesh: PNG named .stl", part_file(png_named_stl), 2, "not a readable"),
     ("mesh: empty file", part_file(empty_stl), 2, "empty.stl"),
     ("mesh: text named .obj", part_file(text_named_obj), 2, "notes.obj"),
-    ("mesh: 2 GB sparse STL", part_file(sparse_huge_stl), 2, "huge.stl"),
+    ("mesh: 2 GB sparse STL", part_file(sparse_huge_stl), 2, "announces 40000000 triangles, more than the"),
     ("mesh: saved in metres", part_file(part_in_metres), 2, "scale"),
     ("mesh: saved in micrometres", part_file(part_in_micrometres), 2, "scale"),
     ("mesh: a folder", part_file(folder_as_mesh), 2, "folder.stl"),
@@ -664,7 +664,7 @@ def case_ctrl_c_farm(tmp):
 def case_ctrl_c_bench(tmp):
     # A benchmark's scans pass no progress callback of their own; Ctrl-C still stops the one
     # under way after its current frames, and nothing of the benchmark is written.
-    proc = _start(["bench", "parts", "--only", "hex nut,block with hole", "--frames", "24"], tmp)
+    proc = _start(["bench", "parts", "--only", "hex nut,block with hole", "--frames", "12"], tmp)
     _wait_for(proc, "block with hole and pocket:", stream="stdout")  # the first part is done
     t = time.monotonic()
     proc.send_signal(signal.SIGINT)

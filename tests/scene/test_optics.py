@@ -29,8 +29,8 @@ DISTANCES = (90.0, 150.0, 220.0)
 TILTS_DEG = ((0, 0), (30, 0), (0, 30), (-20, 25))  # about the probe's X, then Y
 
 
-def plane_poses():
-    return [trans(0, 0, z) @ rot_x(math.radians(a)) @ rot_y(math.radians(b)) for z in DISTANCES for a, b in TILTS_DEG]
+def plane_poses(tilts=TILTS_DEG):
+    return [trans(0, 0, z) @ rot_x(math.radians(a)) @ rot_y(math.radians(b)) for z in DISTANCES for a, b in tilts]
 
 
 def predicted_rows(probe, pose, camera, cols):
@@ -60,12 +60,12 @@ def keyframe_pose_sequence(obj, poses):
                         [Matrix(p[:3, :3].tolist()).to_euler("XYZ")[i] for p in poses], index=i)
 
 
-def render_planes(scene, probe, laser, settings):
+def render_planes(scene, probe, laser, settings, tilts=TILTS_DEG):
     col, frame, cams, _ = probe_scene(scene, probe, laser)
     # A thin slab whose face towards the probe is the pose's z = 0 plane.
     plane = mesh_object("Target", trimesh.creation.box([600, 600, 1.0], trans(0, 0, 0.5)), col, diffuse("Grey"))
     plane.parent = frame
-    poses = plane_poses()
+    poses = plane_poses(tilts)
     keyframe_pose_sequence(plane, poses)
     configure(scene, probe, settings, cams[0])
     return poses, render_animation(scene, 1, len(poses))
@@ -109,9 +109,11 @@ def test_spot_laser_line_lies_where_the_core_predicts_in_eevee(scene):
     # point-sampled at 1 sample per pixel, read as the gobo's line is. Lines imaged narrower
     # than σ = 0.4 px (here 0.27 and 0.29 px: a plane at 90 mm tilted 25–30° across the line,
     # seen by the camera it turns from) sample the sum beyond 3 σ, where it leaves the
-    # Gaussian: up to 0.1 px off.
+    # Gaussian: up to 0.1 px off. The planes tilted across the line only (Eevee takes about
+    # 3.5 s an image on a machine without a GPU; the gobo test above takes every tilt).
     probe = load_probe("default")
-    poses, images = render_planes(scene, probe, "spot", RenderOptions(engine="eevee", samples=1))
+    poses, images = render_planes(scene, probe, "spot", RenderOptions(engine="eevee", samples=1),
+                                  tilts=TILTS_DEG[2:])
     wide, narrow = [], []
     for pose, pair in zip(poses, images):
         for camera, img in enumerate(pair):
@@ -120,8 +122,9 @@ def test_spot_laser_line_lies_where_the_core_predicts_in_eevee(scene):
             d = (line.row - predicted_rows(probe, pose, camera, line.col.astype(float)))[line.valid]
             (wide if image_sigma_px(probe, pose, camera) >= 0.4 else narrow).append(d)
     d = np.concatenate(wide)
-    # Measured: mean −0.0005 px, RMS 0.0015 px, worst 0.007 px over 22 images; the 2 narrow ones 0.104 px.
-    assert len(wide) == 22, len(wide)
+    # Measured (every tilt): mean −0.0005 px, RMS 0.0015 px, worst 0.007 px over 22 images; the 2
+    # narrow ones 0.104 px.
+    assert len(wide) == 10, len(wide)
     assert abs(d.mean()) <= 0.002, d.mean()
     assert np.sqrt(np.mean(d ** 2)) <= 0.004, np.sqrt(np.mean(d ** 2))
     assert len(narrow) == 2 and np.abs(np.concatenate(narrow)).max() <= 0.15
