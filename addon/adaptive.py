@@ -39,8 +39,8 @@ FIXTURE_NEAR_MM = 0.5  # a point this near one of the table's fixtures is the fi
 class AdaptiveStep:
     """One decision: the sweep chosen (its description), the profiles it took, the cells it
     taught the model (``new_cells``: air and surface; ``new_surface_cells``: surface only, the
-    unit of ``expected_cells``, the new surface the ranking promised), the planning time, the candidates refused as unreachable or colliding,
-    and the model's coverage estimate after it (KnownSpace.coverage_estimate: the part's
+    unit of ``expected_cells``, the new surface the ranking promised), the planning time, the
+    candidates refused as unreachable or colliding, and the model's coverage estimate after it (KnownSpace.coverage_estimate: the part's
     surface seen, as the model alone tells it); on the first decision, ``setup_s``: the
     planner's one-off set-up before it (the model, the candidate sweeps, the cell's collision
     model), which no later decision pays again."""

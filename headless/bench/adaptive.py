@@ -141,10 +141,11 @@ def run_planner(config, budget: int, factory=None) -> dict:
     raises InputError naming what it did."""
     from addon import Scanner
     from addon.adaptive import NextBestView, part_box
-    from addon.core.errors import InputError, ScannerError
+    from addon.core.errors import InputError, ScannerError, is_whole
 
     own = factory is not None
     factory = factory or NextBestView
+    who = f"your planner {getattr(factory, '__name__', factory)!r}"
 
     def yours(what: str, call):
         if not own:
@@ -152,10 +153,9 @@ def run_planner(config, budget: int, factory=None) -> dict:
         try:
             return call()
         except ScannerError as exc:  # the Scanner refused what it was asked: its own one line
-            raise InputError(f"your planner {getattr(factory, '__name__', factory)!r}, {what}: {exc}") from None
+            raise InputError(f"{who}, {what}: {exc}") from None
         except Exception as exc:
-            raise InputError(f"your planner {getattr(factory, '__name__', factory)!r} failed in {what}: "
-                             f"{_where_failed(exc)}") from None
+            raise InputError(f"{who} failed in {what}: {_where_failed(exc)}") from None
 
     scanner = Scanner(config=config)
     lo, hi = part_box(config)
@@ -170,7 +170,7 @@ def run_planner(config, budget: int, factory=None) -> dict:
         if c is None:
             break
         frames = getattr(c, "frames", None)
-        if own and not (isinstance(frames, (int, np.integer)) and 0 < frames <= budget - taken):
+        if own and not (is_whole(frames) and 0 < frames <= budget - taken):
             raise InputError(f"your planner chose {_describe(c)} with {frames!r} profiles while "
                              f"{budget - taken} were left in the budget: choose() must return a view that fits "
                              f"the profiles it is given, or None")

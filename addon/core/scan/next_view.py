@@ -193,12 +193,12 @@ def rank(space: KnownSpace, probe: Probe, cands: list[Candidate], table_deg_now:
     ``probe_now``: where the probe is (table frame, mm, (3,); None: nowhere yet, no travel
     counted). ``skip``: cells not to count as gain (see :func:`gain`)."""
     if probe_now is not None:
-        where = np.asarray(probe_now, dtype=np.float64)
-        if where.shape != (3,) or not np.isfinite(where).all():
+        probe_now = np.asarray(probe_now, dtype=np.float64)
+        if probe_now.shape != (3,):
             raise InputError(f"rank: probe_now is the probe's position (x, y, z) in the table frame, mm, or None; "
-                             f"got an array of shape {where.shape} (a 4x4 pose's position is pose[:3, 3])"
-                             if where.shape != (3,) else f"rank: probe_now must be finite, got {where.tolist()}")
-        probe_now = where
+                             f"got an array of shape {probe_now.shape} (a 4x4 pose's position is pose[:3, 3])")
+        if not np.isfinite(probe_now).all():
+            raise InputError(f"rank: probe_now must be finite, got {probe_now.tolist()}")
     out = []
     for c in cands:
         poses = sample_poses(c)
