@@ -33,6 +33,7 @@ TRIES = 12        # candidates asked for reachability per decision, best first
 TABLE_CLEARANCE_MM = 0.2  # a point this far above the table top is the part's (see part_radius)
 OUTSIDE_WARNING = 0.05  # a share of the points outside the part's box that says the box is too small
 FIXTURE_NEAR_MM = 0.5  # a point this near one of the table's fixtures is the fixture's
+RUNNERS_UP = 3  # the best candidates after the chosen one that each decision records
 
 
 @dataclass(frozen=True)
@@ -40,10 +41,12 @@ class AdaptiveStep:
     """One decision: the sweep chosen (its description), the profiles it took, the cells it
     taught the model (``new_cells``: air and surface; ``new_surface_cells``: surface only, the
     unit of ``expected_cells``, the new surface the ranking promised), the planning time, the
-    candidates refused as unreachable or colliding, and the model's coverage estimate after it (KnownSpace.coverage_estimate: the part's
-    surface seen, as the model alone tells it); on the first decision, ``setup_s``: the
-    planner's one-off set-up before it (the model, the candidate sweeps, the cell's collision
-    model), which no later decision pays again."""
+    candidates refused as unreachable or colliding, and the model's coverage estimate after it
+    (KnownSpace.coverage_estimate: the part's surface seen, as the model alone tells it); on
+    the first decision, ``setup_s``: the planner's one-off set-up before it (the model, the
+    candidate sweeps, the cell's collision model), which no later decision pays again.
+    ``runners_up``: the next RUNNERS_UP candidates as ranked for this decision, each with its
+    promised gain, seconds, gain per second and whether the robot was found unable to do it."""
 
     sweep: str
     table_deg: float
@@ -57,9 +60,12 @@ class AdaptiveStep:
     setup_s: float = 0.0
     path: dict = field(default_factory=dict)  # the view as a scan config's [[path]] entry
     new_surface_cells: int = 0
+    runners_up: tuple = ()
 
     def as_dict(self) -> dict:
-        return dict(self.__dict__)
+        out = dict(self.__dict__)
+        out["runners_up"] = [dict(r) for r in self.runners_up]
+        return out
 
 
 def part_box(config, grow: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
@@ -117,6 +123,7 @@ class NextBestView:
         self.reach: float | None = None  # the farthest the part was measured from the table's axis
         self.impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
         self.refused: list[str] = []  # why, for the last decision
+        self.ranked: list = []  # the candidates the last decision ranked, best first (see runners_up)
         self.looked = False  # the overview pass has been chosen (or there was none to choose)
         self.frames_seen = 0  # the scanner's frames learnt from (catch_up)
         # The table's fixtures are the cell's, known as the table is (never the part's mesh):
@@ -141,7 +148,7 @@ class NextBestView:
         is none."""
         probe_now = scanner.pose("table")[:3, 3]
         live = self.live()
-        self.refused = []
+        self.refused, self.ranked = [], []
         if not self.looked:  # until a view is scanned (scan) or no overview can be had
             first = self.overview(scanner, live, probe_now, budget)
             if first is not None:
@@ -149,6 +156,7 @@ class NextBestView:
             self.looked = True
         ranked = [c for c in next_view.rank(self.space, self.probe, live, scanner.table_deg, probe_now, self.missed)
                   if c.gain >= self.min_gain and (budget is None or c.frames <= budget)]
+        self.ranked = ranked
         for c in ranked[:TRIES]:
             if self.feasible(scanner, c):
                 return c
@@ -237,10 +245,26 @@ class NextBestView:
         turns = [c for c in live if c.kind == "turn" and 0.0 < abs(c.tilt_deg) <= OVERVIEW_MAX_TILT_DEG
                  and (budget is None or c.frames <= budget)]
         ranked = next_view.rank(self.space, self.probe, turns, scanner.table_deg, probe_now, self.missed)
-        for c in sorted(ranked, key=lambda c: (-abs(c.tilt_deg), -c.tilt_deg)):
+        self.ranked = sorted(ranked, key=lambda c: (-abs(c.tilt_deg), -c.tilt_deg))
+        for c in self.ranked:
             if self.feasible(scanner, c):
                 return c
         return None
+
+    def runners_up(self, chosen, n: int = RUNNERS_UP) -> tuple:
+        """The ``n`` candidates ranked after ``chosen`` in the last decision: what the planner
+        weighed against it (sweep, gain, seconds, gain per second, refused: the robot could
+        not do it from where it stood)."""
+        out = []
+        for c in self.ranked:
+            if c.key == chosen.key:
+                continue
+            out.append({"sweep": c.describe(), "gain": int(c.gain), "seconds": round(float(c.seconds), 3),
+                        "gain_per_s": round(float(c.utility), 3),
+                        "refused": c.key in self.impossible})
+            if len(out) == n:
+                break
+        return tuple(out)
 
     def feasible(self, scanner, c) -> bool:
         """Whether the robot can do candidate ``c`` from where it is now (nothing moves); an
@@ -363,6 +387,7 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
         yield taken
         before = taken
         surface = planner.space.counts()["surface"]
+        runners_up = planner.runners_up(chosen)  # before the scan marks the chosen one done
         chunks = planner.scan_steps(scanner, chosen,
                                     lambda stage, done, total: say("adaptive", before + done, max_profiles))
         profiles, learnt = yield from _profiles_taken(chunks, before)
@@ -370,7 +395,7 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
         estimate = planner.coverage_estimate()
         step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
                             chosen.gain, planning, len(planner.refused), estimate, setup_s,
-                            chosen.path_entry(), planner.space.counts()["surface"] - surface)
+                            chosen.path_entry(), planner.space.counts()["surface"] - surface, runners_up)
         steps.append(step)
         setup_s = 0.0
         if log:

@@ -30,6 +30,17 @@ def test_the_planner_covers_the_sphere_from_a_box_alone(tmp_path, capsys):
     assert all(0 < s["new_surface_cells"] < s["new_cells"] for s in sweeps)
     assert all(f"found {s['new_surface_cells']} new surface cells" in log for s in sweeps)
     assert len({s["sweep"].split(",")[0] + str(s["tilt_deg"]) for s in sweeps}) == len(sweeps)  # never twice
+    # What each decision weighed against its choice: the runners-up, none of them the choice,
+    # ranked as the planner ranks (gain per second, best first) and each with its figures.
+    for s in sweeps:
+        ups = s["runners_up"]
+        assert 1 <= len(ups) <= 3 and all(u["sweep"] != s["sweep"] for u in ups)
+        assert all(u["gain"] > 0 and u["seconds"] > 0 and u["gain_per_s"] == pytest.approx(u["gain"] / u["seconds"],
+                                                                                          rel=1e-2) for u in ups)
+        if s is not sweeps[0]:  # the overview is picked by its tilt, not its gain
+            rates = [u["gain_per_s"] for u in ups]
+            assert rates == sorted(rates, reverse=True)
+        assert all(isinstance(u["refused"], bool) for u in ups)
     assert max(s["planning_s"] for s in sweeps) < 5.0
     # The one-off set-up is reported once, before the first decision, not inside it.
     assert sweeps[0]["setup_s"] > 0.0 and all(s["setup_s"] == 0.0 for s in sweeps[1:])
