@@ -22,6 +22,7 @@ from .core.config.render import RenderOptions, with_sensor
 from .core.config.scan import ScanConfig
 from .core.errors import InputError
 from .core.geometry.cloud import CloudAccumulator
+from .core.geometry.workpiece import drawn_mesh
 from .core.scan.band import Band, line_extent, needs_full_frame
 from .core.scan.frames import add_counts, detect_all, frame_profile, merge_stats, new_stats
 from .core.scan.outputs import ScanResult, assemble
@@ -79,7 +80,7 @@ def build_raycaster(config: ScanConfig, threads: int | None = None):
     from .core.scan.plan import table_fixtures
 
     wp = config.workpiece
-    scene = cell_raycast_scene(None if wp is None else wp.mesh, config.material, threads,
+    scene = cell_raycast_scene(None if wp is None else drawn_mesh(wp), config.material, threads,
                                fixtures=[f.mesh for f in table_fixtures(config)])
     return RaycastRenderer(config.probe, scene, config.render.laser_peak,
                            windows=config.leave_out.render_band)

@@ -332,8 +332,10 @@ def print_summary(result, wall: float) -> None:
               + ("" if within is None else f"; {within * 100:.1f} % within twice their stated sigma"))
     else:
         print("  error         none: no point on the part")
-    print(f"  coverage      {r['coverage_measurable'] * 100:.1f} % of the surface the path can measure "
-          f"({r['measurable_share'] * 100:.1f} % of the part), {r['coverage'] * 100:.1f} % of the whole part, "
+    measurable = (f"{r['coverage_measurable'] * 100:.1f} % of the surface the path can measure "
+                  f"({r['measurable_share'] * 100:.1f} % of the part)" if r["measurable_share"] > 0
+                  else "none of the part is measurable from this path (in range, within the incidence limit, seen)")
+    print(f"  coverage      {measurable}, {r['coverage'] * 100:.1f} % of the whole part, "
           f"within {r['coverage_tolerance_mm']:g} mm of a point")
     c = (r.get("clearance") or {}).get("nearest")
     if c:

@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 
 from ..core.kinematics.turntable import Turntable, table_top_mesh
-from ..core.geometry.workpiece import Workpiece
+from ..core.geometry.workpiece import Workpiece, drawn_mesh
 from ..core.optics.surfaces import FIXTURE, TABLE_TOP
 from .materials import diffuse, surface
 from .meshes import mesh_object
@@ -51,7 +51,10 @@ def add_workpiece(collection, workpiece: Workpiece, table_obj: bpy.types.Object,
     scan (18 ms per frame for an 82k-face sphere); a mesh with two users keeps its
     own structure, built once (6 ms per frame). The twin is never hit by a ray.
     """
-    obj = mesh_object(f"Workpiece {workpiece.name}", workpiece.mesh, collection, surface(material, roughness))
+    drawn = drawn_mesh(workpiece)  # without faces lying in the table top, which the table draws
+    obj = mesh_object(f"Workpiece {workpiece.name}", workpiece.mesh if drawn is None else drawn, collection,
+                      surface(material, roughness))
+    obj.hide_render = drawn is None  # a sheet lying flat on the table: shown, but the table is what renders
     obj.parent = table_obj
     obj.matrix_parent_inverse.identity()
     obj.matrix_basis = to_blender(np.eye(4))

@@ -184,3 +184,23 @@ def test_only_the_bodies_wound_inside_out_are_turned(tmp_path):
     volumes = sorted(b.volume for b in wp.mesh.split(only_watertight=False))
     assert volumes == pytest.approx([1000.0, 64000.0])
     assert "1 of its 2 bodies" in wp.notes[0]
+
+
+def test_faces_lying_in_the_table_top_are_not_drawn_and_a_closed_part_is_drawn_whole():
+    """The table is drawn where an open mesh's faces lie in its top: both drawn, each ray would
+    meet either. A closed part's own bottom stays (hidden under it either way)."""
+    from addon.core.geometry.workpiece import Workpiece, drawn_mesh, in_table_top
+
+    box = trimesh.creation.box((40.0, 30.0, 20.0))
+    box.apply_translation((0.0, 0.0, 10.0))
+    closed = Workpiece("closed", box, box, "test")
+    assert drawn_mesh(closed) is box and int(in_table_top(box).sum()) == 2  # its bottom, two triangles
+    opened = box.copy()
+    opened.update_faces(box.face_normals[:, 2] < 0.5)  # no lid: an open box, its floor on the table
+    drawn = drawn_mesh(Workpiece("open", opened, opened, "test"))
+    assert len(drawn.faces) == len(opened.faces) - 2 and not in_table_top(drawn).any()
+    assert drawn.vertices[:, 2].max() == pytest.approx(20.0)  # the walls stay
+    plane = builtin_workpiece("plane")  # a sheet lying flat on the table: the table is all there is
+    assert drawn_mesh(plane) is None
+    lifted = builtin_workpiece("plane", pose=trans(0.0, 0.0, 0.01))  # 10 µm up: a part of its own
+    assert drawn_mesh(lifted) is lifted.mesh

@@ -58,11 +58,13 @@ class Footprint:
 class SurfaceCaster:
     """The cell's surfaces (table frame) with their ray-casting structure built once: a
     step-by-step scanner casts a few rays per measurement, and building the structure
-    (about 0.1 s for the demo) would cost more than the casting."""
+    (about 0.1 s for the demo) would cost more than the casting. ``part_faces``: how many of
+    the first faces are the part's (where the caller says)."""
 
-    def __init__(self, meshes: list[trimesh.Trimesh]):
+    def __init__(self, meshes: list[trimesh.Trimesh], part_faces: int = 0):
         self.mesh = trimesh.util.concatenate(meshes)
         self.caster = _intersector(self.mesh)
+        self.part_faces = int(part_faces)
 
 
 # A surface exactly at a range end must count as in range: the probe's pose comes from the
@@ -165,7 +167,9 @@ def measurable_hits(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCast
         pts, ray, tri = surfaces.caster.intersects_location(origins, dirs, multiple_hits=False)
         frame = ray // rays
         depth = np.einsum("ij,ij->i", pts - origins[ray], R[frame][:, :, 2])  # along the beam (probe z)
-        facing = -np.einsum("ij,ij->i", dirs[ray], normals[tri])
+        # Either side of a face: an open mesh (a sheet, a scan with holes) is seen from behind
+        # too, and renders so; a closed part's first hits face the laser anyway.
+        facing = np.abs(np.einsum("ij,ij->i", dirs[ray], normals[tri]))
         keep = ((tri < part_faces) & (depth >= z0 - RANGE_SLACK_MM) & (depth <= z1 + RANGE_SLACK_MM)
                 & (facing >= cos_limit - 1e-12))
         pts, frame = pts[keep], frame[keep]

@@ -185,6 +185,36 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
 
 
 SINK_TOLERANCE_MM = 0.05  # a part may reach this far below the table top (a mesh's rounding)
+TABLE_TOP_FACE_MM = 1e-3  # a face whose corners all lie this near z = 0 lies in the table top
+
+
+def in_table_top(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Which faces (bool per face) lie in the table top (z = 0 in the table frame): every
+    corner within TABLE_TOP_FACE_MM of it."""
+    return np.all(np.abs(mesh.vertices[mesh.faces][:, :, 2]) <= TABLE_TOP_FACE_MM, axis=1)
+
+
+def drawn_mesh(wp: Workpiece) -> trimesh.Trimesh | None:
+    """The part as the renderers draw it and the laser meets it: an open mesh without its faces
+    that lie in the table top (None where that is all of it: a sheet lying flat). Those
+    coincide with the table, which is drawn; drawn too, each ray would meet either surface,
+    their normals opposite, and the line's light alternates between them (the built-in plane
+    lying on the table read 141 µm RMS, 0.3 mm at worst; 1.8 µm lifted 0.5 mm). What is there
+    to measure is the table, and the part's truth there is the same plane. A closed part's own
+    faces on the table top face down, hidden under it either way, and stay. The truth and
+    every error and coverage against it keep the whole mesh."""
+    mesh = wp.mesh
+    if mesh.is_watertight:
+        return mesh
+    flat = in_table_top(mesh)
+    if not flat.any():
+        return mesh
+    if flat.all():
+        return None
+    out = mesh.copy()
+    out.update_faces(~flat)
+    out.remove_unreferenced_vertices()
+    return out
 
 
 def depth_below_table(wp: Workpiece) -> float:

@@ -194,7 +194,7 @@ def measurable_coverage(config: ScanConfig, probe2table: np.ndarray, part_points
     if len(probe2table) == 0:
         return {"coverage_measurable": 0.0, "measurable_share": 0.0}
     surfaces = cell_surfaces(config)  # the table's fixtures hide the part as rendered
-    reachable = measurable_points(config.probe, probe2table, surfaces, len(config.workpiece.mesh.faces),
+    reachable = measurable_points(config.probe, probe2table, surfaces, surfaces.part_faces,
                                   config.profile_filter.max_incidence_deg)
     cov, share = metrics.coverage_of_measurable(part_points, config.workpiece.mesh, reachable,
                                                 config.coverage_tolerance_mm)

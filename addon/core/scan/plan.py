@@ -16,6 +16,7 @@ import numpy as np
 from ..config.scan import DEFAULT_FILTER, ScanConfig
 from ..errors import CollisionError, InputError, ScannerError, UnreachablePose
 from ..geometry import metrics
+from ..geometry.workpiece import drawn_mesh
 from ..geometry.footprint import OCCLUSION_EPS_MM, SurfaceCaster, fan_rays, laser_footprint, seen_by
 from ..kinematics.path import solve_path
 from ..kinematics.turntable import table_top_mesh
@@ -358,7 +359,8 @@ _PART_LINES: list = []  # ((workpiece, fixtures), warnings) of the last few conf
 
 def part_warnings(config: ScanConfig) -> list[str]:
     """What a scan should say about its part before the figures are read: a mesh that is not
-    closed (its error has no sign, so no bias), and table fixtures reaching into it
+    closed (its error has no sign, so no bias), faces lying in the table top (drawn_mesh),
+    and table fixtures reaching into it
     (:func:`fixtures_in_the_part`). Kept for the last few configs: a Scanner asks after every
     measurement."""
     from ..geometry.metrics import has_inside
@@ -382,6 +384,13 @@ def part_warnings(config: ScanConfig) -> list[str]:
         else:
             why = "cannot be signed here (libigl is missing)"
         out.append(f"the workpiece mesh {wp.name} {why}: its points' error has no sign, so no bias is given")
+    drawn = drawn_mesh(wp)
+    if drawn is None:
+        out.append(f"the workpiece {wp.name} lies flat in the table top (z = 0): the laser meets the table there, "
+                   f"so its points measure the table; lift it (in a config, [workpiece.pose] xyz_mm) or give it a thickness")
+    elif drawn is not wp.mesh:
+        out.append(f"{len(wp.mesh.faces) - len(drawn.faces)} faces of the workpiece {wp.name} lie in the table top "
+                   f"(z = 0): the table is drawn there, and its points there measure the table")
     out += fixtures_in_the_part(config)
     _PART_LINES.insert(0, (key, out))
     del _PART_LINES[4:]
@@ -431,6 +440,9 @@ def _surface_points(mesh) -> np.ndarray:
 
 
 def cell_surfaces(config: ScanConfig) -> SurfaceCaster:
-    """What the laser can meet in a scan: the part (its faces first), the table top and the
-    table's fixtures, ready for ray casts."""
-    return SurfaceCaster([config.workpiece.mesh, table_top_mesh(), *(f.mesh for f in table_fixtures(config))])
+    """What the laser can meet in a scan: the part as drawn (workpiece.drawn_mesh; its faces
+    first, ``part_faces`` of them), the table top and the table's fixtures, ready for ray casts."""
+    drawn = drawn_mesh(config.workpiece)
+    part = [] if drawn is None else [drawn]
+    return SurfaceCaster([*part, table_top_mesh(), *(f.mesh for f in table_fixtures(config))],
+                         part_faces=0 if drawn is None else len(drawn.faces))
