@@ -46,7 +46,9 @@ class AdaptiveStep:
     the first decision, ``setup_s``: the planner's one-off set-up before it (the model, the
     candidate sweeps, the cell's collision model), which no later decision pays again.
     ``runners_up``: the next RUNNERS_UP candidates as ranked for this decision, each with its
-    promised gain, seconds, gain per second and whether the robot was found unable to do it."""
+    promised gain, seconds, gain per second and whether the robot was found unable to do it.
+    ``kind``: "sweep" (the probe moves along a line) or "turn" (the probe still, the table
+    turning); ``sweep`` describes either."""
 
     sweep: str
     table_deg: float
@@ -61,6 +63,7 @@ class AdaptiveStep:
     path: dict = field(default_factory=dict)  # the view as a scan config's [[path]] entry
     new_surface_cells: int = 0
     runners_up: tuple = ()
+    kind: str = "sweep"  # what ``sweep`` describes: "sweep" (the probe moves) or "turn" (the table turns)
 
     def as_dict(self) -> dict:
         out = dict(self.__dict__)
@@ -259,7 +262,7 @@ class NextBestView:
         for c in self.ranked:
             if c.key == chosen.key:
                 continue
-            out.append({"sweep": c.describe(), "gain": int(c.gain), "seconds": round(float(c.seconds), 3),
+            out.append({"sweep": c.describe(), "kind": c.kind, "gain": int(c.gain), "seconds": round(float(c.seconds), 3),
                         "gain_per_s": round(float(c.utility), 3),
                         "refused": c.key in self.impossible})
             if len(out) == n:
@@ -395,7 +398,8 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
         estimate = planner.coverage_estimate()
         step = AdaptiveStep(chosen.describe(), chosen.table_deg, chosen.tilt_deg, len(profiles), learnt,
                             chosen.gain, planning, len(planner.refused), estimate, setup_s,
-                            chosen.path_entry(), planner.space.counts()["surface"] - surface, runners_up)
+                            chosen.path_entry(), planner.space.counts()["surface"] - surface, runners_up,
+                            chosen.kind)
         steps.append(step)
         setup_s = 0.0
         if log:

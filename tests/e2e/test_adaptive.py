@@ -35,6 +35,7 @@ def test_the_planner_covers_the_sphere_from_a_box_alone(tmp_path, capsys):
     for s in sweeps:
         ups = s["runners_up"]
         assert 1 <= len(ups) <= 3 and all(u["sweep"] != s["sweep"] for u in ups)
+        assert all(x["kind"] == ("turn" if x["sweep"].startswith("table turn") else "sweep") for x in [s, *ups])
         assert all(u["gain"] > 0 and u["seconds"] > 0 and u["gain_per_s"] == pytest.approx(u["gain"] / u["seconds"],
                                                                                           rel=1e-2) for u in ups)
         if s is not sweeps[0]:  # the overview is picked by its tilt, not its gain
