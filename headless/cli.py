@@ -56,6 +56,16 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str):
         self.exit(EXIT_USER_ERROR, f"error: {message} (see: {self.prog} --help)\n")
 
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but an unknown option points to the help of the command it was given
+        to (``python -m headless scan --help``), not to the top level's."""
+        known, extras = self.parse_known_args(args, namespace)
+        if extras:
+            where = " ".join(v for v in (self.prog, getattr(known, "command", None), getattr(known, "bench", None))
+                             if v)
+            self.exit(EXIT_USER_ERROR, f"error: unrecognized arguments: {' '.join(extras)} (see: {where} --help)\n")
+        return known
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="python -m headless", description=__doc__.split("\n\n")[0])

@@ -55,9 +55,14 @@ def _clean_sys_path() -> None:
         sys.path[:] = [p for p in sys.path if "/scripts/" not in p.replace("\\", "/") or "bpy" not in p]
 
 
-def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, threads: int | None = None) -> dict:
-    """On a worker: scan the shard's frames and write its file. Returns a short summary."""
+def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, threads: int | None = None,
+              owner: str | None = None) -> dict:
+    """On a worker: scan the shard's frames and write its file. Returns a short summary.
+    ``owner``: the output folder's lock as the scan that asked for the shard holds it; a shard
+    that finishes once that scan has stopped (the lock gone, or another scan's) writes
+    nothing: a cluster cannot stop a task that is running, and the folder is no longer its."""
     _clean_sys_path()
+    from addon.core.scan.outputs import blender_version
     from addon.pipeline import ScanRun
 
     t = time.perf_counter()
@@ -70,9 +75,23 @@ def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, th
         pass
     run.timing.update(render=run.t_render, detect=run.t_detect, triangulate=run.t_tri)
     cloud = run.acc.cloud()
-    shards.write(path, shard, cloud, run.stats, run.timing, fingerprint, run.render_device)
+    written = owner is None or lock_holder(Path(path).parent.parent) == owner
+    if written:
+        shards.write(path, shard, cloud, run.stats, run.timing, fingerprint, run.render_device,
+                     blender_version() if run.raycaster is None else None)
     return {"shard": shard.index, "points": len(cloud), "seconds": time.perf_counter() - t, "pid": os.getpid(),
-            "reused_cell": cell is not None}
+            "reused_cell": cell is not None, "written": written}
+
+
+def lock_holder(folder: Path) -> str | None:
+    """What the output folder's lock says (the process and host of the scan holding it), or
+    None where no scan holds it."""
+    from addon.core.files import LOCK_NAME
+
+    try:
+        return (Path(folder) / LOCK_NAME).read_text()
+    except OSError:
+        return None
 
 
 @contextmanager
@@ -92,7 +111,7 @@ def cluster_client(workers: int, scheduler: str | None):
             client.close()
         return
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address=None, silence_logs=logging.CRITICAL)
     client = Client(cluster)
     try:
         yield client
@@ -133,6 +152,7 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     ``render_threads``: Cycles threads per worker (default: on a local cluster, the
     machine's cores shared out among the workers; on a scheduler, all of a worker's cores)."""
     from addon.core.geometry.cloud import Cloud
+    from addon.core.scan.outputs import software_versions
     from addon.pipeline import assemble, merge_stats, plan_scan
 
     check_whole(workers, "--workers", 1, MAX_WORKERS)
@@ -170,6 +190,8 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     for s, why in todo:
         if why != "missing":
             log(f"  recomputing {s.describe()}: {why}")
+        elif reused:  # a run resumed: say which are not there (a first run has none)
+            log(f"  computing {s.describe()}: missing")
     address, worker_addresses = None, []
     t_farm = time.perf_counter()
     if todo:
@@ -183,9 +205,10 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
             # The config (with its meshes) and the plan go to every worker once, not with every task.
             shared = client.scatter([config, plan], broadcast=True, hash=False)
             tries = {s.index: 0 for s, _ in todo}
+            owner = lock_holder(Path(out_dir))  # the command's lock: shards finishing after a stop write nothing
 
             def submit(s):
-                return client.submit(run_shard, *shared, s, str(folder / s.file_name()), fp, threads,
+                return client.submit(run_shard, *shared, s, str(folder / s.file_name()), fp, threads, owner,
                                      key=f"scan-shard-{fp[:12]}-{s.index}-{tries[s.index]}", pure=False)
 
             shard_of = {}
@@ -231,8 +254,13 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
         for k in ("scene", "render", "detect", "triangulate"):
             timing[k] = timing.get(k, 0.0) + float(r.timing.get(k, 0.0))
     devices = {r.render_device for r in results if r.render_device}
-    extra = {"render_device": ", ".join(sorted(devices)) if devices else None,
-             "farm": {"workers": None if scheduler else workers, "scheduler": address or scheduler,
+    blenders = {r.blender for r in results if r.blender}  # the workers', not this process's (it has none)
+    software = software_versions()
+    if blenders:
+        software["blender"] = ", ".join(sorted(blenders))
+    extra = {"render_device": ", ".join(sorted(devices)) if devices else None, "software": software,
+             # A merge computes nothing: no workers; all its shards were there ("reused").
+             "farm": {"workers": None if scheduler or merge_only else workers, "scheduler": address or scheduler,
                       "worker_addresses": worker_addresses, "shards": len(parts), "shard_frames": size, "computed": len(todo), "reused": reused,
                       "wall_s": round(wall, 4), "profiles_per_s_wall": n / wall if wall > 0 and todo else None}}
     return assemble(config, plan, cloud, stats, timing, out_dir, t_all, extra)

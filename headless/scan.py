@@ -2,7 +2,8 @@
 
 Exit codes: 0 done; 2 the config or an option is wrong, or a file cannot be written
 (one line on stderr, no files written); 3 the scan ran but its RMS error exceeds
-``--max-rms-um`` (or no point lands on the part); 75 another scan holds the output folder
+``--max-rms-um`` (or no point lands on the part), or it covers less of the surface its path
+can measure than ``--min-coverage``; 75 another scan holds the output folder
 (try again later); 130 stopped by Ctrl-C (143: SIGTERM), nothing written.
 
 Before the first render: the config, the options, the output folder, the render's
@@ -39,6 +40,8 @@ def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
     parser.add_argument("--resolution", help="sensor size WxH (columns x rows), the probe's optics kept")
     parser.add_argument("--detect", choices=("threshold", "cog", "gauss", "steger"), help="line detection method")
     parser.add_argument("--max-rms-um", type=float, help="exit with code 3 when the part's RMS error is larger")
+    parser.add_argument("--min-coverage", type=float, metavar="PERCENT",
+                        help="exit with code 3 when the scan covers less of the surface its path can measure")
     parser.add_argument("--workers", type=int, help="scan in shards on a local Dask cluster of N worker processes")
     parser.add_argument("--scheduler", help="scan in shards on the Dask scheduler at tcp://HOST:PORT")
     parser.add_argument("--shard-frames", type=int, help="frames per shard (default: about 4 shards per worker)")
@@ -210,6 +213,17 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
         from addon.core.errors import InputError
 
         raise InputError(f"--max-rms-um must be a positive, finite number of micrometres, got {args.max_rms_um}")
+    min_coverage = getattr(args, "min_coverage", None)
+    if min_coverage is not None and not 0 < min_coverage <= 100:
+        from addon.core.errors import InputError
+
+        raise InputError(f"--min-coverage must be a percentage above 0 and at most 100, got {min_coverage}")
+    if args.shard is not None and (args.max_rms_um is not None or min_coverage is not None):
+        from addon.core.errors import InputError
+
+        given = "--max-rms-um" if args.max_rms_um is not None else "--min-coverage"
+        raise InputError(f"--shard K computes one shard and no figures, so {given} has nothing to check there; "
+                         f"give it to the --merge task, which computes them")
     if args.workers is not None:
         from addon.core.errors import check_whole
         from headless.farm import MAX_WORKERS
@@ -245,7 +259,8 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
             or args.merge)
     preflight.check_scan(config, out, names=OUTPUT_FILES.values(), farm=farm, scheduler=args.scheduler,
                          force=args.force)
-    print(f"scan: {config.name} ({len(config.waypoints)} frames, {config.robot.name}, {config.probe.name}, "
+    n = len(config.waypoints)
+    print(f"scan: {config.name} ({n} frame{'' if n == 1 else 's'}, {config.robot.name}, {config.probe.name}, "
           f"workpiece {config.workpiece.source})", flush=True)
     stops = getattr(args, "stops", None)
     if args.shard is not None:  # one task of a farm job: many write into the same --out at once
@@ -303,15 +318,28 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
         result = scanner.result(out)
     wall = time.perf_counter() - t
     print_summary(result, wall)
-    e = result.report["error_um"]
-    if args.max_rms_um is not None and not result.report["points_on_part"]:
-        print(f"error: no point landed on the part, so its RMS error cannot be held to --max-rms-um "
-              f"{args.max_rms_um:g}", file=sys.stderr)
-        return EXIT_QUALITY
-    if args.max_rms_um is not None and not e["rms_um"] <= args.max_rms_um:
-        print(f"error: RMS error {e['rms_um']:.1f} um exceeds --max-rms-um {args.max_rms_um:g}", file=sys.stderr)
+    failed = quality_failure(result.report, args.max_rms_um, getattr(args, "min_coverage", None))
+    if failed:
+        print(f"error: {failed}", file=sys.stderr)
         return EXIT_QUALITY
     return 0
+
+
+def quality_failure(report: dict, max_rms_um: float | None, min_coverage: float | None) -> str | None:
+    """Why a scan fails the command's quality gates (``--max-rms-um``, ``--min-coverage`` in
+    percent of the surface the path can measure), or None where it passes them all."""
+    if max_rms_um is not None and not report["points_on_part"]:
+        return f"no point landed on the part, so its RMS error cannot be held to --max-rms-um {max_rms_um:g}"
+    if max_rms_um is not None and not report["error_um"]["rms_um"] <= max_rms_um:
+        return f"RMS error {report['error_um']['rms_um']:.1f} um exceeds --max-rms-um {max_rms_um:g}"
+    if min_coverage is not None:
+        if not report["measurable_share"] > 0:
+            return f"none of the part is measurable from this path, so --min-coverage {min_coverage:g} cannot be met"
+        covered = 100.0 * report["coverage_measurable"]
+        if not covered >= min_coverage:
+            return (f"the scan covers {covered:.1f} % of the surface its path can measure, under --min-coverage "
+                    f"{min_coverage:g}")
+    return None
 
 
 def print_summary(result, wall: float) -> None:

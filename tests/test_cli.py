@@ -62,6 +62,14 @@ def test_bad_rig_file_gives_one_line_error(tmp_path):
     assert len(lines) == 1 and lines[0].startswith("error: ") and str(bad) in lines[0]
 
 
+@pytest.mark.parametrize("command", [("scan", "demo"), ("bench", "parts"), ("adaptive", "demo")])
+def test_an_unknown_option_points_to_the_commands_own_help(command):
+    out = run_cli(*command, "--bogus")
+    where = " ".join(c for c in command if c != "demo")
+    assert out.returncode == 2 and out.stderr == (f"error: unrecognized arguments: --bogus "
+                                                  f"(see: python -m headless {where} --help)\n")
+
+
 def test_unknown_robot_name_lists_alternatives():
     out = run_cli("bench", "kinematics", "--robots", "abb_irb120", "--n", "10")
     assert out.returncode == 2

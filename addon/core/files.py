@@ -183,8 +183,8 @@ class OutputLock:
                                          f"taken over)") from None
                 elif owner and owner != os.getpid() and pid_alive(owner):
                     self.release()
-                    raise FolderBusy(f"output folder {self.folder}: a running scan (process {owner}) is writing "
-                                     f"there; wait for it to end or choose another folder") from None
+                    raise FolderBusy(f"output folder {self.folder}: a running scan (process {owner} on this host, "
+                                     f"{host}) is writing there; wait for it to end or choose another folder") from None
                 self.path.unlink(missing_ok=True)  # left by a process that no longer exists (or ran silent)
                 continue
             with os.fdopen(fd, "w") as fh:

@@ -2,6 +2,8 @@
 
 import json
 import os
+import re
+import socket
 import subprocess
 import sys
 
@@ -47,7 +49,8 @@ def test_lock_refuses_a_live_owner_and_takes_over_a_dead_ones(tmp_path):
     assert not out.exists()  # made by the lock, left empty: removed with it
     out.mkdir()
     (out / ".scanner.lock").write_text(f"{os.getppid()}\n")  # a live process
-    with pytest.raises(FolderBusy, match="running scan"):
+    with pytest.raises(FolderBusy, match=rf"running scan \(process {os.getppid()} on this host, "
+                                         rf"{re.escape(socket.gethostname())}\)"):
         OutputLock(out).acquire()
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()

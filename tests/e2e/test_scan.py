@@ -167,6 +167,20 @@ def cli(*args):
     return subprocess.run([sys.executable, "-m", "headless", *args], cwd=REPO, capture_output=True, text=True)
 
 
+def test_cli_scan_gates_on_the_coverage_of_what_its_path_can_measure(tmp_path):
+    """The step block's two sweeps from above measure its tops: all of them, nearly, so a
+    99.9 % gate on that coverage fails and a 50 % one passes (the whole part's far lower
+    share is not what the gate reads)."""
+    base = ["scan", "step_block", "--engine", "raycast", "--frames", "::2", "--quiet"]
+    res = cli(*base, "--out", str(tmp_path / "a"), "--min-coverage", "50")
+    assert res.returncode == 0, res.stderr[-1500:]
+    report = json.loads((tmp_path / "a" / "report.json").read_text())
+    assert 0.5 <= report["coverage_measurable"] < 0.999 and report["coverage"] < 0.5
+    res = cli(*base, "--out", str(tmp_path / "b"), "--min-coverage", "99.9")
+    assert res.returncode == 3 and f"covers {report['coverage_measurable'] * 100:.1f} %" in res.stderr \
+        and "--min-coverage 99.9" in res.stderr, res.stderr[-1500:]
+
+
 def test_cli_scan_writes_outputs_and_gates_on_rms(tmp_path):
     out = tmp_path / "scan"
     res = cli("scan", "step_block", "--frames", "0:100:10", "--out", str(out), "--max-rms-um", "0.001", "--quiet")

@@ -61,14 +61,20 @@ def simulator_version() -> str | None:
         return None
 
 
+def blender_version() -> str | None:
+    """The version of the Blender loaded in this process (None: none is; this core never
+    imports it)."""
+    bpy = sys.modules.get("bpy")
+    return bpy.app.version_string if bpy is not None and hasattr(bpy, "app") else None
+
+
 def software_versions() -> dict:
     """What produced a scan: this simulator's version, Python, numpy, OpenCV, Blender where it
     is loaded (this core never imports it), and the geometry packages installed."""
     out = {"scanner": simulator_version(), "python": platform.python_version(), "numpy": np.__version__,
            "opencv": cv2.__version__}
-    bpy = sys.modules.get("bpy")
-    if bpy is not None and hasattr(bpy, "app"):
-        out["blender"] = bpy.app.version_string
+    if blender_version() is not None:
+        out["blender"] = blender_version()
     for key, dist in VERSIONED.items():
         try:
             out[key] = metadata.version(dist)

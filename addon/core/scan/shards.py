@@ -124,10 +124,11 @@ class ShardResult:
     stats: dict
     timing: dict
     render_device: str | None = None
+    blender: str | None = None  # the Blender that rendered it (None: none did, the raycast engine)
 
 
 def write(path: str | Path, shard: Shard, cloud: Cloud, stats: dict, timing: dict, scan_fingerprint: str,
-          render_device: str | None = None) -> Path:
+          render_device: str | None = None, blender: str | None = None) -> Path:
     """Write a shard's result atomically, with its checksum."""
     arrays = {"points": cloud.points, "frame": cloud.frame, "camera": cloud.camera, "quality": cloud.quality,
               "band_rows": np.asarray(stats["band_rows"], dtype=np.int64)}
@@ -135,7 +136,7 @@ def write(path: str | Path, shard: Shard, cloud: Cloud, stats: dict, timing: dic
             "columns": int(stats["columns"]), "valid": int(stats["valid"]), "rerendered": int(stats["rerendered"]),
             "codes": {k: int(v) for k, v in stats["codes"].items()},
             "points_counts": {k: int(v) for k, v in stats.get("points", {}).items()},  # kept and dropped
-            "render_device": render_device,
+            "render_device": render_device, "blender": blender,
             "timing": {k: float(v) for k, v in timing.items()}}
     meta["checksum"] = _checksum(arrays, meta)
     buf = io.BytesIO()
@@ -177,4 +178,4 @@ def read(path: str | Path, shard: Shard, scan_fingerprint: str) -> ShardResult:
              "codes": meta["codes"], "band_rows": arrays["band_rows"].tolist()}
     if meta.get("points_counts"):  # (shards written before this key, or with no points, have none)
         stats["points"] = meta["points_counts"]
-    return ShardResult(shard, cloud, stats, meta["timing"], meta.get("render_device"))
+    return ShardResult(shard, cloud, stats, meta["timing"], meta.get("render_device"), meta.get("blender"))
