@@ -172,6 +172,12 @@ def test_limit_helpers():
     assert "J5" in msg and "130" in msg and "120" in msg
     assert viper.within_limits(np.zeros(6))
     assert viper.within_limits(np.array([np.zeros(6), q])).tolist() == [True, False]
+    # A hair beyond a limit of ±3.14159 rad (a URDF's ±pi to six figures) reads as beyond it.
+    from dataclasses import replace
+
+    tight = replace(viper, q_min_rad=np.full(6, -3.14159), q_max_rad=np.full(6, 3.14159))
+    (msg,) = tight.limit_violations(np.array([0.0, 0.0, 0.0, -np.pi, 0.0, 0.0]))
+    assert msg == "J4 = -180.0000° outside [-179.9998°, 179.9998°]"
 
 
 def test_robot_constructor_validates():

@@ -161,3 +161,45 @@ def test_bad_probe_files(tmp_path, camera_table, fragment):
     with pytest.raises(ConfigError, match=fragment) as info:
         load_probe(str(path))
     assert str(path) in str(info.value)
+
+
+def test_a_line_narrower_than_a_pixel_is_warned_of_and_its_width_follows_the_optics():
+    """The line's image width scales with the line's own width and with the sensor's rows over
+    the same optics; under a pixel (FWHM) the scan says its σ does not hold. The default probe
+    (1.04-1.43 px) and the 1280-row one are not warned of."""
+    from dataclasses import replace
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.scan.plan import line_widths_px, narrow_line_warning
+
+    probe = load_probe("default")
+    base = np.array(line_widths_px(probe))
+    assert 1.0 < base.min() < base.max() < 1.5 and narrow_line_warning(probe) is None
+    assert narrow_line_warning(load_probe("hires")) is None
+    thin = replace(probe, line_width_mm=0.6 * probe.line_width_mm)
+    np.testing.assert_allclose(line_widths_px(thin), 0.6 * base, rtol=1e-9)
+    said = narrow_line_warning(thin)
+    assert said and f"{0.6 * base.min():.2f}-{0.6 * base.max():.2f} px wide" in said and "160-row" in said
+    tall = load_scan_config("demo").with_overrides(resolution=(160, 320)).probe  # the same optics, twice the rows
+    np.testing.assert_allclose(line_widths_px(tall), 2.0 * base, rtol=1e-6)
+
+
+def test_a_line_wider_than_the_detector_takes_is_warned_of_before_it_is_refused():
+    """Wider than max_width_px on a surface seen square on: warned (tilted surfaces still
+    narrow it enough); over three times that: refused before anything renders."""
+    from dataclasses import replace
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.scan.plan import WIDE_MARGIN, blind_settings, line_widths_px, wide_line_warning
+
+    cfg = load_scan_config("demo")
+    top = cfg.detect_params.max_width_px
+    base = np.array(line_widths_px(cfg.probe))
+    assert wide_line_warning(cfg) is None and blind_settings(cfg) is None
+    k = 1.5 * top / base.min()  # the narrowest 1.5 times what the detector takes
+    wide = replace(cfg, probe=replace(cfg.probe, line_width_mm=k * cfg.probe.line_width_mm))
+    said = wide_line_warning(wide)
+    assert said and f"max_width_px {top:g}" in said and blind_settings(wide) is None
+    k = 1.01 * WIDE_MARGIN * top / base.min()
+    wider = replace(cfg, probe=replace(cfg.probe, line_width_mm=k * cfg.probe.line_width_mm))
+    assert "over 3 times what the detector takes" in blind_settings(wider)

@@ -113,6 +113,7 @@ def test_a_move_down_into_a_block_is_reported_at_its_deepest_not_where_it_first_
     # message said only "on the way there" of a target inside the part).
     assert ("move refused, nothing moved: on the way there and at the pose moved to: the probe touches the "
             "workpiece") in str(err.value), str(err.value)
+    assert "the arm itself" not in str(err.value)  # the probe's own clearance is the knob there
     cfg = scanner.config
     model = CollisionModel(cfg.cell.robot, cfg.probe, cfg.table, cfg.workpiece.mesh)
     down = [cfg.cell.ik(_beam_down_at(z), scanner.q, relative_to="table", table_angle_rad=0.0).q for z in (60.0, 20.0)]
@@ -148,8 +149,10 @@ def test_a_pose_with_a_link_in_the_table_is_refused_naming_that_link():
         pts.append(world @ base2table[:3, :3].T + base2table[:3, 3])
     assert _inside_the_table(np.vstack(pts)).any()
     # The pose itself is refused naming the link.
-    with pytest.raises(CollisionError, match="at frame 0: link 4 touches the table"):
+    with pytest.raises(CollisionError, match="at frame 0: link 4 touches the table") as arm:
         check_motion(cfg, q[None, :], np.zeros(1))
+    # The arm, not the probe: the message points to its posture as well as to the clearance.
+    assert "the arm itself is in the way: another posture" in str(arm.value) and "start_deg" in str(arm.value)
     # A scanner refuses to move there (the probe sweeps through the table on the way first) and
     # stays where it was, clear.
     q_before = scanner.q

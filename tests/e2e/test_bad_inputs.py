@@ -330,6 +330,9 @@ CASES = [
                                    "workpiece"),
     ("probe: cameras that cannot image the line (a baseline of a nanometre)", probe_with("a_mm = 60.0", "a_mm = 1e-6"),
      2, "does not image the laser plane"),
+    ("probe: a range a micrometre deep: the range is named first", probe_with(
+        "range_mm = [70.0, 250.0]", "range_mm = [150.0, 150.001]"), 2,
+     "deep; a_mm 60, phi 21.8°, gamma 6.59e-05°): its view cannot hold the line; a deeper range (range_mm)"),
     ("probe: a line too thin to see on an unreachable path: the probe is named first", lambda t: (
         t.joinpath("probe.toml").write_text(PROBE.replace("line_width_mm = 1.2", "line_width_mm = 1e-9", 1)),
         ["scan", scene(t, DEMO.replace('rig = "default"', f'rig = "{t / "probe.toml"}"').replace(

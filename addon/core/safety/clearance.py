@@ -116,6 +116,11 @@ class PathClearance:
         how = ("touches" if worst.distance_mm <= 0 else f"comes within {worst.distance_mm:.2f} mm of")
         allowed = ("they must not touch" if _robot_pair(first) else
                    f"at least {self.min_clearance_mm:g} mm allowed ([safety] min_clearance_mm)")
+        if not _robot_pair(first) and any(b.startswith("link ") for b in (first.body_a, first.body_b)):
+            # The arm, not the probe: the clearance is not the knob (a UR5 whose elbow met the
+            # table scanned the same path once started elbow up).
+            allowed += ("; the arm itself is in the way: another posture may clear it (IK takes the branch nearest "
+                        "the joints it starts from: [robot] start_deg in a config)")
         return f"{where}: {_the(self.label(first.body_a))} {how} {_the(self.label(first.body_b))}; {allowed}"
 
     def label(self, body: str) -> str:

@@ -153,6 +153,53 @@ MIN_LINE_PX = 0.01  # a line narrower than this on the sensor is never seen (the
 WIDE_MARGIN = 3.0  # a line this many times wider than the detector takes, on a surface square to the beam, is never taken
 
 
+WIDTH_STEP_MM = 1e-3  # across the laser plane: the line's width is its image's rows per mm times its mm
+SHALLOW_RANGE_MM = 1.0  # a range this shallow is named first where a camera cannot image the plane
+NARROW_LINE_PX = 1.0  # a line narrower than a pixel (FWHM) is undersampled: see narrow_line_warning
+
+
+def line_widths_px(probe) -> list[float]:
+    """The laser line's width (FWHM, px) on camera 0's sensor, seen square on, at seven depths
+    spread over the probe's range (the line keeps its angular width); those where the camera
+    does not image the plane are left out."""
+    z0, z1 = probe.z_range_mm
+    step, widths = WIDTH_STEP_MM, []
+    for z in np.linspace(z0, z1, 9)[1:-1]:
+        fwhm_mm = FWHM_PER_SIGMA * angular_sigma_rad(probe) * z
+        uv = probe.project(np.array([[step, 0.0, z], [-step, 0.0, z]]), 0)
+        if np.isfinite(uv).all():
+            widths.append(abs(uv[0, 1] - uv[1, 1]) / (2 * step) * fwhm_mm)
+    return widths
+
+
+def narrow_line_warning(probe) -> str | None:
+    """A line imaged narrower than NARROW_LINE_PX somewhere in the range: its light falls on
+    one or two rows, so the sub-pixel peak leans towards row centres by a fraction of a pixel
+    that the stated σ does not hold (a user's 160-row probe, 0.66-0.92 px: with sensor noise
+    it kept table points 105 µm off, stated at 17 µm; ideal, it dropped good ones as
+    uncertain). The default probe's line is 1.04-1.43 px."""
+    widths = line_widths_px(probe)
+    if not widths or min(widths) >= NARROW_LINE_PX:
+        return None
+    return (f"the laser line images {min(widths):.2f}-{max(widths):.2f} px wide (FWHM) on the probe's {probe.rows_px}-row "
+            f"sensor, under a pixel in part of its range: the sub-pixel peak leans towards row centres and the points' "
+            f"stated sigma does not hold it; a wider line (line_width_mm {probe.line_width_mm:g}) or more rows")
+
+
+def wide_line_warning(config: ScanConfig) -> str | None:
+    """A line imaged wider than the detector takes ([detect] max_width_px) everywhere in the
+    range on a surface seen square on: only surfaces tilted towards a camera, which narrow
+    its image, can be measured (wider still, over WIDE_MARGIN times, blind_settings refuses
+    it). A user's 50 mm line, 43-60 px against 25, measured nothing on a block."""
+    widths, top = line_widths_px(config.probe), config.detect_params.max_width_px
+    if not widths or min(widths) <= top:
+        return None
+    return (f"the laser line images {min(widths):.3g}-{max(widths):.3g} px wide (FWHM) on the probe's "
+            f"{config.probe.rows_px}-row sensor, wider than the detector takes ([detect] max_width_px {top:g}) on a "
+            f"surface seen square on: only surfaces tilted towards a camera can be measured; a narrower line "
+            f"(line_width_mm {config.probe.line_width_mm:g}), fewer rows, or a larger max_width_px")
+
+
 def blind_settings(config: ScanConfig) -> str | None:
     """A setting that leaves every column of every frame without a point, known before the
     first render: the laser line narrower on the sensor than any pixel can catch or wider
@@ -170,18 +217,16 @@ def blind_settings(config: ScanConfig) -> str | None:
                 f"([render] laser_peak): no line on a diffuse part is ever bright enough to count; lower min_peak "
                 f"or raise laser_peak")
     z0, z1 = probe.z_range_mm
-    widths = []
-    step = 1e-3  # mm across the laser plane: the line's width is its image's rows per mm times its mm
-    for z in np.linspace(z0, z1, 9)[1:-1]:
-        fwhm_mm = FWHM_PER_SIGMA * angular_sigma_rad(probe) * z  # the line keeps its angular width
-        uv = probe.project(np.array([[step, 0.0, z], [-step, 0.0, z]]), 0)
-        if np.isfinite(uv).all():
-            widths.append(abs(uv[0, 1] - uv[1, 1]) / (2 * step) * fwhm_mm)
+    widths = line_widths_px(probe)
     if not widths:
-        return (f"camera 0 does not image the laser plane {step * 1e3:g} µm either side of the line's middle anywhere "
-                f"in the probe's range {z0:g}-{z1:g} mm (a_mm {probe.a_mm:g}, phi {math.degrees(probe.phi_rad):.3g}°, "
-                f"gamma {math.degrees(probe.gamma_rad):.3g}°): its view cannot hold the line; a wider baseline "
-                f"(a_mm) or a probe whose cameras look at the laser plane across its range")
+        # The camera's view spans the plane across about the range's depth: a shallow range or
+        # a short baseline (cameras nearly on the laser's axis) each shrink it to nothing.
+        fix = ("a deeper range (range_mm) or a wider baseline (a_mm)" if z1 - z0 < SHALLOW_RANGE_MM else
+               "a wider baseline (a_mm) or a probe whose cameras look at the laser plane across its range")
+        return (f"camera 0 does not image the laser plane {WIDTH_STEP_MM * 1e3:g} µm either side of the line's middle anywhere "
+                f"in the probe's range {z0:g}-{z1:g} mm ({z1 - z0:.4g} mm deep; a_mm {probe.a_mm:g}, phi "
+                f"{math.degrees(probe.phi_rad):.3g}°, gamma {math.degrees(probe.gamma_rad):.3g}°): its view cannot hold "
+                f"the line; {fix}")
     # A surface tilted towards a camera narrows the line's image: refuse only a line that stays
     # too wide even so (three times over, more than the incidence limit's foreshortening gives).
     if widths and min(widths) > WIDE_MARGIN * detect.max_width_px:
@@ -354,19 +399,20 @@ def frames_in_range(config: ScanConfig) -> ScanConfig:
 
 FIXTURE_OVERLAP_MM = 0.05  # a table fixture may touch the part; reaching further into it is warned of
 OVERLAP_SAMPLES = 20000    # surface points drawn from each of the two meshes for the check
-_PART_LINES: list = []  # ((workpiece, fixtures), warnings) of the last few configs checked
+_PART_LINES: list = []  # ((workpiece, fixtures, probe, detector), warnings) of the last few configs checked
 
 
 def part_warnings(config: ScanConfig) -> list[str]:
-    """What a scan should say about its part before the figures are read: a mesh that is not
-    closed (its error has no sign, so no bias), faces lying in the table top (drawn_mesh),
-    and table fixtures reaching into it
+    """What a scan should say about its part and probe before the figures are read: a mesh
+    that is not closed (its error has no sign, so no bias), faces lying in the table top
+    (drawn_mesh), a laser line narrower than a pixel or wider than the detector takes
+    (narrow_line_warning, wide_line_warning), and table fixtures reaching into the part
     (:func:`fixtures_in_the_part`). Kept for the last few configs: a Scanner asks after every
     measurement."""
     from ..geometry.metrics import has_inside
 
-    key = (config.workpiece, config.fixtures)
-    known = next((lines for k, lines in _PART_LINES if k[0] is key[0] and k[1] is key[1]), None)
+    key = (config.workpiece, config.fixtures, config.probe, config.detect_params)
+    known = next((lines for k, lines in _PART_LINES if all(a is b for a, b in zip(k, key))), None)
     if known is not None:
         return list(known)
     wp = config.workpiece
@@ -391,6 +437,7 @@ def part_warnings(config: ScanConfig) -> list[str]:
     elif drawn is not wp.mesh:
         out.append(f"{len(wp.mesh.faces) - len(drawn.faces)} faces of the workpiece {wp.name} lie in the table top "
                    f"(z = 0): the table is drawn there, and its points there measure the table")
+    out += [w for w in (narrow_line_warning(config.probe), wide_line_warning(config)) if w]
     out += fixtures_in_the_part(config)
     _PART_LINES.insert(0, (key, out))
     del _PART_LINES[4:]
