@@ -31,8 +31,8 @@ from .core.config.rigs import load_probe, load_robot
 from .core.config.scan import MAX_FRAMES, ScanConfig, load_scan_config
 from .core.errors import CollisionError, InputError, UnreachablePose, check_whole
 from .core.geometry.cloud import Cloud
-from .core.geometry.workpiece import (BUILTINS, Workpiece, builtin_workpiece, check_on_table, lift_text,
-                                      load_workpiece, resting_on_table)
+from .core.geometry.workpiece import (BUILTINS, Workpiece, builtin_workpiece, check_on_table, check_over_table,
+                                      lift_text, load_workpiece, resting_on_table)
 from .core.kinematics.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
 from .core.kinematics.path import Waypoints, sweep as sweep_waypoints
 from .core.kinematics.robot import Robot
@@ -104,6 +104,7 @@ def _workpiece(value) -> tuple[Workpiece, str | None]:
     a line saying so where the file's part was moved."""
     if isinstance(value, Workpiece):
         check_on_table(value, "move it up (its mesh and truth in the table frame, z = 0 the table top)")
+        check_over_table(value, "move it over the table (its mesh and truth in the table frame, the axis x = y = 0)")
         return value, None
     if not isinstance(value, (str, Path)):
         raise InputError(f"workpiece must be a Workpiece, a built-in shape's name ({', '.join(BUILTINS)}) or a mesh "
@@ -111,6 +112,8 @@ def _workpiece(value) -> tuple[Workpiece, str | None]:
     if value in BUILTINS:
         return builtin_workpiece(value), None
     part, lift = resting_on_table(load_workpiece(value))
+    check_over_table(part, "its x and y are the file's, with the table's axis at x = y = 0: centre the part in the "
+                           "file, or place it with a scan config's [workpiece.pose]")
     moved = lift_text(lift, decimals=2)
     return part, None if moved is None else f"the part from {value} was put on the table: {moved}"
 

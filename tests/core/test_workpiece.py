@@ -8,7 +8,7 @@ from addon.core.errors import InputError
 from addon.core.geometry.metrics import distances
 from addon.core.geometry.shapes import StepBlock
 from addon.core.kinematics.transforms import rot_z, trans
-from addon.core.geometry.workpiece import BUILTINS, builtin_workpiece, load_workpiece
+from addon.core.geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece, load_workpiece
 
 
 @pytest.mark.parametrize("suffix,scale", [(".stl", 1.0), (".obj", 1.0), (".ply", 1.0), (".glb", 1000.0)])
@@ -158,14 +158,19 @@ def test_a_mesh_wound_inside_out_is_turned_right_side_out_and_said_so(tmp_path):
     inverted = cube.copy()
     inverted.invert()
     assert inverted.volume < 0
-    for name, mesh in (("right.stl", cube), ("inside_out.stl", inverted)):
+    for name, mesh in (("right.stl", cube), ("inside_out.stl", inverted), ("inside_out.ply", inverted)):
         mesh.export(tmp_path / name)
-    right, wrong = load_workpiece(tmp_path / "right.stl"), load_workpiece(tmp_path / "inside_out.stl")
+    right = load_workpiece(tmp_path / "right.stl")
     inside = np.array([[0.0, 0.0, 35.0]])
-    for wp in (right, wrong):
-        assert wp.mesh.volume == pytest.approx(64000.0)
-        assert distances(inside, wp.truth)[1][0] == pytest.approx(-5.0, abs=1e-9)
-    assert right.notes == () and len(wrong.notes) == 1 and "inside out" in wrong.notes[0]
+    for wrong in (load_workpiece(tmp_path / "inside_out.stl"), load_workpiece(tmp_path / "inside_out.ply")):
+        for wp in (right, wrong):
+            assert wp.mesh.volume == pytest.approx(64000.0)
+            assert distances(inside, wp.truth)[1][0] == pytest.approx(-5.0, abs=1e-9)
+            # The normals the renderers shade with face out, as the winding now says (turned
+            # once with stale normals, every face was seen from behind and no point landed).
+            centre_out = wp.mesh.triangles_center - np.array([0.0, 0.0, 20.0])
+            assert np.all(np.einsum("ij,ij->i", wp.mesh.face_normals, centre_out) > 0)
+        assert right.notes == () and len(wrong.notes) == 1 and "inside out" in wrong.notes[0]
 
 
 def test_only_the_bodies_wound_inside_out_are_turned(tmp_path):
@@ -204,3 +209,59 @@ def test_faces_lying_in_the_table_top_are_not_drawn_and_a_closed_part_is_drawn_w
     assert drawn_mesh(plane) is None
     lifted = builtin_workpiece("plane", pose=trans(0.0, 0.0, 0.01))  # 10 µm up: a part of its own
     assert drawn_mesh(lifted) is lifted.mesh
+
+
+def test_faces_that_name_a_corner_twice_are_dropped_and_a_misread_file_is_refused(tmp_path):
+    """CAD exports leave faces naming a corner twice: three of them made a closed part read as
+    open (no bias, its bottom not drawn). Dropped, the part is closed again. A file read as
+    copies of one face (an OBJ of negative indices, which the reader misread) is refused."""
+    box = trimesh.creation.box([40.0, 30.0, 20.0])
+    box.apply_translation([0.0, 0.0, 10.0])
+    faces = np.vstack([box.faces, [[0, 0, 1], [2, 2, 2], [0, 1, 1]]])
+    trimesh.Trimesh(box.vertices, faces, process=False).export(tmp_path / "collapsed.ply")
+    wp = load_workpiece(tmp_path / "collapsed.ply")
+    assert len(wp.mesh.faces) == 12 and wp.mesh.is_watertight and wp.mesh.volume == pytest.approx(24000.0)
+    lines = ["v 0 0 0", "v 10 0 0", "v 0 10 0", "v 0 0 10"]
+    lines += ["f -4 -3 -2", "f -4 -2 -1", "f -4 -1 -3", "f -3 -1 -2"]  # a tetrahedron, in relative indices
+    for k in range(40):  # and more faces, each written after its own three corners
+        lines += [f"v {k} 0 20", f"v {k + 1} 0 20", f"v {k} 1 20", "f -3 -2 -1"]
+    (tmp_path / "relative.obj").write_text("\n".join(lines) + "\n")
+    try:
+        read = load_workpiece(tmp_path / "relative.obj")  # a reader that takes them: every face where it is
+        assert len(np.unique(np.sort(read.mesh.faces, axis=1), axis=0)) == 44
+    except InputError as exc:
+        assert "faces repeat others" in str(exc) and "negative indices" in str(exc)
+
+
+def test_an_empty_or_cut_short_file_says_so(tmp_path):
+    (tmp_path / "empty.stl").write_bytes(b"")
+    with pytest.raises(InputError, match=r"empty.stl: the file is empty \(0 bytes\)"):
+        load_workpiece(tmp_path / "empty.stl")
+    box = trimesh.creation.box([40.0, 30.0, 20.0])
+    box.export(tmp_path / "whole.stl")
+    data = (tmp_path / "whole.stl").read_bytes()
+    assert len(data) == 84 + 50 * 12
+    (tmp_path / "cut.stl").write_bytes(data[:-30])
+    with pytest.raises(InputError, match=r"announces 12 triangles, and its 654 bytes hold only 11: the file is cut short"):
+        load_workpiece(tmp_path / "cut.stl")
+
+
+def test_a_point_cloud_is_named_as_one(tmp_path):
+    trimesh.PointCloud(np.random.default_rng(1).uniform(0.0, 50.0, (500, 3))).export(tmp_path / "scan.ply")
+    with pytest.raises(InputError, match=r"scan.ply: 500 points and no faces: a point cloud, not a surface"):
+        load_workpiece(tmp_path / "scan.ply")
+
+
+def test_a_part_wholly_beyond_the_table_is_refused(tmp_path):
+    from addon import Scanner
+    from addon.core.geometry.workpiece import check_over_table
+
+    far = trimesh.creation.box([40.0, 30.0, 20.0])
+    far.apply_translation([5000.0, 0.0, 10.0])
+    far.export(tmp_path / "far.stl")
+    with pytest.raises(InputError, match=r"far lies wholly beyond the table \(its nearest point 4980 mm from the "
+                                         r"table's axis, the table's radius 150 mm\).*centre the part in the file"):
+        Scanner(workpiece=str(tmp_path / "far.stl"))
+    near = trimesh.creation.box([40.0, 30.0, 20.0])
+    near.apply_translation([160.0, 0.0, 10.0])  # hanging over the rim: held
+    check_over_table(Workpiece("near", near, near, "test"), "")

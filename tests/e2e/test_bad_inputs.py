@@ -330,6 +330,9 @@ CASES = [
                                    "workpiece"),
     ("probe: cameras that cannot image the line (a baseline of a nanometre)", probe_with("a_mm = 60.0", "a_mm = 1e-6"),
      2, "does not image the laser plane"),
+    ("config: a part wholly beyond the table", demo_with("radius_mm = 30.0", "radius_mm = 30.0\n[workpiece.pose]\n"
+                                                                             "xyz_mm = [400.0, 0.0, 0.0]"), 2,
+     "lies wholly beyond the table (its nearest point 370 mm from the table's axis"),
     ("probe: a range a micrometre deep: the range is named first", probe_with(
         "range_mm = [70.0, 250.0]", "range_mm = [150.0, 150.001]"), 2,
      "deep; a_mm 60, phi 21.8°, gamma 6.59e-05°): its view cannot hold the line; a deeper range (range_mm)"),

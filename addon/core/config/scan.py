@@ -73,8 +73,8 @@ from ..optics.sensor import SensorModel
 from ..optics.profile_filter import ProfileFilter
 from ..optics.triangulate import TRIANGULATION_METHODS
 from ..kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, TABLE_RADIUS_MM, Turntable, nearest_to_axis_mm
-from ..geometry.workpiece import (BUILTINS, Workpiece, builtin_workpiece, check_on_table, depth_below_table,
-                                  load_workpiece)
+from ..geometry.workpiece import (BUILTINS, Workpiece, builtin_workpiece, check_on_table, check_over_table,
+                                  depth_below_table, load_workpiece)
 from ..safety import FIXTURE_CARRIERS, Fixture, Safety
 
 PATH_KINDS = ("sweep", "turntable")
@@ -516,6 +516,8 @@ def _workpiece(t: Table, base: Path) -> Workpiece:
         raise t.error("shape" if t.has("shape") else "file", str(exc)) from None
     try:
         check_on_table(wp, f"raise [workpiece.pose] xyz_mm's z by at least {depth_below_table(wp):.2f} mm")
+        check_over_table(wp, "place it on the table ([workpiece.pose] xyz_mm, in the table frame, whose axis is "
+                             "x = y = 0)")
     except InputError as exc:
         raise t.error("pose", str(exc)) from None
     t.finish()

@@ -104,6 +104,38 @@ def check_mesh(mesh: trimesh.Trimesh, what: str, fix: str = "is it in another un
     return mesh
 
 
+def _point_count(path: Path) -> int:
+    """How many points a file that holds no faces holds (a scan's point cloud), 0 where it is
+    not one."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            loaded = trimesh.load(path, process=False)
+    except Exception:  # what cannot be read is said by the caller
+        return 0
+    return len(loaded.vertices) if isinstance(loaded, trimesh.PointCloud) else 0
+
+
+def _without_collapsed_faces(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trimesh:
+    """The mesh without faces that name a corner twice (CAD exports leave them; three of them
+    made a closed flange read as open, its bias dropped); refused where most faces repeat
+    others, which a well-read file never has (an OBJ of relative, negative indices, read as
+    768 copies of one triangle, was scanned as a 0.03 mm sliver)."""
+    F = np.asarray(mesh.faces)
+    collapsed = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    if collapsed.all():
+        raise InputError(f"{path}: every face names one corner twice: no surface could be read")
+    if collapsed.any():
+        mesh = trimesh.Trimesh(mesh.vertices, F[~collapsed], process=False)
+        mesh.remove_unreferenced_vertices()
+    distinct = len(np.unique(np.sort(np.asarray(mesh.faces), axis=1), axis=0))
+    if distinct < 0.5 * len(mesh.faces):
+        raise InputError(f"{path}: {len(mesh.faces) - distinct} of its {len(mesh.faces)} faces repeat others: the "
+                         f"file was not read as written (an OBJ's relative, negative indices are one cause); "
+                         f"export it again with plain indices, or as STL or PLY")
+    return mesh
+
+
 def _check_stl_header(path: Path) -> None:
     """A binary STL announces its triangles in its header: a file large enough to hold more than
     MAX_FACES of them that announces more is refused before it is read (a 2 GB file took 15 s
@@ -112,11 +144,16 @@ def _check_stl_header(path: Path) -> None:
     if path.suffix.lower() != ".stl":
         return
     size = path.stat().st_size
-    if size < 84 + 50 * MAX_FACES:
-        return
     with open(path, "rb") as fh:
         head = fh.read(84)
-    count = int.from_bytes(head[80:84], "little")
+    count = int.from_bytes(head[80:84], "little") if len(head) == 84 else 0
+    # Binary (an ASCII STL starts with "solid"), a plausible count, and less than it needs: cut
+    # short (the reader said only that no triangles could be read).
+    if not head.lstrip().lower().startswith(b"solid") and 0 < count <= MAX_FACES and 84 <= size < 84 + 50 * count:
+        raise InputError(f"{path}: the binary STL announces {count} triangles, and its {size} bytes hold only "
+                         f"{(size - 84) // 50}: the file is cut short; export it again")
+    if size < 84 + 50 * MAX_FACES:
+        return
     if count > MAX_FACES and (size == 84 + 50 * count or not head.lstrip().lower().startswith(b"solid")):
         raise InputError(f"{path}: the binary STL announces {count} triangles, more than the {MAX_FACES} allowed; "
                          f"decimate it first")
@@ -130,6 +167,8 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         raise InputError(f"{path}: unsupported mesh format {path.suffix or '(none)'}; use one of {', '.join(FORMATS)}")
     if not path.is_file():
         raise InputError(f"{path}: no such file")
+    if path.stat().st_size == 0:
+        raise InputError(f"{path}: the file is empty (0 bytes); was it written to the end?")
     _check_stl_header(path)
     try:
         # Unprocessed first: processing drops the faces of NaN vertices without a word. A broken
@@ -140,6 +179,10 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     except Exception as exc:  # trimesh raises many kinds for broken files
         raise InputError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        points = _point_count(path)
+        if points:
+            raise InputError(f"{path}: {points} points and no faces: a point cloud, not a surface; mesh it first "
+                             f"(a surface reconstruction), then give the mesh")
         raise InputError(f"{path}: no triangles could be read from it: not a readable {path.suffix[1:].upper()} "
                          "mesh (or one with no faces)")
     if not np.all(np.isfinite(mesh.vertices)):
@@ -149,6 +192,7 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     with np.errstate(all="ignore"), warnings.catch_warnings():  # huge coordinates: said below, not as warnings
         warnings.simplefilter("ignore", RuntimeWarning)
         mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
+    mesh = _without_collapsed_faces(mesh, path)
     if scale is None:
         scale = 1000.0 if path.suffix.lower() in METRE_FORMATS else 1.0
     if not np.isfinite(scale) or scale <= 0:
@@ -173,7 +217,10 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         inverted = sum(1 for b in bodies if b.volume < 0)
         if inverted:
             if len(bodies) == 1:
-                mesh.invert()
+                # Rebuilt, not mesh.invert(): that keeps the cached face normals, which then
+                # point inward against the new winding (the renderers saw every face from
+                # behind, and no point landed on the part).
+                mesh = trimesh.Trimesh(mesh.vertices, np.fliplr(mesh.faces), process=False)
             else:
                 trimesh.repair.fix_normals(mesh, multibody=True)
             which = "" if len(bodies) == 1 else f" ({inverted} of its {len(bodies)} bodies)"
@@ -244,6 +291,18 @@ def lift_text(lift_mm: float, decimals: int = 1) -> str | None:
         return None
     return (f"{'lifted' if lift_mm > 0 else 'lowered'} {abs(lift_mm):.{decimals}f} mm so that its lowest point "
             f"rests on the table top")
+
+
+def check_over_table(wp: Workpiece, fix: str) -> None:
+    """Refuse a part that lies wholly beyond the table's rim, seen from above (a file's part at
+    x = 5000 mm was scanned, and measured only the table), ``fix`` saying how to place it."""
+    from ..kinematics.turntable import TABLE_RADIUS_MM, nearest_to_axis_mm
+
+    nearest = nearest_to_axis_mm(wp.mesh)
+    if nearest > TABLE_RADIUS_MM + 1.0:
+        raise InputError(f"the workpiece {wp.name} lies wholly beyond the table (its nearest point {nearest:.0f} mm "
+                         f"from the table's axis, the table's radius {TABLE_RADIUS_MM:g} mm): nothing holds it as the "
+                         f"table turns; {fix}")
 
 
 def check_on_table(wp: Workpiece, fix: str) -> None:
