@@ -260,8 +260,9 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
     preflight.check_scan(config, out, names=OUTPUT_FILES.values(), farm=farm, scheduler=args.scheduler,
                          force=args.force)
     n = len(config.waypoints)
+    size = " x ".join(f"{v:.4g}" for v in config.workpiece.mesh.extents)  # a unit mistake shows here first
     print(f"scan: {config.name} ({n} frame{'' if n == 1 else 's'}, {config.robot.name}, {config.probe.name}, "
-          f"workpiece {config.workpiece.source})", flush=True)
+          f"workpiece {config.workpiece.source}, {size} mm)", flush=True)
     stops = getattr(args, "stops", None)
     if args.shard is not None:  # one task of a farm job: many write into the same --out at once
         return _run_shard(args, config, out)
