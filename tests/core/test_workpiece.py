@@ -58,6 +58,9 @@ def test_step_block_mesh_is_a_closed_solid_and_distances_are_exact():
     (lambda p: p.write_text("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 10 0 0\nvertex 0 nan 0\n"
                             "endloop\nendfacet\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 10 0 0\n"
                             "vertex 0 10 0\nendloop\nendfacet\nendsolid t\n"), "NaN or infinite"),
+    # "nan.0", which the reader stops at with words of its own (a user's hand-edited file)
+    (lambda p: p.write_text("solid t\nfacet normal 0 0 1\nouter loop\nvertex nan.0 0.0 0.0\nvertex 10 0 0\n"
+                            "vertex 0 10 0\nendloop\nendfacet\nendsolid t\n"), "NaN or infinite values"),
 ])
 def test_bad_meshes_are_refused_with_the_reason(tmp_path, make, fragment):
     path = tmp_path / "bad.stl"

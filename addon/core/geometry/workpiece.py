@@ -10,6 +10,7 @@ are metres by their specification and are scaled by 1000. ``scale`` overrides bo
 
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -104,6 +105,18 @@ def check_mesh(mesh: trimesh.Trimesh, what: str, fix: str = "is it in another un
     return mesh
 
 
+def _text_has_non_finite(path: Path, limit: int = 64 << 20) -> bool:
+    """Whether a text mesh file (OBJ, ASCII STL or PLY) of at most ``limit`` bytes writes a
+    NaN or an infinity as a number."""
+    if path.stat().st_size > limit:
+        return False
+    try:
+        text = path.read_text(encoding="ascii", errors="strict")
+    except (OSError, UnicodeDecodeError):  # binary: its reader's words stand
+        return False
+    return re.search(r"(?<![\w.])[-+]?(nan|inf(inity)?)(\.\d*)?(?![\w.])", text, re.IGNORECASE) is not None
+
+
 def _point_count(path: Path) -> int:
     """How many points a file that holds no faces holds (a scan's point cloud), 0 where it is
     not one."""
@@ -177,6 +190,9 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
             warnings.simplefilter("ignore", RuntimeWarning)
             mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many kinds for broken files
+        if _text_has_non_finite(path):  # a text reader stops at "nan" with words of its own
+            raise InputError(f"{path}: its coordinates include NaN or infinite values; a workpiece needs finite "
+                             f"ones") from None
         raise InputError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         points = _point_count(path)
