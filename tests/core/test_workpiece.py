@@ -268,3 +268,20 @@ def test_a_part_wholly_beyond_the_table_is_refused(tmp_path):
     near = trimesh.creation.box([40.0, 30.0, 20.0])
     near.apply_translation([160.0, 0.0, 10.0])  # hanging over the rim: held
     check_over_table(Workpiece("near", near, near, "test"), "")
+
+
+def test_a_closed_mesh_with_some_faces_turned_over_is_mended_on_load(tmp_path):
+    """A closed box with three of its twelve faces wound against the rest (an export's flipped
+    patch) was read as a surface with no inside, its bias dropped. Loaded, every face faces
+    out, the inside is the box's, and the load says how many faces it turned."""
+    box = trimesh.creation.box([40.0, 30.0, 20.0])
+    box.apply_translation([0.0, 0.0, 10.0])
+    faces = box.faces.copy()
+    faces[::5] = faces[::5, ::-1]
+    trimesh.Trimesh(box.vertices, faces, process=False).export(tmp_path / "mixed.ply")
+    wp = load_workpiece(tmp_path / "mixed.ply")
+    assert wp.mesh.is_winding_consistent and wp.mesh.volume == pytest.approx(24000.0)
+    assert np.all(np.einsum("ij,ij->i", wp.mesh.face_normals, wp.mesh.triangles_center - [0.0, 0.0, 10.0]) > 0)
+    assert distances(np.array([[0.0, 0.0, 15.0]]), wp.truth)[1][0] == pytest.approx(-5.0, abs=1e-9)
+    assert wp.notes == ("3 of the 12 faces of the part mesh mixed.ply were wound against the rest; they were turned, "
+                        "so that the part is one closed surface facing out, with an inside and a bias",)

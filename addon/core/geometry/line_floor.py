@@ -178,7 +178,10 @@ def coverage_ceiling(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCas
     points whose floor (:func:`line_width_floor`, from its better camera) lies within
     ``max_error_mm`` of the part would reach: what the line's width alone leaves coverable
     by points that good. ``mesh`` is the part, the first faces of ``surfaces``."""
-    points, frame, seen = measurable_hits(probe, probe2table, surfaces, len(mesh.faces), max_incidence_deg)
+    # The part's faces as the laser meets them (plan.cell_surfaces says how many: an open
+    # mesh's faces in the table top are not among them); else all of the mesh's.
+    part_faces = surfaces.part_faces or len(mesh.faces)
+    points, frame, seen = measurable_hits(probe, probe2table, surfaces, part_faces, max_incidence_deg)
     best = np.full(len(points), np.inf)
     for camera in (0, 1):
         m = seen[camera]

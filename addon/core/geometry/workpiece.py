@@ -225,6 +225,17 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
                          f"{'; in the panel, its Scale field' if role == 'part' else ''})")
     check_mesh(mesh, str(path))
     notes = ()
+    if mesh.is_watertight and not mesh.is_winding_consistent:
+        # Closed, but some faces wound against their neighbours (an export's flipped patch): its
+        # surface is not in doubt, so each face is turned to agree with its neighbours (and the
+        # whole turned outward below), rather than the part read as open with no bias.
+        fixed = mesh.copy()
+        trimesh.repair.fix_winding(fixed)
+        fixed = trimesh.Trimesh(fixed.vertices, fixed.faces, process=False)  # normals from the new winding
+        if fixed.is_winding_consistent:
+            as_read, mesh = mesh.face_normals.copy(), fixed
+    else:
+        as_read = None
     if mesh.is_watertight and mesh.is_winding_consistent:
         # A body wound inward: the signed distance would call its outside its inside, and the
         # bias would change sign. The surface is the same; its outside is not in doubt. Each
@@ -242,6 +253,11 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
             which = "" if len(bodies) == 1 else f" ({inverted} of its {len(bodies)} bodies)"
             notes = (f"the {role} mesh {path.name} was wound inside out{which}, its faces facing inward; it was "
                      "turned right side out, so that inside and outside, and the bias's sign, are the part's",)
+    if as_read is not None and mesh.is_winding_consistent:  # one note for the whole repair, counted as read
+        turned = int(np.sum(np.einsum("ij,ij->i", mesh.face_normals, as_read) < 0))
+        notes = (f"{turned} of the {len(mesh.faces)} faces of the {role} mesh {path.name} were wound against the "
+                 f"rest; they were turned, so that the part is one closed surface facing out, with an inside and a "
+                 f"bias",)
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)
     return Workpiece(path.stem, mesh, mesh, str(path), pose, notes)
