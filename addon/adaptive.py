@@ -262,8 +262,8 @@ class NextBestView:
         for c in self.ranked:
             if c.key == chosen.key:
                 continue
-            out.append({"sweep": c.describe(), "kind": c.kind, "gain": int(c.gain), "seconds": round(float(c.seconds), 3),
-                        "gain_per_s": round(float(c.utility), 3),
+            out.append({"sweep": c.describe(), "kind": c.kind, "gain": int(c.gain),
+                        "seconds": round(float(c.seconds), 3), "gain_per_s": round(float(c.utility), 3),
                         "refused": c.key in self.impossible})
             if len(out) == n:
                 break

@@ -214,7 +214,7 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
         from addon.core.errors import InputError
 
         raise InputError(f"--max-rms-um must be a positive, finite number of micrometres, got {args.max_rms_um}")
-    min_coverage = getattr(args, "min_coverage", None)
+    min_coverage = args.min_coverage
     if min_coverage is not None and not 0 < min_coverage <= 100:
         from addon.core.errors import InputError
 
@@ -324,7 +324,7 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
         result = scanner.result(out)
     wall = time.perf_counter() - t
     print_summary(result, wall)
-    failed = quality_failure(result.report, args.max_rms_um, getattr(args, "min_coverage", None))
+    failed = quality_failure(result.report, args.max_rms_um, args.min_coverage)
     if failed:
         print(f"error: {failed}", file=sys.stderr)
         return EXIT_QUALITY

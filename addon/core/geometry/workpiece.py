@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import re
 import warnings
+import weakref
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -281,19 +282,24 @@ def drawn_mesh(wp: Workpiece) -> trimesh.Trimesh | None:
     lying on the table read 141 µm RMS, 0.3 mm at worst; 1.8 µm lifted 0.5 mm). What is there
     to measure is the table, and the part's truth there is the same plane. A closed part's own
     faces on the table top face down, hidden under it either way, and stay. The truth and
-    every error and coverage against it keep the whole mesh."""
-    mesh = wp.mesh
-    if mesh.is_watertight:
-        return mesh
-    flat = in_table_top(mesh)
-    if not flat.any():
-        return mesh
-    if flat.all():
-        return None
-    out = mesh.copy()
-    out.update_faces(~flat)
-    out.remove_unreferenced_vertices()
+    every error and coverage against it keep the whole mesh. Worked out once per part (the
+    renderers, the laser's casts and the warnings all ask)."""
+    if wp in _DRAWN:
+        return _DRAWN[wp]
+    mesh, out = wp.mesh, wp.mesh
+    if not mesh.is_watertight:
+        flat = in_table_top(mesh)
+        if flat.all():
+            out = None
+        elif flat.any():
+            out = mesh.copy()
+            out.update_faces(~flat)
+            out.remove_unreferenced_vertices()
+    _DRAWN[wp] = out
     return out
+
+
+_DRAWN: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()  # workpiece -> drawn_mesh's answer
 
 
 def depth_below_table(wp: Workpiece) -> float:

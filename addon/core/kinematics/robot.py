@@ -223,17 +223,14 @@ class Robot:
         for j in range(N_JOINTS):
             tol = TOL.joint_limit_rad
             if not (self.q_min_rad[j] - tol <= q[j] <= self.q_max_rad[j] + tol):
-                lo, hi = self.joint_text(j, self.q_min_rad[j]), self.joint_text(j, self.q_max_rad[j])
-                value = self.joint_text(j, q[j], ".3f")
                 # A value a hair beyond a limit would print as the limit itself ("-180.000°
                 # outside [-180°, 180°]" for a limit of -3.14159 rad): as many decimals as tell
                 # them apart.
-                shown = np.array([q[j], self.q_min_rad[j], self.q_max_rad[j]])
-                shown = shown if self.prismatic[j] else np.degrees(shown)  # as joint_text gives them
+                values = (q[j], self.q_min_rad[j], self.q_max_rad[j])
+                shown = np.asarray(values) if self.prismatic[j] else np.degrees(values)  # as joint_text gives them
                 d = next((d for d in range(3, 9) if round(shown[0], d) not in np.round(shown[1:], d)), 8)
-                if d > 3:
-                    value, lo, hi = (self.joint_text(j, v, f".{d}f") for v in (q[j], self.q_min_rad[j],
-                                                                                 self.q_max_rad[j]))
+                value, lo, hi = (self.joint_text(j, v, f".{d}f" if k == 0 or d > 3 else "g")
+                                 for k, v in enumerate(values))
                 out.append(f"{self.joint_label(j)} = {value} outside [{lo}, {hi}]")
         return out
 

@@ -73,8 +73,9 @@ def software_versions() -> dict:
     is loaded (this core never imports it), and the geometry packages installed."""
     out = {"scanner": simulator_version(), "python": platform.python_version(), "numpy": np.__version__,
            "opencv": cv2.__version__}
-    if blender_version() is not None:
-        out["blender"] = blender_version()
+    blender = blender_version()
+    if blender is not None:
+        out["blender"] = blender
     for key, dist in VERSIONED.items():
         try:
             out[key] = metadata.version(dist)

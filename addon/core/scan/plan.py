@@ -181,9 +181,10 @@ def narrow_line_warning(probe) -> str | None:
     widths = line_widths_px(probe)
     if not widths or min(widths) >= NARROW_LINE_PX:
         return None
-    return (f"the laser line images {min(widths):.2f}-{max(widths):.2f} px wide (FWHM) on the probe's {probe.rows_px}-row "
-            f"sensor, under a pixel in part of its range: the sub-pixel peak leans towards row centres and the points' "
-            f"stated sigma does not hold it; a wider line (line_width_mm {probe.line_width_mm:g}) or more rows")
+    return (f"the laser line images {min(widths):.2f}-{max(widths):.2f} px wide (FWHM) on the probe's "
+            f"{probe.rows_px}-row sensor, under a pixel in part of its range: the sub-pixel peak leans towards row "
+            f"centres and the points' stated sigma does not hold it; a wider line (line_width_mm "
+            f"{probe.line_width_mm:g}) or more rows")
 
 
 def wide_line_warning(config: ScanConfig) -> str | None:
@@ -223,10 +224,10 @@ def blind_settings(config: ScanConfig) -> str | None:
         # a short baseline (cameras nearly on the laser's axis) each shrink it to nothing.
         fix = ("a deeper range (range_mm) or a wider baseline (a_mm)" if z1 - z0 < SHALLOW_RANGE_MM else
                "a wider baseline (a_mm) or a probe whose cameras look at the laser plane across its range")
-        return (f"camera 0 does not image the laser plane {WIDTH_STEP_MM * 1e3:g} µm either side of the line's middle anywhere "
-                f"in the probe's range {z0:g}-{z1:g} mm ({z1 - z0:.4g} mm deep; a_mm {probe.a_mm:g}, phi "
-                f"{math.degrees(probe.phi_rad):.3g}°, gamma {math.degrees(probe.gamma_rad):.3g}°): its view cannot hold "
-                f"the line; {fix}")
+        return (f"camera 0 does not image the laser plane {WIDTH_STEP_MM * 1e3:g} µm either side of the line's "
+                f"middle anywhere in the probe's range {z0:g}-{z1:g} mm ({z1 - z0:.4g} mm deep; a_mm {probe.a_mm:g}, "
+                f"phi {math.degrees(probe.phi_rad):.3g}°, gamma {math.degrees(probe.gamma_rad):.3g}°): its view "
+                f"cannot hold the line; {fix}")
     # A surface tilted towards a camera narrows the line's image: refuse only a line that stays
     # too wide even so (three times over, more than the incidence limit's foreshortening gives).
     if widths and min(widths) > WIDE_MARGIN * detect.max_width_px:
@@ -433,7 +434,8 @@ def part_warnings(config: ScanConfig) -> list[str]:
     drawn = drawn_mesh(wp)
     if drawn is None:
         out.append(f"the workpiece {wp.name} lies flat in the table top (z = 0): the laser meets the table there, "
-                   f"so its points measure the table; lift it (in a config, [workpiece.pose] xyz_mm) or give it a thickness")
+                   f"so its points measure the table; lift it (in a config, [workpiece.pose] xyz_mm) or give it "
+                   f"a thickness")
     elif drawn is not wp.mesh:
         out.append(f"{len(wp.mesh.faces) - len(drawn.faces)} faces of the workpiece {wp.name} lie in the table top "
                    f"(z = 0): the table is drawn there, and its points there measure the table")
