@@ -255,6 +255,17 @@ def test_a_point_cloud_is_named_as_one(tmp_path):
         load_workpiece(tmp_path / "scan.ply")
 
 
+@pytest.mark.parametrize("written,named", [(".ply", ".stl"), (".obj", ".stl"), (".glb", ".obj"), (".stl", ".ply"),
+                                           (".obj", ".ply"), (".ply", ".obj")])
+def test_a_mesh_saved_under_another_formats_extension_is_named_for_what_it_holds(tmp_path, written, named):
+    box = trimesh.creation.box([40.0, 30.0, 20.0])
+    box.export(tmp_path / f"part{written}")
+    (tmp_path / f"part{named}").write_bytes((tmp_path / f"part{written}").read_bytes())
+    label = written[1:].upper()
+    with pytest.raises(InputError, match=rf"holds a {label} mesh, but is named \{named}; .* rename it to part\{written}"):
+        load_workpiece(tmp_path / f"part{named}")
+
+
 def test_a_part_wholly_beyond_the_table_is_refused(tmp_path):
     from addon import Scanner
     from addon.core.geometry.workpiece import check_over_table

@@ -130,6 +130,39 @@ def _point_count(path: Path) -> int:
     return len(loaded.vertices) if isinstance(loaded, trimesh.PointCloud) else 0
 
 
+def _content_format(path: Path) -> str | None:
+    """The mesh format a file's first bytes show (".ply", ".glb", ".gltf", ".obj", ".stl"), None
+    where they show none: asked only when a file could not be read as its extension says, to
+    name what it is instead (a PLY saved as .stl read as "not a readable STL")."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    size = path.stat().st_size
+    if head.startswith(b"ply"):
+        return ".ply"
+    if head.startswith(b"glTF"):
+        return ".glb"
+    text = head.lstrip()
+    if text.startswith(b"{") and b'"asset"' in head:
+        return ".gltf"
+    if text.lower().startswith(b"solid") and b"facet" in head.lower():
+        return ".stl"
+    if len(head) >= 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little"):
+        return ".stl"
+    lines = [ln.strip() for ln in head.splitlines()]
+    if any(ln.startswith(b"v ") for ln in lines) and any(ln.startswith((b"f ", b"o ", b"g ", b"vn ")) for ln in lines):
+        return ".obj"
+    return None
+
+
+def _misnamed(path: Path) -> str | None:
+    """One line for a file whose content is another mesh format than its extension names."""
+    actual = _content_format(path)
+    if actual is None or actual == path.suffix.lower():
+        return None
+    return (f"{path}: it holds a {actual[1:].upper()} mesh, but is named {path.suffix}; a mesh is read "
+            f"by its extension: rename it to {path.stem}{actual}")
+
+
 def _without_collapsed_faces(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trimesh:
     """The mesh without faces that name a corner twice (CAD exports leave them; three of them
     made a closed flange read as open, its bias dropped); refused where most faces repeat
@@ -194,13 +227,13 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         if _text_has_non_finite(path):  # a text reader stops at "nan" with words of its own
             raise InputError(f"{path}: its coordinates include NaN or infinite values; a workpiece needs finite "
                              f"ones") from None
-        raise InputError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
+        raise InputError(_misnamed(path) or f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         points = _point_count(path)
         if points:
             raise InputError(f"{path}: {points} points and no faces: a point cloud, not a surface; mesh it first "
                              f"(a surface reconstruction), then give the mesh")
-        raise InputError(f"{path}: no triangles could be read from it: not a readable {path.suffix[1:].upper()} "
+        raise InputError(_misnamed(path) or f"{path}: no triangles could be read from it: not a readable {path.suffix[1:].upper()} "
                          "mesh (or one with no faces)")
     if not np.all(np.isfinite(mesh.vertices)):
         bad = int(np.sum(~np.isfinite(mesh.vertices).all(axis=1)))
