@@ -296,3 +296,29 @@ def test_a_closed_mesh_with_some_faces_turned_over_is_mended_on_load(tmp_path):
     assert distances(np.array([[0.0, 0.0, 15.0]]), wp.truth)[1][0] == pytest.approx(-5.0, abs=1e-9)
     assert wp.notes == ("3 of the 12 faces of the part mesh mixed.ply were wound against the rest; they were turned, "
                         "so that the part is one closed surface facing out, with an inside and a bias",)
+
+
+def test_loose_specks_beside_or_under_a_part_are_noted_and_faces_hanging_on_it_are_not(tmp_path):
+    body = trimesh.creation.box([40.0, 30.0, 20.0])
+    body.apply_translation([0.0, 0.0, 10.0])
+    speck = trimesh.creation.icosphere(radius=0.3)
+    speck.apply_translation([10.0, 5.0, -3.0])  # debris under the part, 3.3 mm below its base
+    trimesh.util.concatenate([body, speck]).export(tmp_path / "debris.stl")
+    (note,) = load_workpiece(tmp_path / "debris.stl").notes
+    assert "holds a loose piece apart from its body" in note and "0.6 mm across" in note
+    assert "3.3 mm below the rest, so the part rests on it" in note
+    specks = [trimesh.creation.icosphere(radius=0.2 + 0.1 * i) for i in range(3)]
+    for i, s in enumerate(specks):
+        s.apply_translation([0.0, 0.0, 25.0 + 2.0 * i])  # floating above the part
+    trimesh.util.concatenate([body] + specks).export(tmp_path / "specks.stl")
+    (note,) = load_workpiece(tmp_path / "specks.stl").notes
+    assert "3 loose pieces" in note and "rests on" not in note
+    # A single face sharing only a corner with the body, and a second body of its own size: no note.
+    top = body.vertices[np.argmax(body.vertices @ [1.0, 1.0, 1.0])]
+    flap = trimesh.Trimesh(np.vstack([body.vertices, top + [0.5, 0.0, 0.2], top + [0.0, 0.5, 0.2]]),
+                           np.vstack([body.faces, [[int(np.argmax(body.vertices @ [1.0, 1.0, 1.0])), 8, 9]]]))
+    flap.export(tmp_path / "flap.stl")
+    twin = body.copy()
+    twin.apply_translation([60.0, 0.0, 0.0])
+    trimesh.util.concatenate([body, twin]).export(tmp_path / "twins.stl")
+    assert load_workpiece(tmp_path / "flap.stl").notes == () and load_workpiece(tmp_path / "twins.stl").notes == ()

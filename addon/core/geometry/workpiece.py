@@ -183,6 +183,44 @@ def _without_collapsed_faces(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trime
     return mesh
 
 
+def _loose_pieces_note(mesh: trimesh.Trimesh, path: Path, role: str) -> str | None:
+    """A note where the mesh holds pieces apart from its main body (LOOSE_GAP_MM away at least),
+    each under LOOSE_AREA_SHARE of its area: a scanned mesh's debris, specks floating beside or
+    under the part, which are scanned and measured as part of the part and, lying lowest,
+    decide where it rests. Faces hanging on the body by a corner or a hair's gap are not loose."""
+    from .metrics import distances
+
+    vertex_piece = trimesh.graph.connected_component_labels(mesh.edges, node_count=len(mesh.vertices))
+    labels = vertex_piece[mesh.faces[:, 0]]  # a face's piece: its corners share one
+    area = np.bincount(labels, weights=mesh.area_faces)
+    small = np.flatnonzero(area < LOOSE_AREA_SHARE * area.max())
+    if len(small) == 0:
+        return None
+    in_small = np.isin(labels, small)
+    body = trimesh.Trimesh(mesh.vertices, mesh.faces[~in_small], process=False)
+    corners = np.unique(mesh.faces[in_small])
+    gap = distances(mesh.vertices[corners], body)[0]
+    nearest = np.full(len(area), np.inf)
+    np.minimum.at(nearest, vertex_piece[corners], gap)
+    small = small[nearest[small] > LOOSE_GAP_MM]
+    if len(small) == 0:
+        return None
+    loose = np.isin(labels, small)
+    body_low = float(body.vertices[np.unique(body.faces)][:, 2].min())
+    low = float(mesh.vertices[np.unique(mesh.faces[loose])][:, 2].min())
+    widest = max(float(np.ptp(mesh.vertices[np.unique(mesh.faces[labels == k])], axis=0).max()) for k in small[:1000])
+    one = len(small) == 1
+    text = (f"the {role} mesh {path.name} holds {'a loose piece' if one else f'{len(small)} loose pieces'} apart "
+            f"from its body, {'' if one else 'each '}under {LOOSE_AREA_SHARE * 100:g} % of its area "
+            f"({'' if one else 'up to '}{widest:.2g} mm across)")
+    below = body_low - low
+    if below > SINK_TOLERANCE_MM:
+        text += f", {'' if one else 'the lowest '}{below:.2g} mm below the rest, {RESTS_ON_LOOSE}"
+    it, are = ("it", "is") if one else ("they", "are")
+    return (text + f"; {it} {are} scanned and measured as part of the part: a scan's debris? Delete {it if one else 'them'} "
+            f"from the mesh if {it} {are} not the part's")
+
+
 def _check_stl_header(path: Path) -> None:
     """A binary STL announces its triangles in its header: a file large enough to hold more than
     MAX_FACES of them that announces more is refused before it is read (a 2 GB file took 15 s
@@ -292,11 +330,16 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         notes = (f"{turned} of the {len(mesh.faces)} faces of the {role} mesh {path.name} were wound against the "
                  f"rest; they were turned, so that the part is one closed surface facing out, with an inside and a "
                  f"bias",)
+    loose = _loose_pieces_note(mesh, path, role)
+    notes = notes + ((loose,) if loose else ())
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)
     return Workpiece(path.stem, mesh, mesh, str(path), pose, notes)
 
 
+LOOSE_AREA_SHARE = 0.01  # a piece apart from the mesh's body, under this share of its area, is noted as loose
+LOOSE_GAP_MM = 0.1       # ... where it lies this far from the body at least
+RESTS_ON_LOOSE = "so the part rests on it"  # the loose note's words where a loose piece lies lowest
 SINK_TOLERANCE_MM = 0.05  # a part may reach this far below the table top (a mesh's rounding)
 TABLE_TOP_FACE_MM = 1e-3  # a face whose corners all lie this near z = 0 lies in the table top
 
@@ -381,5 +424,7 @@ def check_on_table(wp: Workpiece, fix: str) -> None:
     to lift it: the table would hide that surface and its truth would still count it."""
     depth = depth_below_table(wp)
     if depth > SINK_TOLERANCE_MM:
+        loose = next((n for n in wp.notes if RESTS_ON_LOOSE in n), None)
         raise InputError(f"the workpiece {wp.name} reaches {depth:.2f} mm below the table top (z = 0 in the table "
-                         f"frame): a part rests on the table or on a fixture; {fix}")
+                         f"frame): a part rests on the table or on a fixture; {fix}"
+                         + ("" if loose is None else f" (its lowest point is a loose piece: {loose.split('; ')[0]})"))
