@@ -251,7 +251,10 @@ class Scanner:
 
     @property
     def cloud(self) -> Cloud:
-        """Everything measured so far (table frame)."""
+        """Every profile's points so far (table frame), as measured: the neighbouring profiles
+        have not judged them yet. The cloud a report counts and save() writes is
+        ``result().cloud``: these less the points the profiles across the line drop (uncertain,
+        steep surface; report.points_dropped)."""
         return Cloud.concatenate(self._parts)
 
     def _note_fixtures(self, fixture_frames: dict, first: int) -> None:
@@ -673,13 +676,20 @@ class Scanner:
         """Everything measured so far, measured against the truth (a ScanResult: cloud, the
         report's dict, per-point error and part/table split, files), and with ``out_dir``
         written there; ``extra`` joins the report (an adaptive scan's sweeps). Kept until the
-        next measurement, so report() after save() is free."""
+        next measurement, so report() after save() is free, and save() after report() only writes."""
         from .pipeline import Plan, assemble, merge_stats, render_device
 
         import json
 
         key = (self._frames, json.dumps(self._extra, sort_keys=True))
-        if out_dir is None and extra is None and self._cached is not None and self._cached[0] == key:
+        # The path's frame numbers hold only while this Scanner has run nothing but its path.
+        config = self.config if not self._off_path else replace(self.config, path_frames=None)
+        if extra is None and self._cached is not None and self._cached[0] == key:
+            if out_dir is None:
+                return self._cached[1]
+            from .core.scan.outputs import written
+
+            self._cached = (key, written(self._cached[1], config, out_dir, self._t0))  # measured once, then written
             return self._cached[1]
         extra = {**self._extra, **(extra or {})}
         q = np.concatenate([p[0] for p in self._poses]) if self._poses else np.zeros((0, 6))
@@ -691,8 +701,6 @@ class Scanner:
         plan = Plan(q, table_rad, tuple(sorted(self._cameras)), np.zeros((len(q), 2)), warnings,
                     PathClearance.merge(self._clearances) if self._clearances else None,
                     fixture_frames=self._fixture_frames)
-        # The path's frame numbers hold only while this Scanner has run nothing but its path.
-        config = self.config if not self._off_path else replace(self.config, path_frames=None)
         result = assemble(config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
                           {"render_device": render_device(self._raycaster, self._sc), **extra},
                           step_by_step=self._off_path)

@@ -318,7 +318,8 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
         from addon import Scanner
 
         scanner = Scanner(config=config)
-        scanner.run(progress=progress)
+        for _ in scanner.run_steps(progress):  # not run(): its report would come before a late stop is heard
+            pass
         if stops is not None:
             stops.finish()  # a stop asked for during the last frames: still nothing written; later: results first
         result = scanner.result(out)

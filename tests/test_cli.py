@@ -1,6 +1,7 @@
 """The command line: demo, a small benchmark, and one-line errors for bad input."""
 
 import argparse
+import json
 import importlib.util
 import os
 import re
@@ -531,3 +532,20 @@ def test_a_stop_during_an_import_is_recorded_not_raised_there(tmp_path, monkeypa
     outside = StopRequests(stream=io.StringIO())
     with pytest.raises(Interrupted):  # outside an import it does
         outside._on_signal(signal.SIGINT, sys._getframe())
+
+
+def test_a_scan_hears_a_late_stop_before_it_measures_and_measures_once(tmp_path, monkeypatch):
+    # Once the last frame is measured a stop waits for the results: finish() must come before
+    # the cloud is measured against the truth (which took 15 s on a 1 M-face part), and that
+    # measuring must happen once, for the summary and the files alike.
+    import addon.pipeline
+    from headless import cli, lifecycle
+
+    order = []
+    finish, assemble = lifecycle.StopRequests.finish, addon.pipeline.assemble
+    monkeypatch.setattr(lifecycle.StopRequests, "finish", lambda self: order.append("finish") or finish(self))
+    monkeypatch.setattr(addon.pipeline, "assemble", lambda *a, **k: order.append("measure") or assemble(*a, **k))
+    code = cli.main(["scan", "demo", "--engine", "raycast", "--frames", "0:3", "--out", str(tmp_path / "o"),
+                     "--quiet"])
+    assert code == 0 and order == ["finish", "measure"]
+    assert json.loads((tmp_path / "o" / "report.json").read_text())["frames"] == 3

@@ -103,7 +103,7 @@ def test_sweep_report_and_save(scanner, tmp_path):
     assert len(profiles) == 12 and len(scanner.cloud) == n0 + sum(len(p) for p in profiles)
     np.testing.assert_allclose(scanner.pose()[:3, 3], [40.0, 0.0, 210.0], atol=1e-6)
     report = scanner.report()
-    assert isinstance(report, ScanReport) and report.points == len(scanner.cloud)
+    assert isinstance(report, ScanReport) and report.points == len(scanner.result().cloud) <= len(scanner.cloud)
     assert report.frames == max(p.frame for p in profiles) + 1
     assert report.error_um.rms_um < 20
     files = scanner.save(tmp_path / "out")
@@ -178,6 +178,22 @@ def test_the_readme_example_runs_as_written(tmp_path):
     assert out.returncode == 0, out.stderr[-2000:]
     assert re.search(r"\d+ points, RMS \d+\.\d um", out.stdout), out.stdout
     assert (tmp_path / "out" / "adaptive-example" / "report.json").is_file()
+
+
+def test_a_scan_is_measured_against_the_truth_once_for_its_report_and_its_files(tmp_path, monkeypatch):
+    import addon.pipeline
+
+    measured = []
+    assemble = addon.pipeline.assemble
+    monkeypatch.setattr(addon.pipeline, "assemble", lambda *a, **k: measured.append(1) or assemble(*a, **k))
+    s = Scanner.from_config("demo", engine="raycast")
+    s.sweep([-30.0, 0.0, 210.0], [30.0, 0.0, 210.0], 6)
+    report = s.report()
+    files = s.save(tmp_path / "a")  # save() after report() only writes
+    assert len(measured) == 1 and json.loads(files["report"].read_text())["points"] == report.points
+    assert s.report().points == report.points and len(measured) == 1
+    s.measure()
+    assert s.report().frames == report.frames + 1 and len(measured) == 2  # a new profile: measured again
 
 
 def test_save_writes_every_time_and_bad_arguments_are_named(scanner, tmp_path):

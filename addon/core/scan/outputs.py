@@ -9,7 +9,7 @@ import platform
 import sys
 import time
 from importlib import metadata
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -159,12 +159,18 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         "software": software_versions(),
         **(extra or {}),
     }
-    files = {}
-    if out_dir is not None:
-        files = write_outputs(Path(out_dir), cloud, report, config, on_part, error_um, t_start, on_fixture)
-    else:
-        report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
-    return ScanResult(cloud, report, files, error_um, on_part, on_fixture)
+    report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
+    result = ScanResult(cloud, report, {}, error_um, on_part, on_fixture)
+    return result if out_dir is None else written(result, config, out_dir, t_start)
+
+
+def written(result: ScanResult, config: ScanConfig, out_dir: str | Path, t_start: float) -> ScanResult:
+    """``result`` written into ``out_dir``: the same result with its files, and its report's
+    time_s gaining the writing and the new total (the given result is left as it was)."""
+    report = {**result.report, "time_s": dict(result.report["time_s"])}
+    files = write_outputs(Path(out_dir), result.cloud, report, config, result.on_part, result.error_um, t_start,
+                          result.on_fixture)
+    return replace(result, report=report, files=files)
 
 
 def across_the_lines(cloud: Cloud, stats: dict, poses, config: ScanConfig) -> tuple[Cloud, dict]:
