@@ -15,13 +15,36 @@ from addon.core.geometry.workpiece import BUILTINS, Workpiece, builtin_workpiece
 def test_loads_every_format_in_millimetres(tmp_path, suffix, scale):
     box = trimesh.creation.box([40.0, 20.0, 10.0])
     if suffix == ".glb":
-        box.apply_scale(1e-3)  # glTF is metres by its specification
+        box.apply_scale(1e-3)  # glTF is metres and +Y up by its specification: (x, y, z) up z -> (x, z, -y)
+        box.apply_transform(np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0], [0, -1.0, 0, 0], [0, 0, 0, 1.0]]))
     path = tmp_path / f"part{suffix}"
     box.export(path)
     wp = load_workpiece(path, pose=trans(5, 0, 5))
     np.testing.assert_allclose(wp.mesh.extents, [40, 20, 10], rtol=1e-6)
     np.testing.assert_allclose(wp.mesh.bounds[0], [-15, -10, 0], atol=1e-5)
     assert wp.truth is wp.mesh and not wp.is_analytic and wp.name == "part"
+
+
+def test_a_size_out_of_the_usual_range_is_doubted_only_where_the_unit_was_guessed(tmp_path):
+    trimesh.creation.box([3.0, 3.0, 3.0]).export(tmp_path / "tiny.stl")
+    with pytest.raises(InputError, match=r"3 mm across \(read as mm\).* scale = 1 where it really is 3 mm"):
+        load_workpiece(tmp_path / "tiny.stl")
+    assert load_workpiece(tmp_path / "tiny.stl", scale=1.0).mesh.extents.max() == pytest.approx(3.0)
+    trimesh.creation.box([20.0, 400.0, 1200.0]).export(tmp_path / "fence.stl")
+    assert load_workpiece(tmp_path / "fence.stl", scale=1, role="fixture").mesh.extents.max() == pytest.approx(1200)
+    with pytest.raises(InputError, match=r"larger than 5000 mm: is scale 10 right"):
+        load_workpiece(tmp_path / "fence.stl", scale=10, role="fixture")
+
+
+def test_a_gltf_standing_on_its_y_axis_stands_on_the_table(tmp_path):
+    # A cylinder 40 mm tall along glTF's up axis (+Y), as Blender's exporter writes one standing.
+    cyl = trimesh.creation.cylinder(radius=0.01, height=0.04, transform=trimesh.transformations.rotation_matrix(
+        -np.pi / 2, [1.0, 0.0, 0.0]))
+    cyl.apply_translation([0.0, 0.02, 0.0])
+    assert np.allclose(cyl.bounds, [[-0.01, 0.0, -0.01], [0.01, 0.04, 0.01]], atol=1e-9)
+    cyl.export(tmp_path / "standing.glb")
+    np.testing.assert_allclose(load_workpiece(tmp_path / "standing.glb").mesh.bounds, [[-10, -10, 0], [10, 10, 40]],
+                               atol=1e-4)
 
 
 def test_scale_override(tmp_path):

@@ -448,7 +448,7 @@ CASES = [
      lambda t: ["scan", scene(t, DEMO + f'\n[[fixture]]\nfile = "{good_cube_stl(t)}"\nscale = 0\n')], 2, "allowed > 0"),
     ("fixture: scale far too large",
      lambda t: ["scan", scene(t, DEMO + f'\n[[fixture]]\nfile = "{good_cube_stl(t)}"\nscale = 1e6\n')], 2,
-     "the fixture is 4e+07 mm across"),
+     "the mesh is 4e+07 mm across, larger than 5000 mm: is scale 1e+06 right"),
     ("fixture: two of one name", lambda t: ["scan", scene(t, DEMO + 2 * (
         f'\n[[fixture]]\nname = "c"\nfile = "{good_cube_stl(t)}"\n[fixture.pose]\nxyz_mm = [100, 0, 0]\n'))],
      2, "fixture[2].name: 'fixture c' names an earlier fixture too"),

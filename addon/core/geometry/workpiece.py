@@ -24,7 +24,9 @@ from .shapes import Cylinder, PlanePatch, Sphere, StepBlock
 from ..kinematics.transforms import check_transform, rot_z, trans
 
 FORMATS = (".stl", ".obj", ".ply", ".glb", ".gltf")
-METRE_FORMATS = (".glb", ".gltf")
+GLTF_FORMATS = (".glb", ".gltf")  # metres and +Y up, by the glTF specification
+# glTF's +Y up turned to the table's +Z up, as Blender imports it: (x, y, z) -> (x, -z, y).
+GLTF_TO_Z_UP = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
 MAX_EXTENT_MM = 5000.0   # a workpiece on a rotary table; larger is a unit mistake
 MIN_EXTENT_MM = 0.01
 # A mesh file's part: smaller than 5 mm (four widths of the default probe's laser line) or
@@ -281,21 +283,26 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         warnings.simplefilter("ignore", RuntimeWarning)
         mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
     mesh = _without_collapsed_faces(mesh, path)
-    if scale is None:
-        scale = 1000.0 if path.suffix.lower() in METRE_FORMATS else 1.0
+    if path.suffix.lower() in GLTF_FORMATS:
+        mesh.apply_transform(GLTF_TO_Z_UP)
+    guessed = scale is None  # the file's unit taken from its format: a size out of the usual range is doubted
+    if guessed:
+        scale = 1000.0 if path.suffix.lower() in GLTF_FORMATS else 1.0
     if not np.isfinite(scale) or scale <= 0:
         raise InputError(f"{path}: scale must be a positive number, got {scale}")
     if scale != 1.0:
         mesh.apply_scale(scale)
-    # A file's own, narrower size range first, so every part of the wrong size gets one message.
+    # A file's own, narrower size range first, so every part of the wrong size gets one message;
+    # a scale given outright says the size is meant, within the wider range of any workpiece.
     extent = float(np.max(mesh.extents))
-    if not FILE_MIN_EXTENT_MM <= extent <= FILE_MAX_EXTENT_MM:
+    if guessed and not FILE_MIN_EXTENT_MM <= extent <= FILE_MAX_EXTENT_MM:
         key = "the workpiece's" if role == "part" else f"the {role}'s"
-        raise InputError(f"{path}: the {role} is {extent:.4g} mm across (scale {scale:g}); {role}s in the cell are "
-                         f"{FILE_MIN_EXTENT_MM:g} to {FILE_MAX_EXTENT_MM:g} mm: is the file in another unit? "
-                         f"Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches"
-                         f"{'; in the panel, its Scale field' if role == 'part' else ''})")
-    check_mesh(mesh, str(path))
+        raise InputError(f"{path}: the {role} is {extent:.4g} mm across (read as {'metres' if scale == 1000 else 'mm'}); "
+                         f"{role}s in a cell are usually {FILE_MIN_EXTENT_MM:g} to {FILE_MAX_EXTENT_MM:g} mm: is the "
+                         f"file in another unit? Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches; "
+                         f"scale = {scale:g} where it really is {extent:.4g} mm"
+                         f"{'; in the panel, its Scale field; in a script, load_workpiece(path, scale=...)' if role == 'part' else ''})")
+    check_mesh(mesh, str(path), fix=f"is scale {scale:g} right?")
     notes = ()
     if mesh.is_watertight and not mesh.is_winding_consistent:
         # Closed, but some faces wound against their neighbours (an export's flipped patch): its
