@@ -58,7 +58,12 @@ class OneLineParser(argparse.ArgumentParser):
 
     def parse_args(self, args=None, namespace=None):
         """As argparse's, but an unknown option points to the help of the command it was given
-        to (``python -m headless scan --help``), not to the top level's."""
+        to (``python -m headless scan --help``), not to the top level's. A slice counted from the
+        path's end (``--frames -5:``) is taken as --frames' value, not as an option of its own."""
+        args = sys.argv[1:] if args is None else list(args)
+        for i in range(len(args) - 2, -1, -1):
+            if args[i] == "--frames" and re.fullmatch(r"-\d[\d:-]*", args[i + 1]):
+                args[i:i + 2] = [f"--frames={args[i + 1]}"]
         known, extras = self.parse_known_args(args, namespace)
         if extras:
             where = " ".join(v for v in (self.prog, getattr(known, "command", None), getattr(known, "bench", None))

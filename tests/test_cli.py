@@ -549,3 +549,10 @@ def test_a_scan_hears_a_late_stop_before_it_measures_and_measures_once(tmp_path,
                      "--quiet"])
     assert code == 0 and order == ["finish", "measure"]
     assert json.loads((tmp_path / "o" / "report.json").read_text())["frames"] == 3
+
+
+def test_frames_counted_from_the_paths_end_are_taken_as_the_options_value():
+    from headless import cli
+
+    for value in ("-5:", "-10:-2", "-20::2"):
+        assert cli.build_parser().parse_args(["scan", "demo", "--frames", value]).frames == value

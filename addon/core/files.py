@@ -112,7 +112,8 @@ def check_output_folder(folder: str | Path, names=(), what: str = "output folder
         raise InputError(f"{what} {p}: {existing} is a file, so no folder can be made below it")
     if not os.access(existing, os.W_OK | os.X_OK):
         where = "" if existing == p else f" (its nearest existing parent {existing} is not writable)"
-        raise InputError(f"{what} {p} cannot be written{where}; choose a folder you can write to")
+        raise InputError(f"{what} {p} cannot be written{where}: {_why_not_writable(existing)}; choose a folder "
+                         f"you can write to")
     # Permission bits do not tell everything (root passes os.access; /proc and /sys refuse
     # anyway): try a folder there, and take it away again.
     try:
@@ -135,6 +136,20 @@ def check_output_folder(folder: str | Path, names=(), what: str = "output folder
                 raise InputError(f"{what} {p}: the scan would write its {name} over {source}, a file it reads; "
                                  f"choose another folder (or move that file)")
     return p
+
+
+def _why_not_writable(folder: Path) -> str:
+    """Why this process may not write into ``folder``: a read-only file system, or its
+    permissions (as ls shows them) and owner."""
+    import stat
+
+    try:
+        if os.statvfs(folder).f_flag & os.ST_RDONLY:
+            return "it is on a read-only file system"
+        st = folder.stat()
+    except (OSError, AttributeError):  # AttributeError: no statvfs (Windows)
+        return "this user may not write there"
+    return f"this user may not write there (its permissions {stat.filemode(st.st_mode)}, owner uid {st.st_uid})"
 
 
 def pid_alive(pid: int) -> bool:

@@ -6,6 +6,7 @@ import re
 import socket
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -125,3 +126,21 @@ def test_report_json_is_strict():
     text = report_json({"rms_um": float("nan"), "max": float("inf"), "list": [1.0, np.float64("nan")]})
     data = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
     assert data == {"rms_um": None, "max": None, "list": [1.0, None]}
+
+
+def test_a_folder_that_cannot_be_written_is_refused_with_the_reason(tmp_path, monkeypatch):
+    import os
+
+    from addon.core import files
+
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o555)
+    monkeypatch.setattr(files.os, "access", lambda path, mode: Path(path) != locked)
+    with pytest.raises(InputError, match=r"locked cannot be written: this user may not write there \(its permissions "
+                                         r"dr-xr-xr-x"):
+        files.check_output_folder(locked)
+    flags = type("V", (), {"f_flag": os.ST_RDONLY})
+    monkeypatch.setattr(files.os, "statvfs", lambda path: flags)
+    with pytest.raises(InputError, match=r"locked/out cannot be written \(its nearest existing parent .*locked is not "
+                                         r"writable\): it is on a read-only file system"):
+        files.check_output_folder(locked / "out")

@@ -397,14 +397,16 @@ def test_a_joint_turning_far_between_path_entries_is_said():
     """Two sweeps over the step block, the second back along the first with its laser line
     turned end for end: the probe turns half a turn about its beam between the entries, which
     the Viper's wrist does with its last joint, and the plan says so (a repositioning no path
-    entry shows). The same second sweep with its line turned a quarter turn says nothing."""
+    entry shows). A second sweep across the first, from its end, with its line turned a
+    quarter turn, says nothing."""
     from addon.core.kinematics import path as kp
 
     base = load_scan_config("step_block")
     said = {}
-    for name, line in (("half", (0.0, -1.0, 0.0)), ("quarter", (1.0, 0.0, 0.0))):
+    for name, line, to in (("half", (0.0, -1.0, 0.0), [-45.0, 0.0, 200.0]),
+                           ("quarter", (1.0, 0.0, 0.0), [45.0, 40.0, 200.0])):
         a = kp.sweep(20, [-45.0, 0.0, 200.0], [45.0, 0.0, 200.0], line=(0.0, 1.0, 0.0), segment=0)
-        b = kp.sweep(20, [45.0, 0.0, 200.0], [-45.0, 0.0, 200.0], line=line, segment=1)
+        b = kp.sweep(20, [45.0, 0.0, 200.0], to, line=line, segment=1)
         both = kp.Waypoints(np.concatenate([a.probe2table, b.probe2table]), np.concatenate([a.table_rad, b.table_rad]),
                             np.concatenate([a.segment, b.segment]))
         said[name] = [w for w in plan_scan(replace(base, waypoints=both)).warnings if "repositions" in w]

@@ -229,11 +229,11 @@ class ScanConfig:
         render = cfg.render
         if device is not None:
             if device not in DEVICES:
-                raise InputError(f"--device {device!r} is not one of: {', '.join(DEVICES)}")
+                raise InputError(f"--device (device) {device!r} is not one of: {', '.join(DEVICES)}")
             render = replace(render, device=device)
         if engine is not None:
             if engine not in ENGINES:
-                raise InputError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
+                raise InputError(f"--engine (engine) {engine!r} is not one of: {', '.join(ENGINES)}")
             laser = render.laser
             if laser_engine_mismatch(engine, laser) and laser != "slit":  # each engine's own Gaussian line
                 laser = DEFAULT_LASER[engine]
@@ -259,7 +259,7 @@ class ScanConfig:
             cfg = replace(cfg, probe=cfg.probe.with_resolution(H, W))
         if detect is not None:
             if detect not in DETECT_METHODS:
-                raise InputError(f"--detect {detect!r} is not one of: {', '.join(DETECT_METHODS)}")
+                raise InputError(f"--detect (detect) {detect!r} is not one of: {', '.join(DETECT_METHODS)}")
             cfg = replace(cfg, detect_method=detect)
         if frames is not None:
             if isinstance(frames, str):

@@ -60,6 +60,9 @@ def _unit(v, name: str) -> np.ndarray:
     return v / n
 
 
+ALONG_LINE_DEG = 1.0  # a sweep moving within this angle of its laser line measures one line over and over
+
+
 def probe_orientation(beam, line) -> np.ndarray:
     """(3, 3) rotation with +Z along ``beam`` and +Y along ``line`` (made perpendicular to the beam)."""
     z = _unit(beam, "beam")
@@ -83,6 +86,12 @@ def sweep(frames: int, from_mm, to_mm, beam=DOWN, line=None, table_rad: float = 
             raise InputError("a sweep must move across the beam: from_mm and to_mm differ only along it")
         line = np.cross(z, motion)  # the plane (line, beam) stands across the motion
     R = probe_orientation(z, line)
+    motion = b - a - np.dot(b - a, z) * z
+    if frames > 1 and np.linalg.norm(motion) > 1e-9 and abs(np.dot(motion / np.linalg.norm(motion), R[:, 1])) > \
+            math.cos(math.radians(ALONG_LINE_DEG)):
+        raise InputError(f"the laser line {np.round(R[:, 1], 4).tolist()} runs along the sweep's motion "
+                         f"{np.round(motion / np.linalg.norm(motion), 4).tolist()}: each profile would lie on the last "
+                         f"one's line; give a line across the motion (or leave line out: it then stands across it)")
     pts = a + np.linspace(0.0, 1.0, frames)[:, None] * (b - a) if frames > 1 else a[None]
     poses = np.stack([make_pose(R, p) for p in pts])
     return Waypoints(poses, np.full(frames, float(table_rad)), np.full(frames, segment))
@@ -96,6 +105,9 @@ def turntable(frames: int, probe_mm, beam=DOWN, line=None, start_rad: float = 0.
         raise InputError(f"a turntable path needs at least 1 frame, got {frames}")
     if table is None:
         raise InputError("a turntable path needs the table placement")
+    if frames > 1 and turn_rad == 0.0:
+        raise InputError(f"a turntable path of {frames} frames with turn_deg 0 takes one profile {frames} times; give "
+                         f"the turn (turn_deg, 360 for a whole turn, the default) or 1 frame")
     p = np.asarray(probe_mm, dtype=np.float64)
     z = _unit(beam, "beam")
     if line is None:
