@@ -1,5 +1,7 @@
 """Workpieces: one loader for every format, built-in shapes with exact truth, bad meshes refused."""
 
+import re
+
 import numpy as np
 import pytest
 import trimesh
@@ -345,3 +347,19 @@ def test_loose_specks_beside_or_under_a_part_are_noted_and_faces_hanging_on_it_a
     twin.apply_translation([60.0, 0.0, 0.0])
     trimesh.util.concatenate([body, twin]).export(tmp_path / "twins.stl")
     assert load_workpiece(tmp_path / "flap.stl").notes == () and load_workpiece(tmp_path / "twins.stl").notes == ()
+
+
+def test_closed_bodies_reaching_into_each_other_are_noted_with_the_share_hidden(tmp_path):
+    slab = trimesh.creation.box([30.0, 30.0, 20.0])
+    slab.apply_translation([0.0, 0.0, 10.0])
+    post = trimesh.creation.box([10.0, 10.0, 40.0])
+    post.apply_translation([0.0, 0.0, 20.0])  # its lower half inside the slab, and the slab's top under it
+    trimesh.util.concatenate([slab, post]).export(tmp_path / "unjoined.stl")
+    (note,) = load_workpiece(tmp_path / "unjoined.stl").notes
+    # Hidden: the post's four sides up to 20 mm and the slab's top under it (its bottom lies in the slab's
+    # bottom, on the boundary): 900 of 6000 mm², to 1 000 with the bottom.
+    share = float(re.search(r"about (\d+) % of its surface lies inside another body", note).group(1))
+    assert 14 <= share <= 17 and "unite them first" in note
+    post.apply_translation([40.0, 0.0, 0.0])
+    trimesh.util.concatenate([slab, post]).export(tmp_path / "apart.stl")
+    assert load_workpiece(tmp_path / "apart.stl").notes == ()

@@ -185,15 +185,42 @@ def _without_collapsed_faces(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trime
     return mesh
 
 
-def _loose_pieces_note(mesh: trimesh.Trimesh, path: Path, role: str) -> str | None:
+def _overlap_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: str) -> str | None:
+    """A note where the mesh's closed bodies (``labels``: each face's) reach into each other,
+    saved together without a union: the surface inside another body can never be seen, yet
+    counts in the part's whole coverage. Its share is estimated from OVERLAP_SAMPLES points
+    spread over the surface; up to MAX_OVERLAP_BODIES bodies are looked at."""
+    count = int(labels.max()) + 1
+    if not 2 <= count <= MAX_OVERLAP_BODIES:
+        return None
+    bodies = [trimesh.Trimesh(mesh.vertices, mesh.faces[labels == k]) for k in range(count)]
+    if not all(b.is_watertight for b in bodies):
+        return None
+    hidden = 0.0
+    for i, a in enumerate(bodies):
+        others = [b for j, b in enumerate(bodies) if j != i and np.all(np.maximum(a.bounds[0], b.bounds[0])
+                                                                       < np.minimum(a.bounds[1], b.bounds[1]))]
+        if not others:
+            continue
+        points = trimesh.sample.sample_surface(a, max(200, int(OVERLAP_SAMPLES * a.area / mesh.area)), seed=i)[0]
+        inside = np.zeros(len(points), bool)
+        for b in others:
+            inside |= b.contains(points)
+        hidden += a.area * inside.mean()
+    if hidden < 1e-3 * mesh.area:
+        return None
+    return (f"the {role} mesh {path.name} holds {count} closed bodies that reach into each other: about "
+            f"{hidden / mesh.area * 100:.0f} % of its surface lies inside another body, where no laser reaches, and still "
+            f"counts in the whole part's coverage; unite them first (a boolean union) to scan the part as one solid")
+
+
+def _loose_pieces_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: str) -> str | None:
     """A note where the mesh holds pieces apart from its main body (LOOSE_GAP_MM away at least),
     each under LOOSE_AREA_SHARE of its area: a scanned mesh's debris, specks floating beside or
     under the part, which are scanned and measured as part of the part and, lying lowest,
     decide where it rests. Faces hanging on the body by a corner or a hair's gap are not loose."""
     from .metrics import distances
 
-    vertex_piece = trimesh.graph.connected_component_labels(mesh.edges, node_count=len(mesh.vertices))
-    labels = vertex_piece[mesh.faces[:, 0]]  # a face's piece: its corners share one
     area = np.bincount(labels, weights=mesh.area_faces)
     small = np.flatnonzero(area < LOOSE_AREA_SHARE * area.max())
     if len(small) == 0:
@@ -202,6 +229,8 @@ def _loose_pieces_note(mesh: trimesh.Trimesh, path: Path, role: str) -> str | No
     body = trimesh.Trimesh(mesh.vertices, mesh.faces[~in_small], process=False)
     corners = np.unique(mesh.faces[in_small])
     gap = distances(mesh.vertices[corners], body)[0]
+    vertex_piece = np.zeros(len(mesh.vertices), dtype=np.int64)
+    vertex_piece[mesh.faces] = labels[:, None]
     nearest = np.full(len(area), np.inf)
     np.minimum.at(nearest, vertex_piece[corners], gap)
     small = small[nearest[small] > LOOSE_GAP_MM]
@@ -337,8 +366,10 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         notes = (f"{turned} of the {len(mesh.faces)} faces of the {role} mesh {path.name} were wound against the "
                  f"rest; they were turned, so that the part is one closed surface facing out, with an inside and a "
                  f"bias",)
-    loose = _loose_pieces_note(mesh, path, role)
-    notes = notes + ((loose,) if loose else ())
+    vertex_piece = trimesh.graph.connected_component_labels(mesh.edges, node_count=len(mesh.vertices))
+    labels = np.unique(vertex_piece, return_inverse=True)[1][mesh.faces[:, 0]]  # each face's piece, from 0
+    notes = notes + tuple(n for n in (_loose_pieces_note(mesh, labels, path, role),
+                                      _overlap_note(mesh, labels, path, role)) if n)
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)
     return Workpiece(path.stem, mesh, mesh, str(path), pose, notes)
@@ -346,6 +377,8 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
 
 LOOSE_AREA_SHARE = 0.01  # a piece apart from the mesh's body, under this share of its area, is noted as loose
 LOOSE_GAP_MM = 0.1       # ... where it lies this far from the body at least
+MAX_OVERLAP_BODIES = 50  # closed bodies looked at for reaching into each other
+OVERLAP_SAMPLES = 20000  # points spread over the surface to estimate the share inside another body
 RESTS_ON_LOOSE = "so the part rests on it"  # the loose note's words where a loose piece lies lowest
 SINK_TOLERANCE_MM = 0.05  # a part may reach this far below the table top (a mesh's rounding)
 TABLE_TOP_FACE_MM = 1e-3  # a face whose corners all lie this near z = 0 lies in the table top
