@@ -79,3 +79,23 @@ def test_points_far_beyond_the_colour_scale_stand_out_and_are_counted():
     marked = render_preview(box, top, err, on, "t", size=(400, 300))
     assert _count(plain, BEYOND_BGR) == 0
     assert _count(marked, BEYOND_BGR) >= 12 * 5  # each a dot of a few pixels, and the legend's
+
+
+def test_a_title_too_long_for_one_line_is_broken_after_a_comma_and_kept_clear_of_the_colour_bar():
+    from addon.core.scan.preview import render_preview
+
+    box = trimesh.creation.box([40.0, 30.0, 20.0])
+    box.apply_translation([0.0, 0.0, 10.0])
+    points = trimesh.sample.sample_surface(box, 500, seed=1)[0]
+    errors, on_part = np.linspace(0.0, 5.0, len(points)), np.ones(len(points), bool)
+
+    def ink(img):  # dark title pixels on the first and the second text line, left of the colour bar
+        dark = (img < 90).all(axis=2)
+        return dark[12:32, :780].sum(), dark[36:54, :780].sum()
+
+    short = render_preview(box, points, errors, on_part, "block: 500 points")
+    long = render_preview(box, points, errors, on_part, "a configuration with a long name: 500 points, RMS 1.0 um, "
+                          "p95 1.4 um, covers 98 % of what the path can measure (23 % of the part)")
+    assert ink(short)[0] > 0 and ink(short)[1] == 0  # one line
+    assert ink(long)[0] > 0 and ink(long)[1] > 0    # two lines
+    assert not (long[12:32, 786:] < 90).all(axis=2).any()  # nothing of the title over the colour bar's column

@@ -260,8 +260,11 @@ def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, e
     the report's time_s gains the time taken to make them ("write") and the total."""
     t = time.perf_counter()
     e = report["error_um"]
+    covered = f"{report['coverage'] * 100:.0f} % of the part"
+    if report.get("measurable_share"):  # the share of what the path can measure comes first, as in the summary
+        covered = f"{report['coverage_measurable'] * 100:.0f} % of what the path can measure ({covered})"
     title = (f"{config.name}: {len(cloud)} points, RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
-             f"coverage {report['coverage'] * 100:.0f} %")
+             f"covers {covered}")
     if report.get("points_on_fixtures"):
         title += f", {report['points_on_fixtures']} on fixtures"
     picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title, on_fixture=on_fixture)

@@ -78,7 +78,7 @@ def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: n
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if (mesh is None or not len(mesh.vertices)) and len(pts) == 0:
         img = np.full((H, W, 3), 255, np.uint8)
-        cv2.putText(img, title + " (no points)", (12, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
+        put_title(img, title + " (no points)", 0.6)
         return img
     img, ij, pz, visible = _canvas(mesh, pts, W, H, bar_w)
     # The colour scale ends at the 95th percentile: a few edge outliers saturate at the
@@ -111,8 +111,23 @@ def render_preview(mesh: trimesh.Trimesh | None, points: np.ndarray, error_um: n
                     cv2.FONT_HERSHEY_SIMPLEX, 0.4, (30, 30, 30), 1, cv2.LINE_AA)
         cv2.putText(img, f"{int(far.sum())} pts, max {error_um[far].max():.0f}", (x0 - 2, y0 + 16),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.35, (30, 30, 30), 1, cv2.LINE_AA)
-    cv2.putText(img, title, (12, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (20, 20, 20), 1, cv2.LINE_AA)
+    put_title(img, title, 0.55)
     return img
+
+
+def put_title(img: np.ndarray, title: str, scale: float) -> None:
+    """The title at the image's top left, broken after a comma onto a second line (and more)
+    where one line would run off the image."""
+    width = img.shape[1] - 114  # clear of the colour bar's label
+    lines, line = [], ""
+    for piece in title.split(", "):
+        trial = piece if not line else f"{line}, {piece}"
+        if line and cv2.getTextSize(trial, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)[0][0] > width:
+            lines.append(line + ",")
+            trial = piece
+        line = trial
+    for k, text in enumerate(lines + [line]):
+        cv2.putText(img, text, (12, 28 + 22 * k), cv2.FONT_HERSHEY_SIMPLEX, scale, (20, 20, 20), 1, cv2.LINE_AA)
 
 
 NEW_BGR, EARLIER_BGR = (20, 90, 240), (190, 120, 40)  # the latest view's points orange, earlier ones blue
