@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import logging
 import os
+import shlex
+import tempfile
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -95,6 +97,36 @@ def lock_holder(folder: Path) -> str | None:
 
 
 @contextmanager
+def workers_deaf_to_ctrl_c():
+    """While the local cluster starts its worker processes: each starts with Ctrl-C ignored, a
+    disposition a new program keeps (its Python through a small launcher that ignores SIGINT
+    and execs it). A Ctrl-C at the terminal reaches every process of its group, and each
+    worker's KeyboardInterrupt printed a traceback of its own; this process hears the stop
+    and closes the cluster. This process's own Ctrl-C is untouched (blocking it here lost it
+    to native threads, which the kernel may hand a process's signal)."""
+    import multiprocessing.spawn as mp_spawn
+
+    python = mp_spawn.get_executable()
+    if os.name != "posix" or not os.path.exists("/bin/sh") or not python:
+        yield
+        return
+    python = os.fsdecode(python)  # bytes in Python 3.13
+    with tempfile.TemporaryDirectory(prefix="scanner-workers-") as folder:
+        launcher = Path(folder) / "python"
+        # (The resource tracker starts this way too; stopped with the cluster half started, it
+        # warned of the semaphores left: the stop itself says what was left.)
+        launcher.write_text("#!/bin/sh\ntrap '' INT\n"
+                            "PYTHONWARNINGS=\"ignore:resource_tracker:UserWarning${PYTHONWARNINGS:+,$PYTHONWARNINGS}\"\n"
+                            f"export PYTHONWARNINGS\nexec {shlex.quote(python)} \"$@\"\n")
+        launcher.chmod(0o755)
+        mp_spawn.set_executable(str(launcher))
+        try:
+            yield
+        finally:
+            mp_spawn.set_executable(python)
+
+
+@contextmanager
 def cluster_client(workers: int, scheduler: str | None):
     """A Dask client: on the scheduler at ``scheduler``, or on a local cluster of ``workers`` processes."""
     from dask.distributed import Client, LocalCluster
@@ -110,8 +142,9 @@ def cluster_client(workers: int, scheduler: str | None):
         finally:
             client.close()
         return
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, silence_logs=logging.CRITICAL)
+    with workers_deaf_to_ctrl_c():
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None, silence_logs=logging.CRITICAL)
     client = Client(cluster)
     try:
         yield client
@@ -195,47 +228,12 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     address, worker_addresses = None, []
     t_farm = time.perf_counter()
     if todo:
-        threads = render_threads or (None if scheduler else max(1, (os.cpu_count() or 1) // workers))
-        with cluster_client(workers, scheduler) as client:
-            from dask.distributed import as_completed
-
-            address = client.scheduler.address
-            worker_addresses = sorted(client.scheduler_info()["workers"])
-            log(f"farm: scheduler {address}, {len(worker_addresses)} workers")
-            # The config (with its meshes) and the plan go to every worker once, not with every task.
-            shared = client.scatter([config, plan], broadcast=True, hash=False)
-            tries = {s.index: 0 for s, _ in todo}
-            owner = lock_holder(Path(out_dir))  # the command's lock: shards finishing after a stop write nothing
-
-            def submit(s):
-                return client.submit(run_shard, *shared, s, str(folder / s.file_name()), fp, threads, owner,
-                                     key=f"scan-shard-{fp[:12]}-{s.index}-{tries[s.index]}", pure=False)
-
-            shard_of = {}
-            for s, _ in todo:
-                shard_of[submit(s)] = s
-            done = 0
-            pending = as_completed(list(shard_of))
-            for fut in pending:
-                if fut.cancelled():
-                    # Dask cancels a task whose scattered inputs went down with a dying worker
-                    # (they have no recipe to recompute them): scatter again and resubmit.
-                    s = shard_of.pop(fut)
-                    tries[s.index] += 1
-                    if tries[s.index] > SHARD_RETRIES:
-                        raise ScannerError(f"{s.describe()} was cancelled by the cluster {tries[s.index]} times "
-                                           "(its workers keep dying); nothing merged")
-                    log(f"  {s.describe()} cancelled by the cluster (a worker died); submitting it again")
-                    shared = client.scatter([config, plan], broadcast=True, hash=False)
-                    again = submit(s)
-                    shard_of[again] = s
-                    pending.add(again)
-                    continue
-                info = fut.result()  # a shard that raised raises here, with the worker's message
-                done += 1
-                progress("shards", done, len(todo))
-                log(f"  shard {info['shard']} done: {info['points']} points in {info['seconds']:.1f} s "
-                    f"(worker pid {info['pid']}{', cell reused' if info['reused_cell'] else ''})")
+        try:
+            address, worker_addresses = _compute_shards(config, plan, todo, folder, fp, out_dir, workers, scheduler,
+                                                        render_threads, log, progress)
+        except KeyboardInterrupt as exc:  # the cluster is closed: what its workers finished is on disk
+            exc.shards_finished = (sum(1 for s in parts if _finished(folder, s, fp)), len(parts))
+            raise
     wall = time.perf_counter() - t_farm
     if measured is not None:
         measured()
@@ -264,3 +262,59 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
                       "worker_addresses": worker_addresses, "shards": len(parts), "shard_frames": size, "computed": len(todo), "reused": reused,
                       "wall_s": round(wall, 4), "profiles_per_s_wall": n / wall if wall > 0 and todo else None}}
     return assemble(config, plan, cloud, stats, timing, out_dir, t_all, extra)
+
+
+def _finished(folder: Path, s: shards.Shard, fp: str) -> bool:
+    try:
+        shards.read(folder / s.file_name(), s, fp)
+        return True
+    except shards.ShardInvalid:
+        return False
+
+
+def _compute_shards(config, plan, todo, folder: Path, fp: str, out_dir, workers: int, scheduler: str | None,
+                    render_threads: int | None, log, progress) -> tuple[str, list]:
+    """Compute the shards ``todo`` ((shard, why) pairs) on the cluster, each writing its file
+    into ``folder``; returns the scheduler's address and the workers'."""
+    threads = render_threads or (None if scheduler else max(1, (os.cpu_count() or 1) // workers))
+    with cluster_client(workers, scheduler) as client:
+        from dask.distributed import as_completed
+
+        address = client.scheduler.address
+        worker_addresses = sorted(client.scheduler_info()["workers"])
+        log(f"farm: scheduler {address}, {len(worker_addresses)} workers")
+        # The config (with its meshes) and the plan go to every worker once, not with every task.
+        shared = client.scatter([config, plan], broadcast=True, hash=False)
+        tries = {s.index: 0 for s, _ in todo}
+        owner = lock_holder(Path(out_dir))  # the command's lock: shards finishing after a stop write nothing
+
+        def submit(s):
+            return client.submit(run_shard, *shared, s, str(folder / s.file_name()), fp, threads, owner,
+                                 key=f"scan-shard-{fp[:12]}-{s.index}-{tries[s.index]}", pure=False)
+
+        shard_of = {}
+        for s, _ in todo:
+            shard_of[submit(s)] = s
+        done = 0
+        pending = as_completed(list(shard_of))
+        for fut in pending:
+            if fut.cancelled():
+                # Dask cancels a task whose scattered inputs went down with a dying worker
+                # (they have no recipe to recompute them): scatter again and resubmit.
+                s = shard_of.pop(fut)
+                tries[s.index] += 1
+                if tries[s.index] > SHARD_RETRIES:
+                    raise ScannerError(f"{s.describe()} was cancelled by the cluster {tries[s.index]} times "
+                                       "(its workers keep dying); nothing merged")
+                log(f"  {s.describe()} cancelled by the cluster (a worker died); submitting it again")
+                shared = client.scatter([config, plan], broadcast=True, hash=False)
+                again = submit(s)
+                shard_of[again] = s
+                pending.add(again)
+                continue
+            info = fut.result()  # a shard that raised raises here, with the worker's message
+            done += 1
+            progress("shards", done, len(todo))
+            log(f"  shard {info['shard']} done: {info['points']} points in {info['seconds']:.1f} s "
+                f"(worker pid {info['pid']}{', cell reused' if info['reused_cell'] else ''})")
+    return address, worker_addresses

@@ -280,9 +280,10 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
         from headless.lifecycle import Interrupted
 
         exc = exc if isinstance(exc, Interrupted) else Interrupted(2)
-        kept = (f"; the finished shards stay in {Path(out) / 'shards'} for the next run"
-                if farm and exc.unit == "shards" and exc.done else "")
-        print(f"{exc.describe()}: nothing written to {out}{kept}", file=sys.stderr, flush=True)
+        finished, of = getattr(exc, "shards_finished", (0, 0))  # counted on disk once the cluster closed
+        written = (f"no cloud or report written to {out}; {finished} of the {of} shards are finished in "
+                   f"{Path(out) / 'shards'}, for the next run to keep" if finished else f"nothing written to {out}")
+        print(f"{exc.describe()}: {written}", file=sys.stderr, flush=True)
         return exc.exit_code
     finally:
         lock.release()
