@@ -23,6 +23,7 @@ from .core.config.scan import MAX_PROFILES
 from .core.errors import CollisionError, InputError, UnreachablePose
 from .core.geometry.known_space import UNKNOWN, KnownSpace
 from .core.geometry.metrics import NearMesh
+from .core.kinematics.turntable import box_beyond_table
 from .core.scan import next_view
 from .core.scan.plan import table_fixtures
 
@@ -107,6 +108,9 @@ def checked_box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
     if hi_a[2] <= 0.0:
         raise InputError(f"the part's bounding box {lo_a.tolist()} .. {hi_a.tolist()} mm lies under the table top "
                          f"(z = 0 in the table frame): its top must be above 0")
+    beyond = box_beyond_table(lo_a, hi_a)
+    if beyond:
+        raise InputError(f"the part's bounding box {lo_a.tolist()} .. {hi_a.tolist()} mm: {beyond}")
     return lo_a, hi_a
 
 

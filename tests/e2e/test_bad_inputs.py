@@ -376,6 +376,10 @@ CASES = [
     ("config: adaptive budget zero", demo_plus("[adaptive]\nmax_profiles = 0"), 2, "max_profiles"),
     ("config: adaptive box under the table", demo_plus("[adaptive]\nbox_min_mm = [-30, -30, -40]\n"
                                                      "box_max_mm = [30, 30, -5]"), 2, "under the table top"),
+    ("config: adaptive box beyond the table", demo_plus("[adaptive]\nbox_min_mm = [300, 300, 0]\n"
+                                                      "box_max_mm = [340, 340, 40]"), 2,
+     "adaptive.box_min_mm: [300.0, 300.0, 0.0] .. [340.0, 340.0, 40.0]: the box lies wholly beyond the table (its "
+     "nearest point 424 mm from the table's axis"),
     ("config: adaptive unknown key", demo_plus("[adaptive]\nvoxel = 3"), 2,
      "box_max_mm, box_min_mm, height_mm, max_profiles, min_gain, radius_mm, target_coverage, voxel_mm"),
     ("option: bench kinematics --n 0", lambda t: ["bench", "kinematics", "--n", "0"], 2,

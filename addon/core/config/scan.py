@@ -72,7 +72,8 @@ from .rigs import load_probe
 from ..optics.sensor import SensorModel
 from ..optics.profile_filter import ProfileFilter
 from ..optics.triangulate import TRIANGULATION_METHODS
-from ..kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, TABLE_RADIUS_MM, Turntable, nearest_to_axis_mm
+from ..kinematics.turntable import (PAPER_A_R_MM, PAPER_D_R_MM, TABLE_RADIUS_MM, Turntable, box_beyond_table,
+                                    nearest_to_axis_mm)
 from ..geometry.workpiece import (BUILTINS, Workpiece, builtin_workpiece, check_on_table, check_over_table,
                                   depth_below_table, load_workpiece)
 from ..safety import FIXTURE_CARRIERS, Fixture, Safety
@@ -440,6 +441,9 @@ def _adaptive(t: Table) -> AdaptiveSettings:
         if hi[2] <= 0.0:
             raise t.error("box_max_mm", f"{hi.tolist()}: the box lies under the table top (z = 0 in the table "
                                         f"frame); its top must be above 0")
+        beyond = box_beyond_table(lo, hi)
+        if beyond:
+            raise t.error("box_min_mm", f"{lo.tolist()} .. {hi.tolist()}: {beyond}")
         box = (lo, hi)
     if t.has("radius_mm") or t.has("height_mm"):
         if box is not None:

@@ -60,6 +60,7 @@ def _unit(v, name: str) -> np.ndarray:
     return v / n
 
 
+DECIMALS = 12  # a path entry's mm and degrees: the views scan again as they were, to rounding
 ALONG_LINE_DEG = 1.0  # a sweep moving within this angle of its laser line measures one line over and over
 
 
@@ -131,18 +132,18 @@ def path_entry(wp: Waypoints, kind: str) -> dict:
     first = P[0]
 
     def xyz(v):
-        return [round(float(x), 6) + 0.0 for x in v]  # + 0.0: no -0.0
+        return [round(float(x), DECIMALS) + 0.0 for x in v]  # + 0.0: no -0.0
 
     entry = {"kind": kind, "frames": int(len(P))}
     if kind == "sweep":
-        entry.update(from_mm=xyz(first[:3, 3]), to_mm=xyz(P[-1, :3, 3]), table_deg=round(math.degrees(wp.table_rad[0]), 6))
+        entry.update(from_mm=xyz(first[:3, 3]), to_mm=xyz(P[-1, :3, 3]), table_deg=round(math.degrees(wp.table_rad[0]), DECIMALS))
     elif kind == "turntable":
         step = float(wp.table_rad[1] - wp.table_rad[0]) if len(P) > 1 else 0.0
         turn = step * len(P)
         if abs(abs(turn) - 2 * np.pi) > 1e-9:  # not a full turn: its last frame is its end
             turn = step * (len(P) - 1)
-        entry.update(probe_mm=xyz(first[:3, 3]), start_deg=round(math.degrees(wp.table_rad[0]), 6),
-                     turn_deg=round(math.degrees(turn), 6))
+        entry.update(probe_mm=xyz(first[:3, 3]), start_deg=round(math.degrees(wp.table_rad[0]), DECIMALS),
+                     turn_deg=round(math.degrees(turn), DECIMALS))
     else:
         raise InputError(f"a path entry is a sweep or a turntable, got {kind!r}")
     entry.update(beam=xyz(first[:3, 2]), line=xyz(first[:3, 1]))
