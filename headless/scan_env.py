@@ -33,6 +33,9 @@ Scanner over a part that only its bounding box reveals.
   (None after reset) and why it was refused (None: it was scanned), the profiles so far, the
   cells learnt and the surface cells found by the last step, the model's surface cells and its
   own coverage estimate (``KnownSpace.coverage_estimate``, a guide that runs above the truth).
+- a step after the episode ended (terminated or truncated) is refused until ``reset()``.
+- ``render_mode="rgb_array"``: ``render()`` gives the cloud so far over the part, coloured by
+  its error against the mesh (the scan's preview), for people watching, never for the agent.
 - ``engine``: the renderer, else the config's; ``"raycast"`` is the fast one for training.
   The Scanner measures no per-path clearance for its report (``keep_clearance`` off): paths
   are still refused where they would collide, at a third of the cost.
@@ -72,12 +75,17 @@ ENV_ID = "ScanPlanning-v0"
 
 
 class ScanPlanningEnv(gym.Env):
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1}
 
     def __init__(self, config: str = "demo", *, max_profiles: int = 600, grid: int = 16, max_steps: int = 32,
                  time_cost: float = 0.01, refusal_cost: float = 0.5, engine: str | None = None,
-                 turn_part: bool = False):
+                 turn_part: bool = False, render_mode: str | None = None):
         from addon.core.config.scan import load_scan_config
+
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise InputError(f"render_mode {render_mode!r} is not one of: None, "
+                             f"{', '.join(map(repr, self.metadata['render_modes']))}")
+        self.render_mode = render_mode
 
         # numpy's integers too (check_whole takes them: a training loop's sweep passes np.int64)
         max_profiles = check_whole(max_profiles, "max_profiles (the episode's profile budget)", 1, MAX_PROFILES)
@@ -129,7 +137,7 @@ class ScanPlanningEnv(gym.Env):
         self.planner = NextBestView(self.scanner, lo, hi)
         self._by_key = {c.key: c for c in self.planner.pool}
         self._scanned: set = set()  # views scanned this episode (their keys)
-        self.profiles, self.steps = 0, 0
+        self.profiles, self.steps, self._ended = 0, 0, None
         smallest = self.planner.smallest_view()
         if smallest > self.max_profiles:
             raise InputError(f"max_profiles {self.max_profiles} is below the smallest view's {smallest} profiles on "
@@ -169,9 +177,12 @@ class ScanPlanningEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         a = np.asarray(action)
         if a.shape != (3,) or a.dtype.kind not in "iu" or not self.action_space.contains(a.astype(np.int64)):
-            raise InputError(f"action {action!r} is not in the action space {self.action_space}: three whole "
-                             f"numbers, a table step 0..{next_view.TABLE_STEPS - 1}, a view 0..{len(self.tilts) - 1} "
+            raise InputError(f"action {action!r} is not in the action space {self.action_space}: three integers "
+                             f"(an integer array, as action_space.sample() gives; floats are not taken, whole ones "
+                             f"neither), a table step 0..{next_view.TABLE_STEPS - 1}, a view 0..{len(self.tilts) - 1} "
                              f"and the kind (0 a sweep, 1 a table turn)")
+        if self._ended:
+            raise InputError(f"the episode has ended ({self._ended}); call reset() before the next step")
         table_step, view, kind = (int(v) for v in a)
         c = self._by_key.get(self._key(table_step, view, kind))
         c = None if c is None else self.planner.sized(c)  # a table turn laid out for the part as known now
@@ -200,7 +211,24 @@ class ScanPlanningEnv(gym.Env):
         terminated = self.profiles + min(self.planner.sized(c, frames).frames for c in self.planner.pool) \
             > self.max_profiles or not info["action_mask"].any()  # the budget spent, or every view scanned
         truncated = self.steps >= self.max_steps
+        self._ended = "terminated" if terminated else "truncated after max_steps" if truncated else None
         return self._observation(), float(reward), bool(terminated), bool(truncated), info
+
+    def render(self):
+        """With ``render_mode="rgb_array"``: the cloud measured so far over the part, coloured by
+        its error (the scan's preview.png, as an RGB array); scored against the part's mesh, which
+        the observation never holds. None without a render mode, or before reset()."""
+        if self.render_mode != "rgb_array" or self.scanner is None:
+            return None
+        from addon.core.scan.preview import render_preview
+
+        r = self.scanner.result()
+        e = r.report["error_um"]
+        title = (f"step {self.steps}: {self.profiles} profiles, RMS {e['rms_um']:.1f} um, "
+                 f"covers {r.report['coverage'] * 100:.0f} % of the part")
+        bgr = render_preview(self.scanner.config.workpiece.mesh, r.cloud.points, r.error_um, r.on_part, title,
+                             on_fixture=r.on_fixture)
+        return np.ascontiguousarray(bgr[:, :, ::-1])
 
     # -- what the agent sees ----------------------------------------------------------------
     def _observation(self) -> dict:

@@ -7,6 +7,7 @@ import pytest
 gym = pytest.importorskip("gymnasium", reason="installed by the README's set-up")
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
+from addon.core.errors import InputError  # noqa: E402
 from headless.scan_env import ScanPlanningEnv, coverage_curve, random_policy, reference_policy  # noqa: E402
 
 
@@ -199,3 +200,24 @@ def test_a_turned_part_is_drawn_from_the_seed_and_scanned_where_it_was_put():
     near_original = np.abs(trimesh.proximity.closest_point(original, points)[1])
     assert np.percentile(near_turned, 95) < 0.05 and np.median(near_original) > 1.0
     assert result.report["error_um"]["rms_um"] < 50  # measured against the turned block's exact shape
+
+
+def test_rgb_array_renders_the_cloud_so_far_and_a_step_after_the_end_is_refused():
+    env = gym.make("headless.scan_env:ScanPlanning-v0", config="demo", engine="raycast", max_profiles=300,
+                   max_steps=1, render_mode="rgb_array")
+    env.reset(seed=0)
+    before = env.render()
+    _, _, terminated, truncated, info = env.step(np.array([0, 2, 1]))  # a table turn at 30°
+    assert info["refused"] is None and truncated
+    after = env.render()
+    assert before.shape == after.shape and before.shape[2] == 3 and before.dtype == np.uint8
+    coloured = lambda img: int(np.sum(img.max(axis=2).astype(int) - img.min(axis=2) > 60))  # noqa: E731
+    assert coloured(after) > coloured(before) + 500  # the points measured, in colour, where there were none
+    with pytest.raises(InputError, match=r"the episode has ended \(truncated after max_steps\); call reset\(\)"):
+        env.step(np.array([1, 0, 0]))
+    env.reset(seed=0)
+    env.step(np.array([1, 0, 0]))  # a new episode takes steps again
+    with pytest.raises(InputError, match=r"render_mode 'human' is not one of: None, 'rgb_array'"):
+        ScanPlanningEnv("demo", render_mode="human")
+    with pytest.raises(InputError, match="floats are not taken"):
+        env.step(np.array([1.0, 2.0, 0.0]))
