@@ -237,6 +237,11 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
                                     ("--merge", args.merge or None)) if v is not None)
         raise InputError(f"--shard K runs one shard in this process, so {given} has nothing to do with it; "
                          f"leave {given} out, or run the whole job without --shard")
+    if args.workers is not None and args.scheduler is not None:
+        from addon.core.errors import InputError
+
+        raise InputError("--workers N starts a local cluster of N workers and --scheduler uses a running one's: "
+                         "give one of them (a running cluster's workers are its own)")
     if args.merge and (args.workers is not None or args.scheduler is not None):
         from addon.core.errors import InputError
 

@@ -554,6 +554,8 @@ CASES = [
     ("config: samples not whole", lambda t: ["scan", scene(t, DEMO.replace("samples = 1\n", "samples = 1e12\n", 1))],
      2, "is not an integer (allowed: a whole number [1, 65536])"),
     ("out: empty", demo("--out", ""), 2, "--out: an empty name is no folder"),
+    ("option: --workers with --scheduler", demo("--workers", "2", "--scheduler", "tcp://127.0.0.1:1"), 2,
+     "--workers N starts a local cluster of N workers and --scheduler uses a running one's: give one of them"),
     ("out: under /proc", demo("--out", "/proc/scanner-test/out"), 2, "--out /proc/scanner-test/out cannot be written"),
     ("out: cloud.ply is a folder", out_holds_folder("cloud.ply"), 2, "cloud.ply"),
     ("out: report.json is a folder", out_holds_folder("report.json"), 2, "report.json"),
