@@ -116,7 +116,8 @@ def workers_deaf_to_ctrl_c():
         # (The resource tracker starts this way too; stopped with the cluster half started, it
         # warned of the semaphores left: the stop itself says what was left.)
         launcher.write_text("#!/bin/sh\ntrap '' INT\n"
-                            "PYTHONWARNINGS=\"ignore:resource_tracker:UserWarning${PYTHONWARNINGS:+,$PYTHONWARNINGS}\"\n"
+                            "PYTHONWARNINGS=\"ignore:resource_tracker:UserWarning"
+                            "${PYTHONWARNINGS:+,$PYTHONWARNINGS}\"\n"
                             f"export PYTHONWARNINGS\nexec {shlex.quote(python)} \"$@\"\n")
         launcher.chmod(0o755)
         mp_spawn.set_executable(str(launcher))

@@ -287,7 +287,8 @@ def test_a_mesh_saved_under_another_formats_extension_is_named_for_what_it_holds
     box.export(tmp_path / f"part{written}")
     (tmp_path / f"part{named}").write_bytes((tmp_path / f"part{written}").read_bytes())
     label = written[1:].upper()
-    with pytest.raises(InputError, match=rf"holds a {label} mesh, but is named \{named}; .* rename it to part\{written}"):
+    words = rf"holds a {label} mesh, but is named \{named}; .* rename it to part\{written}"
+    with pytest.raises(InputError, match=words):
         load_workpiece(tmp_path / f"part{named}")
 
 

@@ -210,8 +210,9 @@ def _overlap_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: s
     if hidden < 1e-3 * mesh.area:
         return None
     return (f"the {role} mesh {path.name} holds {count} closed bodies that reach into each other: about "
-            f"{hidden / mesh.area * 100:.0f} % of its surface lies inside another body, where no laser reaches, and still "
-            f"counts in the whole part's coverage; unite them first (a boolean union) to scan the part as one solid")
+            f"{hidden / mesh.area * 100:.0f} % of its surface lies inside another body, where no laser reaches, and "
+            f"still counts in the whole part's coverage; unite them first (a boolean union) to scan the part as one "
+            f"solid")
 
 
 def _loose_pieces_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: str) -> str | None:
@@ -248,8 +249,8 @@ def _loose_pieces_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, ro
     if below > SINK_TOLERANCE_MM:
         text += f", {'' if one else 'the lowest '}{below:.2g} mm below the rest, {RESTS_ON_LOOSE}"
     it, are = ("it", "is") if one else ("they", "are")
-    return (text + f"; {it} {are} scanned and measured as part of the part: a scan's debris? Delete {it if one else 'them'} "
-            f"from the mesh if {it} {are} not the part's")
+    return (text + f"; {it} {are} scanned and measured as part of the part: a scan's debris? Delete "
+            f"{it if one else 'them'} from the mesh if {it} {are} not the part's")
 
 
 def _check_stl_header(path: Path) -> None:
@@ -302,8 +303,8 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         if points:
             raise InputError(f"{path}: {points} points and no faces: a point cloud, not a surface; mesh it first "
                              f"(a surface reconstruction), then give the mesh")
-        raise InputError(_misnamed(path) or f"{path}: no triangles could be read from it: not a readable {path.suffix[1:].upper()} "
-                         "mesh (or one with no faces)")
+        raise InputError(_misnamed(path) or f"{path}: no triangles could be read from it: not a readable "
+                         f"{path.suffix[1:].upper()} mesh (or one with no faces)")
     if not np.all(np.isfinite(mesh.vertices)):
         bad = int(np.sum(~np.isfinite(mesh.vertices).all(axis=1)))
         raise InputError(f"{path}: {bad} {'vertex has' if bad == 1 else 'vertices have'} NaN or infinite "
@@ -326,11 +327,12 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     extent = float(np.max(mesh.extents))
     if guessed and not FILE_MIN_EXTENT_MM <= extent <= FILE_MAX_EXTENT_MM:
         key = "the workpiece's" if role == "part" else f"the {role}'s"
-        raise InputError(f"{path}: the {role} is {extent:.4g} mm across (read as {'metres' if scale == 1000 else 'mm'}); "
+        unit = "metres" if scale == 1000 else "mm"
+        raise InputError(f"{path}: the {role} is {extent:.4g} mm across (read as {unit}); "
                          f"{role}s in a cell are usually {FILE_MIN_EXTENT_MM:g} to {FILE_MAX_EXTENT_MM:g} mm: is the "
                          f"file in another unit? Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches; "
                          f"scale = {scale:g} where it really is {extent:.4g} mm"
-                         f"{'; in the panel, its Scale field; in a script, load_workpiece(path, scale=...)' if role == 'part' else ''})")
+                         f"{PART_SCALE_HINT if role == 'part' else ''})")
     check_mesh(mesh, str(path), fix=f"is scale {scale:g} right?")
     notes = ()
     if mesh.is_watertight and not mesh.is_winding_consistent:
@@ -375,6 +377,7 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     return Workpiece(path.stem, mesh, mesh, str(path), pose, notes)
 
 
+PART_SCALE_HINT = "; in the panel, its Scale field; in a script, load_workpiece(path, scale=...)"
 LOOSE_AREA_SHARE = 0.01  # a piece apart from the mesh's body, under this share of its area, is noted as loose
 LOOSE_GAP_MM = 0.1       # ... where it lies this far from the body at least
 MAX_OVERLAP_BODIES = 50  # closed bodies looked at for reaching into each other

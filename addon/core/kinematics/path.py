@@ -136,7 +136,8 @@ def path_entry(wp: Waypoints, kind: str) -> dict:
 
     entry = {"kind": kind, "frames": int(len(P))}
     if kind == "sweep":
-        entry.update(from_mm=xyz(first[:3, 3]), to_mm=xyz(P[-1, :3, 3]), table_deg=round(math.degrees(wp.table_rad[0]), DECIMALS))
+        entry.update(from_mm=xyz(first[:3, 3]), to_mm=xyz(P[-1, :3, 3]),
+                     table_deg=round(math.degrees(wp.table_rad[0]), DECIMALS))
     elif kind == "turntable":
         step = float(wp.table_rad[1] - wp.table_rad[0]) if len(P) > 1 else 0.0
         turn = step * len(P)
