@@ -204,12 +204,7 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     size = shard_frames or shards.default_shard_frames(n, workers)
     parts = shards.split(n, size)
     folder = Path(out_dir) / "shards"
-    todo = []
-    for s in parts:
-        try:
-            shards.read(folder / s.file_name(), s, fp)
-        except shards.ShardInvalid as exc:
-            todo.append((s, str(exc)))
+    todo = [(s, why) for s in parts if (why := _not_ready(folder, s, fp)) is not None]
     reused = len(parts) - len(todo)
     log(f"farm: {n} frames in {len(parts)} shards of up to {size} frames; {reused} valid from an earlier run "
         f"(skipped), {len(todo)} to compute")
@@ -233,7 +228,7 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
             address, worker_addresses = _compute_shards(config, plan, todo, folder, fp, out_dir, workers, scheduler,
                                                         render_threads, log, progress)
         except KeyboardInterrupt as exc:  # the cluster is closed: what its workers finished is on disk
-            exc.shards_finished = (sum(1 for s in parts if _finished(folder, s, fp)), len(parts))
+            exc.shards_finished = (sum(1 for s in parts if _not_ready(folder, s, fp) is None), len(parts))
             raise
     wall = time.perf_counter() - t_farm
     if measured is not None:
@@ -265,12 +260,14 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     return assemble(config, plan, cloud, stats, timing, out_dir, t_all, extra)
 
 
-def _finished(folder: Path, s: shards.Shard, fp: str) -> bool:
+def _not_ready(folder: Path, s: shards.Shard, fp: str) -> str | None:
+    """Why shard ``s``'s file in ``folder`` cannot be merged into this scan ("missing", damaged,
+    another scan's), None where it can."""
     try:
         shards.read(folder / s.file_name(), s, fp)
-        return True
-    except shards.ShardInvalid:
-        return False
+    except shards.ShardInvalid as exc:
+        return str(exc)
+    return None
 
 
 def _compute_shards(config, plan, todo, folder: Path, fp: str, out_dir, workers: int, scheduler: str | None,

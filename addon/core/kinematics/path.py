@@ -81,18 +81,19 @@ def sweep(frames: int, from_mm, to_mm, beam=DOWN, line=None, table_rad: float = 
         raise InputError(f"a sweep needs at least 1 frame, got {frames}")
     a, b = np.asarray(from_mm, dtype=np.float64), np.asarray(to_mm, dtype=np.float64)
     z = _unit(beam, "beam")
+    motion = b - a - np.dot(b - a, z) * z  # the probe's travel across the beam
+    moves = np.linalg.norm(motion) >= 1e-9
     if line is None:
-        motion = b - a - np.dot(b - a, z) * z
-        if np.linalg.norm(motion) < 1e-9:
+        if not moves:
             raise InputError("a sweep must move across the beam: from_mm and to_mm differ only along it")
         line = np.cross(z, motion)  # the plane (line, beam) stands across the motion
     R = probe_orientation(z, line)
-    motion = b - a - np.dot(b - a, z) * z
-    if frames > 1 and np.linalg.norm(motion) > 1e-9 and abs(np.dot(motion / np.linalg.norm(motion), R[:, 1])) > \
-            math.cos(math.radians(ALONG_LINE_DEG)):
-        raise InputError(f"the laser line {np.round(R[:, 1], 4).tolist()} runs along the sweep's motion "
-                         f"{np.round(motion / np.linalg.norm(motion), 4).tolist()}: each profile would lie on the last "
-                         f"one's line; give a line across the motion (or leave line out: it then stands across it)")
+    if frames > 1 and moves:
+        along = motion / np.linalg.norm(motion)
+        if abs(np.dot(along, R[:, 1])) > math.cos(math.radians(ALONG_LINE_DEG)):
+            raise InputError(f"the laser line {np.round(R[:, 1], 4).tolist()} runs along the sweep's motion "
+                             f"{np.round(along, 4).tolist()}: each profile would lie on the last one's line; give a "
+                             f"line across the motion (or leave line out: it then stands across it)")
     pts = a + np.linspace(0.0, 1.0, frames)[:, None] * (b - a) if frames > 1 else a[None]
     poses = np.stack([make_pose(R, p) for p in pts])
     return Waypoints(poses, np.full(frames, float(table_rad)), np.full(frames, segment))
