@@ -172,7 +172,7 @@ class Scanner:
         self._empty_frames: list[int] = []  # frames that put no surface inside the probe's range
         self._off_path = False  # measured anything but the config's path (run())
         self._t0 = time.perf_counter()
-        self._cached = None  # (frames measured, ScanResult) of the last result(): report() after save() is free
+        self._cached = None  # (key, ScanResult, config) of the last result(): report() after save() is free
         self._extra: dict = {}  # what joins the report besides the scan itself (an adaptive scan's sweeps)
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
         self._clearances: list = []  # the collision check of every move and path (PathClearance)
@@ -684,12 +684,15 @@ class Scanner:
         key = (self._frames, json.dumps(self._extra, sort_keys=True))
         # The path's frame numbers hold only while this Scanner has run nothing but its path.
         config = self.config if not self._off_path else replace(self.config, path_frames=None)
-        if extra is None and self._cached is not None and self._cached[0] == key:
+        # (A config set on the Scanner since is measured afresh: the cache holds the one it measured.)
+        cached = self._cached is not None and self._cached[0] == key and self._cached[2] is self.config
+        if extra is None and cached:
             if out_dir is None:
                 return self._cached[1]
             from .core.scan.outputs import written
 
-            self._cached = (key, written(self._cached[1], config, out_dir, self._t0))  # measured once, then written
+            # Measured once, then written.
+            self._cached = (key, written(self._cached[1], config, out_dir, self._t0), self.config)
             return self._cached[1]
         extra = {**self._extra, **(extra or {})}
         q = np.concatenate([p[0] for p in self._poses]) if self._poses else np.zeros((0, 6))
@@ -704,7 +707,7 @@ class Scanner:
         result = assemble(config, plan, self.cloud, merge_stats(self._stats), self._timing, out_dir, self._t0,
                           {"render_device": render_device(self._raycaster, self._sc), **extra},
                           step_by_step=self._off_path)
-        self._cached = (key, result)
+        self._cached = (key, result, self.config)
         return result
 
     def _part_check(self) -> list[str]:

@@ -98,7 +98,8 @@ def lock_holder(folder: Path) -> str | None:
 
 @contextmanager
 def workers_deaf_to_ctrl_c():
-    """While the local cluster starts its worker processes: each starts with Ctrl-C ignored, a
+    """While the local cluster runs, its worker processes (those its nannies start again too) start
+    with Ctrl-C ignored, a
     disposition a new program keeps (its Python through a small launcher that ignores SIGINT
     and execs it). A Ctrl-C at the terminal reaches every process of its group, and each
     worker's KeyboardInterrupt printed a traceback of its own; this process hears the stop
@@ -143,15 +144,17 @@ def cluster_client(workers: int, scheduler: str | None):
         finally:
             client.close()
         return
+    # For the cluster's whole life, not only its start: a worker that dies is started again by
+    # its nanny in this process, and the new one must be as deaf as the first.
     with workers_deaf_to_ctrl_c():
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                                dashboard_address=None, silence_logs=logging.CRITICAL)
-    client = Client(cluster)
-    try:
-        yield client
-    finally:
-        client.close()
-        cluster.close()
+        client = Client(cluster)
+        try:
+            yield client
+        finally:
+            client.close()
+            cluster.close()
 
 
 def check_scheduler(address: str) -> str:

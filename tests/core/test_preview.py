@@ -95,7 +95,7 @@ def test_a_title_too_long_for_one_line_is_broken_after_a_comma_and_kept_clear_of
 
     short = render_preview(box, points, errors, on_part, "block: 500 points")
     long = render_preview(box, points, errors, on_part, "a configuration with a long name: 500 points, RMS 1.0 um, "
-                          "p95 1.4 um, covers 98 % of what the path can measure (23 % of the part)")
+                          "p95 1.4 um, covers 98 % of what the path can measure, 23 % of the whole part")
     assert ink(short)[0] > 0 and ink(short)[1] == 0  # one line
     assert ink(long)[0] > 0 and ink(long)[1] > 0    # two lines
     assert not (long[12:32, 786:] < 90).all(axis=2).any()  # nothing of the title over the colour bar's column

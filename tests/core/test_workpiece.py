@@ -286,8 +286,8 @@ def test_a_mesh_saved_under_another_formats_extension_is_named_for_what_it_holds
     box = trimesh.creation.box([40.0, 30.0, 20.0])
     box.export(tmp_path / f"part{written}")
     (tmp_path / f"part{named}").write_bytes((tmp_path / f"part{written}").read_bytes())
-    label = written[1:].upper()
-    words = rf"holds a {label} mesh, but is named \{named}; .* rename it to part\{written}"
+    label = {".ply": "a PLY", ".obj": "an OBJ", ".glb": "a GLB", ".stl": "an STL"}[written]
+    words = rf"holds {label} mesh, but is named \{named}; .* rename it to part\{written}"
     with pytest.raises(InputError, match=words):
         load_workpiece(tmp_path / f"part{named}")
 
@@ -350,6 +350,37 @@ def test_loose_specks_beside_or_under_a_part_are_noted_and_faces_hanging_on_it_a
     assert load_workpiece(tmp_path / "flap.stl").notes == () and load_workpiece(tmp_path / "twins.stl").notes == ()
 
 
+def test_which_piece_lies_lowest_is_judged_on_the_posed_part(tmp_path):
+    body = trimesh.creation.box([40.0, 30.0, 20.0])
+    body.apply_translation([0.0, 0.0, 10.0])
+    speck = trimesh.creation.icosphere(radius=0.3)
+    speck.apply_translation([10.0, 5.0, 23.0])  # above the part in the file: 2.7 mm over its top
+    trimesh.util.concatenate([body, speck]).export(tmp_path / "speck_on_top.stl")
+    upright = load_workpiece(tmp_path / "speck_on_top.stl").notes
+    assert len(upright) == 1 and "rests on" not in upright[0]
+    # Turned over (a half turn about x, then lifted by the part's height): the speck now lies lowest.
+    flip = np.diag([1.0, -1.0, -1.0, 1.0])
+    flip[2, 3] = 20.0
+    (note,) = load_workpiece(tmp_path / "speck_on_top.stl", pose=flip).notes
+    assert "3.3 mm below the rest, so the part rests on it" in note  # the speck's far side, 23.3 mm up in the file
+
+
+def test_a_speck_within_a_hair_of_the_body_or_inside_it_is_not_loose(tmp_path):
+    body = trimesh.creation.box([40.0, 30.0, 20.0])
+    body.apply_translation([0.0, 0.0, 10.0])
+    touching = trimesh.creation.icosphere(radius=0.3)
+    touching.apply_translation([0.0, 0.0, 20.35])  # 0.05 mm over the top face: within the 0.1 mm gap
+    trimesh.util.concatenate([body, touching]).export(tmp_path / "touching.stl")
+    assert load_workpiece(tmp_path / "touching.stl").notes == ()
+    inner = trimesh.creation.icosphere(radius=1.0)
+    inner.apply_translation([0.0, 0.0, 10.0])  # wholly inside the part: a body within a body
+    trimesh.util.concatenate([body, inner]).export(tmp_path / "inner.stl")
+    (note,) = load_workpiece(tmp_path / "inner.stl").notes
+    assert "loose" not in note and "reach into each other" in note
+    share = float(re.search(r"about ([\d.]+) % of its surface lies inside another body", note).group(1))
+    assert share == pytest.approx(100 * inner.area / (inner.area + body.area), rel=0.05)  # not "0 %"
+
+
 def test_closed_bodies_reaching_into_each_other_are_noted_with_the_share_hidden(tmp_path):
     slab = trimesh.creation.box([30.0, 30.0, 20.0])
     slab.apply_translation([0.0, 0.0, 10.0])
@@ -359,7 +390,7 @@ def test_closed_bodies_reaching_into_each_other_are_noted_with_the_share_hidden(
     (note,) = load_workpiece(tmp_path / "unjoined.stl").notes
     # Hidden: the post's four sides up to 20 mm and the slab's top under it (its bottom lies in the slab's
     # bottom, on the boundary): 900 of 6000 mm², to 1 000 with the bottom.
-    share = float(re.search(r"about (\d+) % of its surface lies inside another body", note).group(1))
+    share = float(re.search(r"about ([\d.]+) % of its surface lies inside another body", note).group(1))
     assert 14 <= share <= 17 and "unite them first" in note
     post.apply_translation([40.0, 0.0, 0.0])
     trimesh.util.concatenate([slab, post]).export(tmp_path / "apart.stl")

@@ -261,4 +261,3 @@ def test_a_shard_the_cluster_cancels_is_submitted_again(config, single, tmp_path
     assert any("cancelled by the cluster" in line for line in lines), lines
     same_cloud(res.cloud, single.cloud)
     assert res.report["farm"]["computed"] == 4
-

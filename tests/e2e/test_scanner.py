@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -194,6 +195,8 @@ def test_a_scan_is_measured_against_the_truth_once_for_its_report_and_its_files(
     assert s.report().points == report.points and len(measured) == 1
     s.measure()
     assert s.report().frames == report.frames + 1 and len(measured) == 2  # a new profile: measured again
+    s.config = replace(s.config, coverage_tolerance_mm=2.0)  # another config on the same frames: measured again
+    assert s.report().coverage_tolerance_mm == 2.0 and len(measured) == 3
 
 
 def test_save_writes_every_time_and_bad_arguments_are_named(scanner, tmp_path):

@@ -102,6 +102,13 @@ def mesh_distances(points: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarra
     return _closest_faces(P, mesh)[0], None
 
 
+def unsigned_distances(points, mesh: trimesh.Trimesh) -> np.ndarray:
+    """(n,) mm: exact distances from points (n, 3) to a mesh's faces, unsigned (no inside
+    is asked for, so no signing structure is built)."""
+    P = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    return _closest_faces(P, mesh)[0] if len(P) else np.zeros(0)
+
+
 def _igl_mesh(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
     return (np.ascontiguousarray(mesh.vertices, dtype=np.float64),
             np.ascontiguousarray(mesh.faces, dtype=np.int64))

@@ -161,7 +161,9 @@ def _misnamed(path: Path) -> str | None:
     actual = _content_format(path)
     if actual is None or actual == path.suffix.lower():
         return None
-    return (f"{path}: it holds a {actual[1:].upper()} mesh, but is named {path.suffix}; a mesh is read "
+    name = actual[1:].upper()
+    article = "an" if name[0] in "AEFHILMNORSX" else "a"  # as the letters are said: an STL, an OBJ, a PLY
+    return (f"{path}: it holds {article} {name} mesh, but is named {path.suffix}; a mesh is read "
             f"by its extension: rename it to {path.stem}{actual}")
 
 
@@ -210,9 +212,33 @@ def _overlap_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: s
     if hidden < 1e-3 * mesh.area:
         return None
     return (f"the {role} mesh {path.name} holds {count} closed bodies that reach into each other: about "
-            f"{hidden / mesh.area * 100:.0f} % of its surface lies inside another body, where no laser reaches, and "
+            f"{hidden / mesh.area * 100:.2g} % of its surface lies inside another body, where no laser reaches, and "
             f"still counts in the whole part's coverage; unite them first (a boolean union) to scan the part as one "
             f"solid")
+
+
+def _gaps_to(points: np.ndarray, body: trimesh.Trimesh, corners: np.ndarray) -> np.ndarray:
+    """(n,) mm: each point's distance to ``body``'s faces where it is within LOOSE_GAP_MM, else a
+    bound beyond it. Exact distances are asked only near the points: a point farther than the
+    longest edge plus the gap from every corner of the body is farther than the gap from its
+    faces (a million-face scan with specks around it took seconds to build a tree over it all).
+    ``corners``: the body's vertices that its faces use."""
+    from scipy.spatial import cKDTree
+
+    from .metrics import unsigned_distances
+
+    tri = body.vertices[body.faces]
+    longest = float(np.sqrt(max(np.max(np.sum((tri - np.roll(tri, 1, axis=1)) ** 2, axis=2)), 0.0)))
+    tree = cKDTree(body.vertices[corners])
+    reach = LOOSE_GAP_MM + longest
+    gap, _ = tree.query(points, distance_upper_bound=reach)  # inf beyond the reach
+    maybe = np.isfinite(gap)
+    gap[maybe] = np.inf
+    if maybe.any():
+        near = np.unique(np.concatenate(tree.query_ball_point(points[maybe], reach)).astype(np.int64))
+        faces = body.faces[np.isin(body.faces, corners[near]).any(axis=1)]
+        gap[maybe] = unsigned_distances(points[maybe], trimesh.Trimesh(body.vertices, faces, process=False))
+    return gap
 
 
 def _loose_pieces_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: str) -> str | None:
@@ -220,8 +246,6 @@ def _loose_pieces_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, ro
     each under LOOSE_AREA_SHARE of its area: a scanned mesh's debris, specks floating beside or
     under the part, which are scanned and measured as part of the part and, lying lowest,
     decide where it rests. Faces hanging on the body by a corner or a hair's gap are not loose."""
-    from .metrics import distances
-
     area = np.bincount(labels, weights=mesh.area_faces)
     small = np.flatnonzero(area < LOOSE_AREA_SHARE * area.max())
     if len(small) == 0:
@@ -229,18 +253,28 @@ def _loose_pieces_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, ro
     in_small = np.isin(labels, small)
     body = trimesh.Trimesh(mesh.vertices, mesh.faces[~in_small], process=False)
     corners = np.unique(mesh.faces[in_small])
-    gap = distances(mesh.vertices[corners], body)[0]
+    body_corners = np.unique(body.faces)
+    gap = _gaps_to(mesh.vertices[corners], body, body_corners)
     vertex_piece = np.zeros(len(mesh.vertices), dtype=np.int64)
     vertex_piece[mesh.faces] = labels[:, None]
     nearest = np.full(len(area), np.inf)
     np.minimum.at(nearest, vertex_piece[corners], gap)
     small = small[nearest[small] > LOOSE_GAP_MM]
+    if len(small) and mesh.is_watertight:  # (every piece closed, the body too; asked of the body alone, seconds)
+        # A piece inside the closed body is not debris beside it: the overlap note speaks of that.
+        first_face = np.unique(labels, return_index=True)[1]  # each piece's first face
+        small = small[~body.contains(mesh.vertices[mesh.faces[first_face[small], 0]])]
     if len(small) == 0:
         return None
     loose = np.isin(labels, small)
-    body_low = float(body.vertices[np.unique(body.faces)][:, 2].min())
+    body_low = float(body.vertices[body_corners][:, 2].min())
     low = float(mesh.vertices[np.unique(mesh.faces[loose])][:, 2].min())
-    widest = max(float(np.ptp(mesh.vertices[np.unique(mesh.faces[labels == k])], axis=0).max()) for k in small[:1000])
+    piece_lo = np.full((len(area), 3), np.inf)
+    piece_hi = np.full((len(area), 3), -np.inf)
+    used = np.unique(mesh.faces[loose])
+    np.minimum.at(piece_lo, vertex_piece[used], mesh.vertices[used])
+    np.maximum.at(piece_hi, vertex_piece[used], mesh.vertices[used])
+    widest = float((piece_hi[small] - piece_lo[small]).max())
     one = len(small) == 1
     text = (f"the {role} mesh {path.name} holds {'a loose piece' if one else f'{len(small)} loose pieces'} apart "
             f"from its body, {'' if one else 'each '}under {LOOSE_AREA_SHARE * 100:g} % of its area "
@@ -368,12 +402,12 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         notes = (f"{turned} of the {len(mesh.faces)} faces of the {role} mesh {path.name} were wound against the "
                  f"rest; they were turned, so that the part is one closed surface facing out, with an inside and a "
                  f"bias",)
+    pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
+    mesh.apply_transform(pose)  # before the notes: which piece lies lowest is the posed part's
     vertex_piece = trimesh.graph.connected_component_labels(mesh.edges, node_count=len(mesh.vertices))
     labels = np.unique(vertex_piece, return_inverse=True)[1][mesh.faces[:, 0]]  # each face's piece, from 0
     notes = notes + tuple(n for n in (_loose_pieces_note(mesh, labels, path, role),
                                       _overlap_note(mesh, labels, path, role)) if n)
-    pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
-    mesh.apply_transform(pose)
     return Workpiece(path.stem, mesh, mesh, str(path), pose, notes)
 
 
@@ -453,13 +487,11 @@ def lift_text(lift_mm: float, decimals: int = 1) -> str | None:
 def check_over_table(wp: Workpiece, fix: str) -> None:
     """Refuse a part that lies wholly beyond the table's rim, seen from above (a file's part at
     x = 5000 mm was scanned, and measured only the table), ``fix`` saying how to place it."""
-    from ..kinematics.turntable import TABLE_RADIUS_MM, nearest_to_axis_mm
+    from ..kinematics.turntable import beyond_table, nearest_to_axis_mm
 
-    nearest = nearest_to_axis_mm(wp.mesh)
-    if nearest > TABLE_RADIUS_MM + 1.0:
-        raise InputError(f"the workpiece {wp.name} lies wholly beyond the table (its nearest point {nearest:.0f} mm "
-                         f"from the table's axis, the table's radius {TABLE_RADIUS_MM:g} mm): nothing holds it as the "
-                         f"table turns; {fix}")
+    why = beyond_table(f"the workpiece {wp.name}", nearest_to_axis_mm(wp.mesh))
+    if why is not None:
+        raise InputError(f"{why}: nothing holds it as the table turns; {fix}")
 
 
 def check_on_table(wp: Workpiece, fix: str) -> None:

@@ -66,14 +66,22 @@ def table_top_mesh(radius_mm: float = TABLE_RADIUS_MM, thickness_mm: float = TAB
     return disc
 
 
+def beyond_table(what: str, nearest_mm: float) -> str | None:
+    """"``what`` lies wholly beyond the table ...", where its nearest point to the table's axis,
+    seen from above, is ``nearest_mm`` (more than the table's radius and a millimetre); None
+    where it reaches over the table."""
+    if nearest_mm <= TABLE_RADIUS_MM + 1.0:
+        return None
+    return (f"{what} lies wholly beyond the table (its nearest point {nearest_mm:.0f} mm from the table's axis, the "
+            f"table's radius {TABLE_RADIUS_MM:g} mm)")
+
+
 def box_beyond_table(lo, hi) -> str | None:
     """Why a part's bounding box (table frame, mm) cannot hold a part on the table: it lies
     wholly beyond the table's rim, seen from above (None where it reaches over the table)."""
     nearest = float(np.hypot(*np.clip(0.0, np.asarray(lo, float)[:2], np.asarray(hi, float)[:2])))
-    if nearest <= TABLE_RADIUS_MM + 1.0:
-        return None
-    return (f"the box lies wholly beyond the table (its nearest point {nearest:.0f} mm from the table's axis, the "
-            f"table's radius {TABLE_RADIUS_MM:g} mm): a part on the table lies within {TABLE_RADIUS_MM:g} mm of it")
+    why = beyond_table("the box", nearest)
+    return None if why is None else f"{why}: a part on the table lies within {TABLE_RADIUS_MM:g} mm of it"
 
 
 def nearest_to_axis_mm(mesh) -> float:

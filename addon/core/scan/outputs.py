@@ -260,9 +260,10 @@ def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, e
     the report's time_s gains the time taken to make them ("write") and the total."""
     t = time.perf_counter()
     e = report["error_um"]
-    covered = f"{report['coverage'] * 100:.0f} % of the part"
+    covered = f"{report['coverage'] * 100:.0f} % of the whole part"
     if report.get("measurable_share"):  # the share of what the path can measure comes first, as in the summary
-        covered = f"{report['coverage_measurable'] * 100:.0f} % of what the path can measure ({covered})"
+        # (not the whole part's in brackets: there the summary gives the share the path can measure)
+        covered = f"{report['coverage_measurable'] * 100:.0f} % of what the path can measure, {covered}"
     title = (f"{config.name}: {len(cloud)} points, RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
              f"covers {covered}")
     if report.get("points_on_fixtures"):
