@@ -8,6 +8,9 @@ booleans and real meshes). Methods, each with ``--budget`` profiles:
 - **turns**: full table turns at three probe heights (from above, 45° down at mid-height,
   70° down low at the sides), a third of the budget each: what an engineer sets up blind;
 - **raster**: parallel sweeps straight down across the box at two table angles 90° apart;
+- **sides** (only when ``--methods`` names it): the turns' two passes from the side (45° and
+  70°) alone, 30 % of the budget each: the baseline's own best views within 60 % of its
+  profiles, a yardstick for the ≤ 60 % goal (docs/adaptive.md, *Not yet*);
 - **yours** (with ``--planner FILE.py:NAME``): a planner of your own, run as the reference is
   (``NAME(scanner, lo, hi)`` told the same box, then ``choose(scanner, profiles left)`` and
   ``scan(scanner, view)`` until it chooses None or the budget is spent).
@@ -32,7 +35,8 @@ from headless.bench import whole
 
 GROWTH_PNG = Path(__file__).resolve().parents[1] / "gallery" / "adaptive_growth.png"
 GROWTH_PANELS = 5   # at most; the views between are left out, the last one always in
-METHODS = ("planner", "turns", "raster", "yours")
+METHODS = ("planner", "turns", "raster", "sides", "yours")
+DEFAULT_METHODS = ("planner", "turns", "raster")  # without --methods (and yours with --planner)
 ADAPTIVE = ("planner", "yours")  # the methods that choose their views (the others are fixed paths)
 
 
@@ -47,8 +51,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "scan(scanner, view) (a subclass of addon.adaptive.NextBestView is one; see "
                              "docs/adaptive.md)")
     parser.add_argument("--methods", default="",
-                        help=f"the methods to run, comma-separated from {', '.join(METHODS)} (default: all; "
-                             f"yours only with --planner)")
+                        help=f"the methods to run, comma-separated from {', '.join(METHODS)} (default: "
+                             f"{','.join(DEFAULT_METHODS)}, and yours with --planner)")
     parser.add_argument("--engine", choices=("cycles", "raycast"), default="cycles",
                         help="render engine (default cycles; raycast: what Cycles renders under ideal conditions, "
                              "without Blender, for a quick comparison)")
@@ -220,7 +224,9 @@ def run_fixed(config, passes) -> dict:
 TURN_HEIGHTS = ((45.0, 0.5), (70.0, 0.3))  # (tilt from vertical, aim's share of the part's height)
 
 
-def turns(config, budget: int):
+def turns(config, budget: int, from_above: bool = True, share: float = 1.0 / 3.0):
+    """A full table turn from above and one at each of TURN_HEIGHTS, ``share`` of the budget
+    each (``from_above`` False: the side turns alone)."""
     from addon.core.kinematics import path as scanpath
 
     from headless.bench.parts import STANDOFF_MM
@@ -228,18 +234,21 @@ def turns(config, budget: int):
     lo, hi = config.workpiece.mesh.bounds
     radius = float(np.linalg.norm(np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
     top = float(hi[2])
-    n = max(1, budget // 3)
-    out = [scanpath.turntable(n, [12.0, 0.0, top + STANDOFF_MM], table=config.table, segment=0)]
+    n = max(1, int(budget * share + 1e-9))
+    out = [scanpath.turntable(n, [12.0, 0.0, top + STANDOFF_MM], table=config.table, segment=0)] if from_above else []
     # Two more heights, not the mirror of one: a turn 45° from one side sees, over its full
     # circle, what the same turn from the other side sees (a first version spent its third
     # pass so and added nothing).
-    for k, (tilt_deg, height) in enumerate(TURN_HEIGHTS):
+    for tilt_deg, height in TURN_HEIGHTS:
         a = math.radians(tilt_deg)
         beam = np.array([0.0, -math.sin(a), -math.cos(a)])
         aim = np.array([0.0, 0.5 * radius, height * top])
         out.append(scanpath.turntable(n, aim - STANDOFF_MM * beam, beam, (0.0, 0.0, 1.0), table=config.table,
-                                      segment=k + 1))
+                                      segment=len(out)))
     return out
+
+
+SIDES_SHARE = 0.3  # of the budget, for each of the sides method's two turns: 60 % together
 
 
 def raster(config, budget: int):
@@ -337,7 +346,7 @@ def chosen_methods(text: str, planner: str) -> list[str]:
     from addon.core.errors import InputError
 
     if not text.strip():
-        return [m for m in METHODS if m != "yours" or planner]
+        return [m for m in METHODS if m in DEFAULT_METHODS or (m == "yours" and planner)]
     names = [w.strip().lower() for w in text.split(",") if w.strip()]
     unknown = [n for n in names if n not in METHODS]
     if unknown:
@@ -358,7 +367,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{name}: {len(mesh.faces)} faces, {np.ptp(mesh.bounds, axis=0).round(1).tolist()} mm")
         return 0
     methods_run = chosen_methods(args.methods, args.planner)
-    if args.readme and (methods_run != [m for m in METHODS if m != "yours"] or args.engine != "cycles" or args.only):
+    if args.readme and (methods_run != list(DEFAULT_METHODS) or args.engine != "cycles" or args.only):
         raise InputError("--readme writes the README's table: every part, the three methods, Cycles "
                          "(leave out --only, --methods, --planner and --engine)")
     factory = load_planner(args.planner) if args.planner else None
@@ -372,6 +381,7 @@ def run(args: argparse.Namespace) -> int:
         runs = {"planner": lambda: run_planner(config, args.budget),
                 "turns": lambda: run_fixed(config, turns(config, args.budget)),
                 "raster": lambda: run_fixed(config, raster(config, args.budget)),
+                "sides": lambda: run_fixed(config, turns(config, args.budget, from_above=False, share=SIDES_SHARE)),
                 "yours": lambda: run_planner(config, args.budget, factory)}
         methods = {m: runs[m]() for m in methods_run}
         results[name] = methods
@@ -389,7 +399,9 @@ def run(args: argparse.Namespace) -> int:
             rows.append(row)
         print(f"{name}: " + "; ".join(f"{m} {r['coverage'] * 100:.1f} % in {r['profiles']} profiles"
                                       for m, r in methods.items()), flush=True)
+    named = args.methods.strip() and methods_run != list(DEFAULT_METHODS)
     command = f"python -m headless bench adaptive --budget {args.budget}" + (
+        f" --methods {','.join(m for m in methods_run if m != 'yours')}" if named else "") + (
         f" --planner {args.planner}" if args.planner else "") + (
         " --engine raycast" if args.engine == "raycast" else "")
     body = (f"Adaptive scanning against fixed paths (`{command}`, 2-core CPU, "

@@ -472,3 +472,19 @@ def test_a_planner_of_ones_own_that_fails_or_overspends_is_named_in_one_line(tmp
     assert rc == 2 and "--methods yours needs --planner" in out.err
     rc, out = bench("--only", "no part has this name")
     assert rc == 2 and "sphere (demo), step block" in out.err
+
+
+def test_the_sides_yardstick_is_the_turns_own_side_passes_with_60_percent_of_the_budget():
+    """``--methods sides``: the baseline's two side turns alone, 30 % of the budget each, the
+    same poses the turns take; not run unless named."""
+    from headless.bench.adaptive import SIDES_SHARE, chosen_methods, config_for, parts, turns
+
+    config = config_for("sphere (demo)", parts()["sphere (demo)"], "raycast")
+    full = turns(config, 300)                     # 100 profiles a pass: above, 45°, 70°
+    sides = turns(config, 300, from_above=False, share=1.0 / 3.0)
+    assert [len(p.table_rad) for p in full] == [100, 100, 100] and len(sides) == 2
+    for mine, theirs in zip(sides, full[1:]):
+        np.testing.assert_allclose(mine.probe2table, theirs.probe2table, atol=1e-12)
+    assert [len(p.table_rad) for p in turns(config, 450, from_above=False, share=SIDES_SHARE)] == [135, 135]
+    assert chosen_methods("", "") == ["planner", "turns", "raster"]
+    assert chosen_methods("sides,turns", "") == ["turns", "sides"]
