@@ -23,11 +23,13 @@ from ..core.kinematics.transforms import rigid_inverse
 from ..core.optics.probe import Probe
 from ..core.geometry.workpiece import Workpiece
 from . import rig
-from .animation import keyframe_values
+from .animation import (SCAN_MOTION_KEY, keyframe_values, mark_scan_motion,
+                        set_aside_own_motion)
 from .cameras import add_probe_cameras, camera_to_world_cv
 from .laser import add_laser
 from .materials import diffuse
 from .meshes import mesh_object
+from .ownership import built_role, mark, own_objects, role_of
 from ..core.config.render import RenderOptions, laser_engine_mismatch
 from .render import configure, opengl_device, render_animation
 from .turntable import add_fixture, add_turntable, add_workpiece, set_table_angle
@@ -41,11 +43,12 @@ CELL_NAME = "Scanner Cell"
 
 
 def cell_object(name: str, cell_name: str = CELL_NAME):
-    """The object called ``name`` in the built cell (the robot, the turntable, ...), or None."""
+    """The built cell's object that is ``name`` ("Robot", "Turntable", ...: its role, whatever
+    Blender named it), or None."""
     root = bpy.data.collections.get(cell_name)
     if root is None:
         return None
-    return next((o for o in root.all_objects if o.name == name), None)
+    return next((o for o in own_objects(root) if role_of(o) == name), None)
 
 
 @dataclass
@@ -75,7 +78,7 @@ class SceneCell:
         root = bpy.data.collections.get(name)
         if root is None or root.name not in scene.collection.children:
             return None
-        objs = {o.name: o for o in root.all_objects}
+        objs = {role_of(o): o for o in own_objects(root)}
         robot_col = root.children.get("Robot")
         need = ("Robot", "Probe frame", "ProbeCam_L", "ProbeCam_R", "Laser", "Turntable")
         if robot_col is None or any(k not in objs for k in need):
@@ -105,9 +108,13 @@ class SceneCell:
         if thetas.shape != (n,) or not np.all(np.isfinite(thetas)):
             raise InputError(f"table angles must be {n} finite numbers (radians)")
         frames = np.arange(first_frame, first_frame + n)
+        for obj in (self.robot, self.table):
+            set_aside_own_motion(obj)  # an artist's animation, given back by drop_scan_motion
         for k in range(6):
             keyframe_values(self.robot, f'["{rig.joint_property(k + 1)}"]', frames, qs[:, k])
         keyframe_values(self.table, "rotation_euler", frames, thetas, index=2)
+        for obj in (self.robot, self.table):
+            mark_scan_motion(obj)
         # The probe's world pose per frame, for renders that leave the rig out.
         self.extras["path"] = (int(first_frame), self.cell.robot.fk(qs), thetas.copy())
         return range(first_frame, first_frame + n)
@@ -262,15 +269,72 @@ def _child_collection(parent: bpy.types.Collection, name: str) -> bpy.types.Coll
 
 
 def remove_cell(scene: bpy.types.Scene, name: str = "Scanner Cell") -> None:
-    """Delete a previously built cell (its collections and objects)."""
+    """Delete a previously built cell: its collections, the objects it made and their data
+    (meshes, lights, cameras, armatures, materials, actions) that nothing else uses. An object
+    of the artist's filed in the cell's collections is kept, linked to the scene."""
     root = bpy.data.collections.get(name)
     if root is None:
         return
-    for col in [root, *root.children_recursive]:
+    collections = [root, *root.children_recursive]
+    own = own_objects(root)
+    own_names = {o.name for o in own}
+    for col in collections:
         for obj in list(col.objects):
-            bpy.data.objects.remove(obj, do_unlink=True)
-    for col in reversed([root, *root.children_recursive]):
+            if obj.name not in own_names:
+                col.objects.unlink(obj)
+                if not obj.users_collection:
+                    scene.collection.objects.link(obj)
+    data = []
+    for obj in own:
+        data += [obj.data] if obj.data is not None else []
+        data += [slot.material for slot in obj.material_slots if slot.material is not None]
+        if obj.animation_data is not None and obj.animation_data.action is not None:
+            data.append(obj.animation_data.action)
+    bpy.data.batch_remove(own)
+    data += [m for d in data if isinstance(d, bpy.types.Mesh) for m in d.materials if m is not None]
+    # Each scan or build left about fifteen meshes, two cameras and a light behind without users.
+    unused = {d.name_full: d for d in data if d.users == 0 and not d.use_fake_user}
+    if unused:
+        bpy.data.batch_remove(list(unused.values()))
+    for col in reversed(collections):
         bpy.data.collections.remove(col)
+
+
+def _children_kept(root: bpy.types.Collection) -> list:
+    """The artist's objects parented to one of the cell's: (object, the parent's role, parent
+    type, parent bone, world matrix), to put back on the rebuilt cell where they were."""
+    own_names = {o.name for o in own_objects(root)}
+    return [(o, role_of(o.parent), o.parent_type, o.parent_bone, o.matrix_world.copy())
+            for o in bpy.data.objects if o.name not in own_names and o.parent is not None
+            and o.parent.name in own_names]
+
+
+def _own_motions(root: bpy.types.Collection) -> dict:
+    """{role: action} of the cell's objects that hold an action of their own (an artist's
+    animation, also one a scan set aside), not a scan's motion: the rebuilt cell's objects
+    of the same roles get them back."""
+    out = {}
+    for obj in own_objects(root):
+        action = obj.get("scanner_artist_action")
+        if action is None and obj.animation_data is not None:
+            action = obj.animation_data.action
+        if action is not None and not action.get(SCAN_MOTION_KEY):
+            out[role_of(obj)] = action
+    return out
+
+
+def _put_back(kept: list, root: bpy.types.Collection) -> None:
+    """Parent each of :func:`_children_kept`'s objects to the rebuilt cell's object of the same
+    role (unparented where there is none), at the world position it had."""
+    roles = {role_of(o): o for o in own_objects(root)}
+    for obj, role, parent_type, bone, world in kept:
+        parent = roles.get(role)
+        if parent is not None:
+            obj.parent = parent
+            obj.parent_type = parent_type
+            if parent_type == "BONE":
+                obj.parent_bone = bone
+        obj.matrix_world = world
 
 
 def add_probe(collection, probe: Probe, laser: str = "gobo", laser_power_w: float | None = None,
@@ -299,8 +363,15 @@ def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Work
                laser: str = "gobo", laser_power_w: float | None = None, name: str = "Scanner Cell",
                material: str = "grey", roughness: float = 0.2, fixtures=()) -> SceneCell:
     """Build (or rebuild) the cell in ``scene``. The probe's mount becomes the robot's tool;
-    ``fixtures`` (the table's: ``core.safety.Fixture``) turn with the table."""
+    ``fixtures`` (the table's: ``core.safety.Fixture``) turn with the table. The artist's
+    objects parented to the cell's stay where they were, on the new cell's."""
+    old_root = bpy.data.collections.get(name)
+    kept = [] if old_root is None else _children_kept(old_root)
+    motions = {} if old_root is None else _own_motions(old_root)
+    for action in motions.values():
+        action.use_fake_user = True  # through the removal, which drops what nothing uses
     remove_cell(scene, name)
+    names_before = set(bpy.data.objects.keys())
     cell = replace(cell, robot=cell.robot.with_tool(probe.mount))
     root = bpy.data.collections.new(name)
     scene.collection.children.link(root)
@@ -316,6 +387,16 @@ def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Work
     wp = add_workpiece(table_col, workpiece, table, material, roughness) if workpiece is not None else None
     for fixture in fixtures:
         add_fixture(table_col, fixture, table)
+    for obj in root.all_objects:
+        mark(obj, built_role(obj.name, names_before))
     bpy.context.view_layer.update()
+    if kept or motions:
+        roles = {role_of(o): o for o in own_objects(root)}
+        for role, action in motions.items():
+            action.use_fake_user = False
+            if role in roles:
+                roles[role].animation_data_create().action = action
+        _put_back(kept, root)
+        bpy.context.view_layer.update()
     return SceneCell(scene, cell, probe, workpiece, laser, root, robot_col, arm, probe_frame, cams, lasers,
                      table, wp)

@@ -16,6 +16,7 @@ import numpy as np
 from ..core.geometry.cloud import Cloud
 from ..core.scan.preview import FIXTURE_BGR
 from .materials import bare_material
+from .ownership import mark
 from .units import M_PER_MM
 
 POINT_RADIUS_MM = 0.35
@@ -115,7 +116,7 @@ def import_cloud(collection, cloud: Cloud, parent: bpy.types.Object | None, erro
     c = me.color_attributes.new("error_colour", "FLOAT_COLOR", "POINT")
     c.data.foreach_set("color", rgba.ravel())
     me.update()
-    obj = bpy.data.objects.new(name, me)
+    obj = mark(bpy.data.objects.new(name, me), "Scan cloud")  # the cell's: a rebuilt cell drops it
     collection.objects.link(obj)
     if parent is not None:
         obj.parent = parent

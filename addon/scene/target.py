@@ -15,6 +15,7 @@ import numpy as np
 
 from ..core.calibration.board import ChArUcoBoard
 from .materials import bare_material, diffuse
+from .ownership import mark
 from .units import M_PER_MM, to_blender
 
 BLACK, WHITE = 0.04, 0.85  # diffuse albedo of the printed black and the white paper
@@ -78,7 +79,7 @@ def add_board(collection, board: ChArUcoBoard, board2table: np.ndarray, table_ob
     for poly, k in zip(me.polygons, mats):
         poly.material_index = k
         poly.use_smooth = False
-    obj = bpy.data.objects.new("Calibration board", me)
+    obj = mark(bpy.data.objects.new("Calibration board", me), "Calibration board")
     collection.objects.link(obj)
     obj.parent = table_obj
     obj.matrix_parent_inverse.identity()

@@ -16,6 +16,7 @@ from bpy_extras.io_utils import ExportHelper
 from ..core.errors import InputError, ScannerError
 from ..core.geometry.workpiece import lift_text
 from ..scene import rig
+from ..scene.animation import drop_scan_motion
 from ..scene.render_state import RenderState, kept_render_settings
 from . import models
 
@@ -265,6 +266,14 @@ def _report_warnings(op, report: dict) -> str:
     return f" ({len(warnings)} warning{'s' if len(warnings) != 1 else ''}: see the Info editor or report.json)"
 
 
+def _check_blend_relative(path: str, what: str, kind: str) -> None:
+    """Refuse a path relative (//...) to a .blend never saved: it would land wherever Blender
+    was started."""
+    if path.startswith("//") and not bpy.data.filepath:
+        raise InputError(f"the {what} {path} is relative to the .blend file, which is not saved yet: "
+                         f"save it first, or give an absolute {kind}")
+
+
 def _checked_output(folder: str, config_name: str, inputs=()):
     """The output folder a scan will write into, refused before any rendering where it cannot
     be written, or where it is relative (//...) to a .blend never saved (it would land
@@ -272,9 +281,7 @@ def _checked_output(folder: str, config_name: str, inputs=()):
     from ..core.files import check_output_folder
     from ..core.scan.outputs import OUTPUT_FILES
 
-    if folder.startswith("//") and not bpy.data.filepath:
-        raise InputError(f"the output folder {folder} is relative to the .blend file, which is not saved yet: "
-                         f"save it first, or give an absolute folder")
+    _check_blend_relative(folder, "output folder", "folder")
     return check_output_folder(models.output_dir(folder, config_name), OUTPUT_FILES.values(), inputs=inputs)
 
 
@@ -287,7 +294,7 @@ def _colour_text() -> str:
     """The imported cloud's colour scale for a message ("" where it shows no error)."""
     from ..scene.cloud_object import error_scale_um
 
-    top = error_scale_um(bpy.data.objects.get(models.CLOUD_NAME))
+    top = error_scale_um(models.cell_object(models.CLOUD_NAME))
     return "" if top is None else (f"; colours from 0 µm (blue) to {top:.1f} µm (red), seen in the viewport's "
                                    f"Material Preview or Rendered shading")
 
@@ -358,14 +365,13 @@ class _SteppedScan:
         pose, self._pose = self._pose, None
         context = bpy.context
         robot = models.find_robot(context.scene)
+        if robot is not None:
+            drop_scan_motion(robot)  # the scan's keyframed motion would pull it back
         if pose is not None and robot is not None and robot.get("robot_name") == pose[0]:
-            if robot.animation_data is not None:  # the scan's keyframed motion would pull it back
-                robot.animation_data_clear()
             rig.set_joints(robot, pose[1])
         table = models.cell_object("Turntable")
         if table is not None:
-            if table.animation_data is not None:
-                table.animation_data_clear()
+            drop_scan_motion(table)  # (an artist's own animation of it comes back)
             table.rotation_euler[2] = context.scene.scanner.table_angle
 
     def _complete(self, context):
@@ -450,9 +456,12 @@ def _import_result(context, scanner, result) -> None:
     """The scan's cloud into the scene (in place of the last one), where the panel asks for it."""
     from ..scene.cloud_object import import_cloud
 
-    old = bpy.data.objects.get(models.CLOUD_NAME)
+    old = models.cell_object(models.CLOUD_NAME)
     if old is not None:
+        mesh = old.data
         bpy.data.objects.remove(old, do_unlink=True)
+        if mesh is not None and mesh.users == 0:
+            bpy.data.meshes.remove(mesh)
     if context.scene.scanner.import_cloud and scanner.scene_cell is not None:
         import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
                      result.error_um, name=models.CLOUD_NAME, on_part=result.on_part, on_fixture=result.on_fixture)
@@ -539,7 +548,7 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
 
     @classmethod
     def poll(cls, context):
-        if bpy.data.objects.get(models.CLOUD_NAME) is None:
+        if models.cell_object(models.CLOUD_NAME) is None:
             cls.poll_message_set("There is no scanned cloud in the scene: Scan first")
             return False
         return True
@@ -554,12 +563,13 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
         try:
             if not self.filepath.strip():
                 raise InputError("export needs a file name, and none was given")
+            _check_blend_relative(self.filepath, "file", "path")
             if os.path.isdir(given):
                 raise InputError(f"export needs a file name, got the folder {given}")
             if not os.path.isdir(folder):  # a file dialog's export goes into a folder that is there
                 raise InputError(f"{folder} is a file, not a folder" if os.path.exists(folder) else
                                  f"the folder {folder} does not exist (create it first)")
-            cloud = cloud_from_object(bpy.data.objects[models.CLOUD_NAME])
+            cloud = cloud_from_object(models.cell_object(models.CLOUD_NAME))
             path = save_ply(cloud, target)
         except (ScannerError, OSError) as exc:
             # The file's name, never the temporary one it is written to first.

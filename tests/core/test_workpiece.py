@@ -1,5 +1,6 @@
 """Workpieces: one loader for every format, built-in shapes with exact truth, bad meshes refused."""
 
+import math
 import re
 
 import numpy as np
@@ -395,3 +396,45 @@ def test_closed_bodies_reaching_into_each_other_are_noted_with_the_share_hidden(
     post.apply_translation([40.0, 0.0, 0.0])
     trimesh.util.concatenate([slab, post]).export(tmp_path / "apart.stl")
     assert load_workpiece(tmp_path / "apart.stl").notes == ()
+
+
+def _hex_prism_ply(path, order="<", cut=0, uv=True):
+    """A hexagonal prism (radius 10 mm, 30 mm high) as a binary PLY with two hexagons and six
+    quads, as Blender's PLY exporter writes n-gons (with its UV properties), by hand."""
+    import struct
+
+    ring = [(10.0 * math.cos(k * math.pi / 3), 10.0 * math.sin(k * math.pi / 3)) for k in range(6)]
+    verts = [(x, y, 0.0) for x, y in ring] + [(x, y, 30.0) for x, y in ring]
+    faces = [list(range(5, -1, -1)), list(range(6, 12))] + [[k, (k + 1) % 6, 6 + (k + 1) % 6, 6 + k] for k in range(6)]
+    fmt = "little" if order == "<" else "big"
+    head = (f"ply\nformat binary_{fmt}_endian 1.0\ncomment by hand\nelement vertex {len(verts)}\n"
+            "property float x\nproperty float y\nproperty float z\n"
+            + ("property float s\nproperty float t\n" if uv else "")
+            + f"element face {len(faces)}\nproperty list uchar uint vertex_indices\nend_header\n").encode()
+    body = b"".join(struct.pack(order + ("5f" if uv else "3f"), *v, *((0.5, 0.5) if uv else ())) for v in verts)
+    body += b"".join(struct.pack(order + "B", len(f)) + struct.pack(order + f"{len(f)}I", *f) for f in faces)
+    data = head + body
+    path.write_bytes(data[:len(data) - cut])
+    return verts, faces
+
+
+@pytest.mark.parametrize("order", ["<", ">"])
+def test_a_binary_ply_with_n_gons_as_blenders_exporter_writes_it_loads(tmp_path, order):
+    verts, faces = _hex_prism_ply(tmp_path / "prism.ply", order)
+    wp = load_workpiece(tmp_path / "prism.ply")
+    hexagon = 1.5 * math.sqrt(3.0) * 10.0 ** 2
+    assert wp.mesh.is_watertight and wp.mesh.volume == pytest.approx(hexagon * 30.0, rel=1e-6)
+    # The same polygons as ASCII, which trimesh reads itself: the same triangles.
+    text = ("ply\nformat ascii 1.0\nelement vertex 12\nproperty float x\nproperty float y\nproperty float z\n"
+            "element face 8\nproperty list uchar int vertex_indices\nend_header\n"
+            + "".join(f"{x} {y} {z}\n" for x, y, z in verts) + "".join(f"{len(f)} {' '.join(map(str, f))}\n" for f in faces))
+    (tmp_path / "prism_ascii.ply").write_text(text)
+    ascii_wp = load_workpiece(tmp_path / "prism_ascii.ply")
+    np.testing.assert_allclose(wp.mesh.vertices, ascii_wp.mesh.vertices, atol=1e-5)
+    np.testing.assert_array_equal(wp.mesh.faces, ascii_wp.mesh.faces)
+
+
+def test_a_binary_ply_with_n_gons_cut_short_says_so(tmp_path):
+    _hex_prism_ply(tmp_path / "cut.ply", cut=7)
+    with pytest.raises(InputError, match=r"cut.ply: the binary PLY holds fewer bytes than its header announces"):
+        load_workpiece(tmp_path / "cut.ply")

@@ -12,6 +12,7 @@ from addon.core.config.rigs import load_robot
 from addon.core.config.rigs import load_probe
 from addon.core.kinematics.turntable import Turntable
 from addon.scene import rig
+from addon.scene.ownership import mark
 from addon.scene.units import from_blender
 
 
@@ -123,7 +124,8 @@ def _settings_of(scene):
                 samples=scene.cycles.samples, threshold=round(scene.cycles.light_sampling_threshold, 6),
                 view=scene.view_settings.view_transform, world=scene.world.name,
                 sky=(round(bg.inputs["Strength"].default_value, 6), tuple(round(c, 6) for c in bg.inputs["Color"].default_value)),
-                camera=scene.camera.name, frame=scene.frame_current)
+                camera=scene.camera.name, frame=scene.frame_current,
+                white_balance=(scene.view_settings.white_balance_temperature, scene.view_settings.white_balance_tint))
 
 
 def test_panel_renders_leave_the_scenes_own_render_settings_as_they_were(panel, tmp_path):
@@ -132,7 +134,8 @@ def test_panel_renders_leave_the_scenes_own_render_settings_as_they_were(panel, 
     bpy.ops.scanner.build_cell()
     panel.scanner.target_location = (0.0, 0.0, 210.0)
     bpy.ops.scanner.go()
-    assert bpy.ops.scanner.render_views() == {"FINISHED"}
+    for _ in range(3):  # a hair's drift a render (the white balance's) would add up
+        assert bpy.ops.scanner.render_views() == {"FINISHED"}
     assert _settings_of(panel) == before
     s = panel.scanner
     s.scan_config, s.output_dir = "step_block", str(tmp_path)
@@ -507,6 +510,58 @@ def test_export_ply_where_it_cannot_be_written_says_so_in_one_line(panel, tmp_pa
         assert "Traceback" not in str(caught.value)
     assert bpy.ops.scanner.export_ply(filepath=str(tmp_path / "cloud")) == {"FINISHED"}
     assert (tmp_path / "cloud.ply").is_file()  # the extension added, as Blender's exporters do
+    assert not bpy.data.filepath
+    with pytest.raises(RuntimeError, match="relative to the .blend file, which is not saved yet"):
+        bpy.ops.scanner.export_ply(filepath="//beside.ply")  # it would land wherever Blender started
+
+
+def _world_position(obj):
+    bpy.context.view_layer.update()
+    return np.array(obj.matrix_world.translation)
+
+
+def test_the_artists_objects_and_names_survive_the_cells_builds_and_scans(panel, tmp_path):
+    """The cell finds its objects by what they are, not by name, and keeps the artist's: an
+    object of theirs named "Turntable" or "Robot", one filed in the cell's collection, a prop
+    parented to the turntable (where it was), the turntable's own animation; and a rebuild
+    leaves no data behind without users."""
+    from addon.scene.cell import cell_object
+
+    for name in ("Turntable", "Robot"):
+        panel.collection.objects.link(bpy.data.objects.new(name, None))
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    table, robot = cell_object("Turntable"), cell_object("Robot")
+    assert table.name == "Turntable.001" and robot.name == "Robot.001" and robot.type == "ARMATURE"
+    panel.scanner.target_location = (0.0, 0.0, 210.0)
+    assert bpy.ops.scanner.go() == {"FINISHED"}          # the panel's own robot, found under another name
+    assert bpy.ops.scanner.render_views() == {"FINISHED"}
+    prop = bpy.data.objects.new("Prop", bpy.data.meshes.new("Prop"))
+    panel.collection.objects.link(prop)
+    prop.parent = table
+    prop.location = (0.1, 0.0, 0.02)
+    where = _world_position(prop)
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    bpy.data.collections["Scanner Cell"].objects.link(lamp)  # filed with the cell only
+    table.keyframe_insert("rotation_euler", index=2, frame=1)
+    table.rotation_euler[2] = math.tau
+    table.keyframe_insert("rotation_euler", index=2, frame=120)
+    spin = table.animation_data.action
+    s = panel.scanner
+    s.scan_config, s.scan_engine, s.scan_frames, s.output_dir = "CELL", "raycast", "0:4", str(tmp_path)
+    assert bpy.ops.scanner.scan() == {"FINISHED"}        # rebuilds the cell built here, then scans
+    table = cell_object("Turntable")
+    assert prop.parent == table and np.allclose(_world_position(prop), where, atol=1e-6)  # (float32)
+    assert table.animation_data.action == spin
+    panel.frame_set(60)  # the artist's spin plays on the new turntable
+    assert 2.0 < table.rotation_euler[2] < 4.5
+    panel.frame_set(1)
+    assert [a.name for a in bpy.data.actions] == [spin.name]  # the scan's motion gone with it
+    assert lamp.name in panel.objects and lamp.users_collection  # kept, in the scene
+    assert all(bpy.data.objects.get(n) is not None and bpy.data.objects[n].type == "EMPTY" for n in ("Turntable", "Robot"))
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    unused = [d.name for coll in (bpy.data.meshes, bpy.data.cameras, bpy.data.lights, bpy.data.armatures,
+                                   bpy.data.materials, bpy.data.actions) for d in coll if d.users == 0]
+    assert unused == [], unused
 
 
 def test_while_a_scan_runs_the_operators_that_would_pull_the_scene_from_under_it_are_greyed_out(panel):
@@ -781,10 +836,11 @@ def test_a_mesh_file_rests_on_the_table_and_bad_values_from_a_script_are_refused
     for target, words in (("", "needs a file name, and none was given"),
                           (str(tmp_path / "a_file" / "x.ply"), "a_file is a file, not a folder"),
                           (str(tmp_path / "nowhere" / "x.ply"), "the folder .*nowhere does not exist")):
-        bpy.data.objects.new("Scan cloud", bpy.data.meshes.new("Scan cloud"))  # something to export
+        cloud = mark(bpy.data.objects.new("Scan cloud", bpy.data.meshes.new("Scan cloud")), "Scan cloud")
+        bpy.data.collections["Scanner Cell"].objects.link(cloud)  # something to export, where a scan puts it
         with pytest.raises(RuntimeError, match=words) as caught:
             bpy.ops.scanner.export_ply(filepath=target)
         assert ".part" not in str(caught.value)
-        bpy.data.objects.remove(bpy.data.objects["Scan cloud"])
+        bpy.data.objects.remove(cloud)
     assert not (tmp_path / "nowhere").exists()
 

@@ -20,6 +20,7 @@ import numpy as np
 import trimesh
 
 from ..errors import InputError
+from .ply_polygons import read_polygon_ply
 from .shapes import Cylinder, PlanePatch, Sphere, StepBlock
 from ..kinematics.transforms import check_transform, rot_z, trans
 
@@ -331,7 +332,11 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         if _text_has_non_finite(path):  # a text reader stops at "nan" with words of its own
             raise InputError(f"{path}: its coordinates include NaN or infinite values; a workpiece needs finite "
                              f"ones") from None
-        raise InputError(_misnamed(path) or f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
+        # A binary PLY mixing polygon sizes (Blender's exporter's default), which trimesh cannot read.
+        polygons = read_polygon_ply(path) if path.suffix.lower() == ".ply" and not _misnamed(path) else None
+        if polygons is None:
+            raise InputError(_misnamed(path) or f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
+        mesh = trimesh.Trimesh(*polygons, process=False)
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         points = _point_count(path)
         if points:
