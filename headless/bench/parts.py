@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=whole(), default=60, help="frames per table turn (default 60; the sweep has half)")
     parser.add_argument("--only", default="", help="scan only the parts whose name contains this text (several: comma-separated)")
     parser.add_argument("--probe", default="default", help="probe rig (default: default; hires: the 1280-row probe)")
-    parser.add_argument("--readme", action="store_true", help="put the table and the picture into docs/accuracy.md")
+    parser.add_argument("--readme", action="store_true", help="put the table and the picture into the README (the default probe) or docs/accuracy.md (another)")
     parser.set_defaults(run=run)
 
 
