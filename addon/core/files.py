@@ -44,12 +44,15 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
     return path
 
 
+STAGING_PREFIX = ".staging-"  # then the writing process's id: write_set's folder for files not yet in place
+
+
 def write_set(folder: str | Path, contents: dict[str, bytes]) -> dict[str, Path]:
     """Write files {name: bytes} into ``folder`` so that all of them appear or none: each is
     written into a staging folder inside ``folder`` first, then all are renamed into place."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=folder))
+    staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=folder))
     moved: list[Path] = []
     try:
         for name, data in contents.items():
@@ -229,6 +232,10 @@ class OutputLock:
             self._beat.set()
             self._beat = None
         if self.held:
+            # A stop at once (a second Ctrl-C) while the results were being written ends the
+            # process before write_set can clear its staging folder: the lock's owner clears it.
+            for staging in self.folder.glob(f"{STAGING_PREFIX}{os.getpid()}-*"):
+                shutil.rmtree(staging, ignore_errors=True)
             self.path.unlink(missing_ok=True)
             self.held = False
         if self.made_folder:

@@ -30,6 +30,29 @@ def test_write_set_leaves_nothing_when_one_file_cannot_be_placed(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == ["b.txt"]  # a.bin taken out again, no staging
 
 
+def test_a_stop_at_once_while_the_files_are_written_leaves_no_staging_folder(tmp_path):
+    """A second Ctrl-C while the results are written runs the command's clean-ups (the lock's
+    release) and ends the process there, inside write_set: the lock's owner clears the
+    staging folder write_set had made, and no one else's."""
+    out = tmp_path / "out"
+    out.mkdir()
+    theirs = out / ".staging-999999-xyz"  # another writer's (a farm shard's): left alone
+    theirs.mkdir()
+    script = (
+        "import os, sys\n"
+        f"sys.path.insert(0, {str(Path(__file__).resolve().parents[2])!r})\n"
+        "from addon.core.files import OutputLock, write_set\n"
+        f"lock = OutputLock({str(out)!r}).acquire()\n"
+        "def stop_at_once(*a):\n"
+        "    lock.release()\n"   # what the stop handler's clean-ups do, then it leaves
+        "    os._exit(130)\n"
+        "os.replace = stop_at_once\n"
+        "write_set(lock.folder, {'cloud.ply': b'x' * 1000, 'report.json': b'{}'})\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 130, done.stderr
+    assert sorted(p.name for p in out.iterdir()) == [theirs.name]
+
+
 def test_output_folder_checks_name_the_problem(tmp_path):
     (tmp_path / "file").write_text("x")
     with pytest.raises(InputError, match="is a file"):
