@@ -42,11 +42,12 @@ RESULTS = "Scan results"
 CELL_NAME = "Scanner Cell"
 
 
-def cell_object(name: str, cell_name: str = CELL_NAME):
+def cell_object(name: str, cell_name: str = CELL_NAME, scene=None):
     """The built cell's object that is ``name`` ("Robot", "Turntable", ...: its role, whatever
-    Blender named it), or None."""
+    Blender named it), or None; with ``scene``, None too where the cell is not in that scene
+    (a file holds one cell: Build Cell in another scene takes it there)."""
     root = bpy.data.collections.get(cell_name)
-    if root is None:
+    if root is None or (scene is not None and root.name not in scene.collection.children):
         return None
     return next((o for o in own_objects(root) if role_of(o) == name), None)
 

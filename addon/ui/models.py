@@ -104,7 +104,8 @@ def scene_cell(context):
 
 
 def find_robot(scene):
-    return cell_object("Robot")
+    """The cell's robot where the cell is built in ``scene``, else None."""
+    return cell_object("Robot", scene=scene)
 
 
 _CLEARANCE_MODELS: dict = {}  # the panel's collision model per robot, probe and workpiece choice
@@ -134,7 +135,7 @@ def clearance_readout(context):
     from ..scene.rig import get_joints
 
     s = context.scene.scanner
-    robot_obj, table_obj = find_robot(context.scene), cell_object("Turntable")
+    robot_obj, table_obj = find_robot(context.scene), cell_object("Turntable", scene=context.scene)
     if robot_obj is None or table_obj is None:
         return None
     try:

@@ -31,8 +31,14 @@ def idle() -> bool:
     return not _SCAN_RUNNING[0]
 
 
-def _cell_built(context) -> bool:
-    return bpy.data.collections.get(models.CELL_NAME) is not None and models.find_robot(context.scene) is not None
+def _cell_built(context, operator=None) -> bool:
+    """Whether the cell is built in this scene; where not, ``operator``'s poll says so."""
+    built = models.find_robot(context.scene) is not None
+    if not built and operator is not None:
+        elsewhere = bpy.data.collections.get(models.CELL_NAME) is not None
+        operator.poll_message_set("The cell is built in another scene: Build Cell here takes it here" if elsewhere
+                                  else "Build the cell first")
+    return built
 
 
 class SCANNER_OT_build_cell(bpy.types.Operator):
@@ -96,7 +102,7 @@ class SCANNER_OT_go(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return idle() and _cell_built(context)
+        return idle() and _cell_built(context, cls)
 
     def execute(self, context):
         from ..core.kinematics.euler import pose_from_xyz_yzz
@@ -145,7 +151,7 @@ class SCANNER_OT_render_views(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return idle() and _cell_built(context)
+        return idle() and _cell_built(context, cls)
 
     def execute(self, context):
         from ..core.config.render import with_sensor

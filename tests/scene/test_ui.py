@@ -844,3 +844,38 @@ def test_a_mesh_file_rests_on_the_table_and_bad_values_from_a_script_are_refused
         bpy.data.objects.remove(cloud)
     assert not (tmp_path / "nowhere").exists()
 
+
+
+def test_a_cell_built_in_one_scene_is_not_taken_for_built_in_another(panel):
+    from addon.scene.cell import cell_object
+
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    other = bpy.data.scenes.new("Shot 2")
+    with _in_scene(other):
+        assert not bpy.ops.scanner.go.poll() and not bpy.ops.scanner.render_views.poll()
+        with pytest.raises(RuntimeError, match="The cell is built in another scene: Build Cell here takes it here"):
+            bpy.ops.scanner.render_views()
+        assert cell_object("Robot", scene=other) is None and cell_object("Robot") is not None
+        assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+        assert cell_object("Robot", scene=other) is not None and bpy.ops.scanner.render_views.poll()
+    assert cell_object("Robot", scene=panel) is None  # one cell a file: it went to the other scene
+
+
+def _in_scene(scene):
+    """The window showing ``scene`` meanwhile (as the artist's scene switcher does), or the
+    context overridden where bpy has no window."""
+    from contextlib import contextmanager
+
+    window = bpy.context.window
+    if window is None:
+        return bpy.context.temp_override(scene=scene)
+
+    @contextmanager
+    def shown():
+        before = window.scene
+        window.scene = scene
+        try:
+            yield
+        finally:
+            window.scene = before
+    return shown()
