@@ -9,6 +9,7 @@ mount, which becomes the robot's tool).
 
 from __future__ import annotations
 
+import json
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
@@ -40,6 +41,38 @@ RESULTS = "Scan results"
 
 
 CELL_NAME = "Scanner Cell"
+
+
+BUILT_FROM_KEY = "scanner_built_from"  # on the cell's collection: what it was built from (built_from)
+_SAMPLE_JOINTS = np.array([[0.0] * 6, [0.3, -0.4, 0.5, -0.6, 0.7, -0.8]])
+
+
+def built_from(robot, probe: Probe, workpiece: Workpiece | None) -> dict:
+    """What tells one cell from another, as plain values: the robot's name and its flange
+    at two joint vectors (a robot file edited under the same name differs), the probe's
+    optics, sensor, line and mount, the part's source and size. The panel compares the
+    cell it describes with the one in the scene before it moves or renders that one."""
+    flange = np.array([robot.link_frames(q)[-1] for q in _SAMPLE_JOINTS])  # without the tool: the probe's part
+    out = {"robot": robot.name, "robot_poses": flange,
+           "probe": [probe.name, probe.a_mm, probe.b_mm, probe.phi_rad, probe.gamma_rad, probe.rows_px,
+                     probe.cols_px, probe.line_width_mm, probe.mount],
+           "workpiece": None if workpiece is None else [workpiece.source, workpiece.mesh.bounds]}
+    return json.loads(json.dumps(_six_figures(out)))  # as it reads back from the file: lists, floats
+
+
+def _six_figures(value):
+    """Numbers to six significant figures, arrays as lists, within dicts and lists: the panel's
+    fields hold single precision, so a probe read from its rig file and the same probe through
+    the fields differ in the eighth figure."""
+    if isinstance(value, dict):
+        return {k: _six_figures(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return _six_figures(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return [_six_figures(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(f"{float(value):.6g}") + 0.0  # (+ 0.0: no -0.0)
+    return value
 
 
 def cell_object(name: str, cell_name: str = CELL_NAME, scene=None):
@@ -390,6 +423,7 @@ def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Work
         add_fixture(table_col, fixture, table)
     for obj in root.all_objects:
         mark(obj, built_role(obj.name, names_before))
+    root[BUILT_FROM_KEY] = json.dumps(built_from(cell.robot, probe, workpiece))
     bpy.context.view_layer.update()
     if kept or motions:
         roles = {role_of(o): o for o in own_objects(root)}

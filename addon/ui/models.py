@@ -10,7 +10,7 @@ from pathlib import Path
 import bpy
 
 from ..core.kinematics.cell import Cell
-from ..core.errors import InputError
+from ..core.errors import InputError, ScannerError
 from ..core.config.rigs import load_robot
 from ..core.optics.probe import Probe
 from ..core.config.rigs import load_probe
@@ -99,7 +99,7 @@ def scene_cell(context):
     s = context.scene.scanner
     try:
         return SceneCell.attach(context.scene, cell_from(s), probe_from(s), None, CELL_NAME)
-    except InputError:
+    except ScannerError:  # the panel's choices cannot be read (a robot file gone, an impossible probe)
         return None
 
 
@@ -115,8 +115,7 @@ def collision_model(s):
     """The collision model of the panel's robot, probe and workpiece (built once per choice)."""
     from ..core.safety import CollisionModel, Safety
 
-    key = (s.robot, s.robot_file, s.probe, s.probe_file, s.probe_a, s.probe_b, s.probe_phi, s.probe_gamma,
-           s.workpiece, s.workpiece_file, s.workpiece_scale)
+    key = _choices_key(s)
     model = _CLEARANCE_MODELS.get(key)
     if model is None:
         probe = probe_from(s)
@@ -125,6 +124,61 @@ def collision_model(s):
         _CLEARANCE_MODELS.clear()
         _CLEARANCE_MODELS[key] = model
     return model
+
+
+_DESCRIBED: dict = {}  # what the panel's choices build (scene.cell.built_from), per choice
+
+
+def cell_mismatch(context) -> str | None:
+    """How the cell built in the scene differs from the one the panel's robot, probe and
+    workpiece choices describe ("the robot: built Adept Viper s650, chosen Unimation PUMA
+    560"), or None where they agree, no cell is built here, or the cell predates the record
+    (a file saved by an earlier version). Go, the probe views and the clearance readout act
+    on the built cell, so they ask first."""
+    import json
+
+    from ..scene.cell import BUILT_FROM_KEY, built_from
+
+    root = bpy.data.collections.get(CELL_NAME)
+    if root is None or root.name not in context.scene.collection.children or BUILT_FROM_KEY not in root:
+        return None
+    s = context.scene.scanner
+    key = _choices_key(s) + (s.probe_rows, s.probe_cols)
+    described = _DESCRIBED.get(key)
+    if described is None:
+        described = built_from(robot_from(s), probe_from(s), workpiece_from(s))
+        _DESCRIBED.clear()
+        _DESCRIBED[key] = described
+    built = json.loads(root[BUILT_FROM_KEY])
+    differ = []
+    for what, detail in (("robot", "its joints or links"), ("probe", "its optics, sensor or mount"),
+                         ("workpiece", "its size")):
+        same = built.get(what) == described[what] and (what != "robot"
+                                                       or built.get("robot_poses") == described["robot_poses"])
+        if same:
+            continue
+        was, now = _name_of(built.get(what)), _name_of(described[what])
+        differ.append(f"the {what}: built {was}, chosen {now}" if was != now else
+                      f"the {what} {now}: {detail} differ from the built one's")
+    return "; ".join(differ) or None
+
+
+def _name_of(entry) -> str:
+    """A built_from entry in words: the name it leads with."""
+    if entry is None:
+        return "none"
+    name = entry if isinstance(entry, str) else entry[0]
+    return str(name)
+
+
+def _choices_key(s) -> tuple:
+    return (s.robot, s.robot_file, s.probe, s.probe_file, s.probe_a, s.probe_b, s.probe_phi, s.probe_gamma,
+            s.workpiece, s.workpiece_file, s.workpiece_scale)
+
+
+def stale_cell_message(mismatch: str) -> str:
+    return (f"The panel no longer describes the built cell ({mismatch}): press Build Cell to build the one it "
+            f"describes")
 
 
 def clearance_readout(context):
@@ -138,6 +192,14 @@ def clearance_readout(context):
     robot_obj, table_obj = find_robot(context.scene), cell_object("Turntable", scene=context.scene)
     if robot_obj is None or table_obj is None:
         return None
+    try:
+        if cell_mismatch(context) is not None:  # the panel's collision model is not the built cell's
+            return None
+        outside = collision_model(s).robot.limit_violations(get_joints(robot_obj))
+    except (ScannerError, OSError, ValueError):
+        return None
+    if outside:  # (set from a script: the sliders keep the limits) no clearance worth giving there
+        return float("nan"), "; ".join(outside), "its limits", True
     try:
         found = collision_model(s).clearance_at(get_joints(robot_obj), float(table_obj.rotation_euler[2]))
     except (ScannerError, OSError, ValueError):

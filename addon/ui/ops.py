@@ -112,9 +112,16 @@ class SCANNER_OT_go(bpy.types.Operator):
         s = context.scene.scanner
         robot_obj = models.find_robot(context.scene)
         try:
+            mismatch = models.cell_mismatch(context)
+            if mismatch is not None:  # the IK and the checks would be the panel's robot's, the arm another's
+                raise InputError(models.stale_cell_message(mismatch))
             cell = models.cell_from(s)
             probe = models.probe_from(s)
             robot = cell.robot.with_tool(probe.mount)
+            outside = robot.limit_violations(rig.get_joints(robot_obj))
+            if outside:  # set from a script (the sliders keep the limits): no motion starts there
+                raise InputError(f"the robot stands outside its joint limits ({'; '.join(outside)}): set the joints "
+                                 f"within them first (the Joints sliders)")
             target = pose_from_xyz_yzz(np.array(s.target_location), np.array(s.target_rotation))
             tool = pose_from_xyz_yzz(np.array(s.tool_location), np.array(s.tool_rotation))
             probe_target = target @ rigid_inverse(tool)  # the tool point sits at `tool` in the probe frame
@@ -158,27 +165,30 @@ class SCANNER_OT_render_views(bpy.types.Operator):
         from ..core.config.render import RenderOptions
 
         s = context.scene.scanner
-        sc = models.scene_cell(context)
-        if sc is None:
-            self.report({"ERROR"}, "Build the cell first (the probe settings may be invalid)")
-            return {"CANCELLED"}
         try:
+            mismatch = models.cell_mismatch(context)
+            if mismatch is not None:
+                raise InputError(models.stale_cell_message(mismatch))
+            sc = models.scene_cell(context)
+            if sc is None:
+                raise InputError("Build the cell first (the probe settings may be invalid)")
             models.check_table_angle(s)
         except ScannerError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        try:
-            sensor = models.sensor_from(s)
-        except ScannerError as exc:
-            self.report({"ERROR"}, f"Sensor realism: {exc}")
-            return {"CANCELLED"}
         frame = context.scene.frame_current
         engine = "eevee" if sc.laser_model == "spot" else "cycles"  # the spots are Eevee's line
-        settings = with_sensor(RenderOptions(engine=engine, ambient=s.ambient, samples=4, filter_width_px=1.0), sensor)
-        with kept_render_settings(context.scene):  # the scene's own render settings come back
-            images = sc.render(frame, frame, settings)[0]
-        if sensor.changes_images:
-            images = [sensor.apply(img, sc.probe, camera, frame) for camera, img in enumerate(images)]
+        try:
+            sensor = models.sensor_from(s)
+            settings = with_sensor(RenderOptions(engine=engine, ambient=s.ambient, samples=4, filter_width_px=1.0),
+                                   sensor)
+            with kept_render_settings(context.scene):  # the scene's own render settings come back
+                images = sc.render(frame, frame, settings)[0]
+            if sensor.changes_images:
+                images = [sensor.apply(img, sc.probe, camera, frame) for camera, img in enumerate(images)]
+        except ScannerError as exc:  # the sensor's or the light's settings (a focus inside the lens, ...)
+            self.report({"ERROR"}, f"Sensor realism: {exc}")
+            return {"CANCELLED"}
         for camera, img in enumerate(images):
             name = f"Probe camera {camera}"
             H, W = img.shape[:2]
@@ -225,7 +235,7 @@ def _panel_config(context, config: str):
 
 def _cell_config(s):
     """The Cell panel's own cell as a scan config: its robot, probe (with the edited optics),
-    workpiece (with its scale) and material, the path laid out for the part from its bounding
+    workpiece (with its scale), material and laser, the path laid out for the part from its bounding
     box at the middle of the probe's range (core.kinematics.path.around_part), less the frames
     that would see nothing in range; the rest as the demo config has it."""
     from dataclasses import replace
@@ -236,9 +246,11 @@ def _cell_config(s):
 
     base = load_scan_config("demo")
     robot, probe, wp = models.robot_from(s), models.probe_from(s), models.workpiece_from(s)
+    # The cell's own laser (the spots are Eevee's line); the Scan box's engine may still change it.
+    render = replace(base.render, laser=s.laser, engine="eevee" if s.laser == "spot" else base.render.engine)
     return frames_in_range(replace(
         base, name=f"The cell built here, {wp.name}", source="", robot=robot, probe=probe, workpiece=wp,
-        material=s.material, roughness=s.roughness, fixtures=(),
+        material=s.material, roughness=s.roughness, fixtures=(), render=render,
         q_start=base.q_start if robot.name == base.robot.name else None,
         waypoints=around_part(wp.mesh, base.table, standoff_mm=0.5 * sum(probe.z_range_mm))))
 
@@ -487,6 +499,21 @@ def _output_property(what: str):
                           description=f"Folder for {what} (empty: the panel's)")
 
 
+def _with_panel_sensor(context, cfg, config_given: str):
+    """``cfg`` with the probe panel's sensor, material and light where the Scan box's Sensor
+    says "From the probe panel" and no config was given to the operator itself."""
+    s = context.scene.scanner
+    if s.scan_sensor == "PANEL" and not config_given:
+        return cfg.with_realism(models.sensor_from(s), s.material, s.roughness, s.ambient)
+    return cfg
+
+
+def _swapped_text(op, report: dict) -> str:
+    """The message's note where the scan took the config's cell in place of the Scanner Cell."""
+    return (f"; the cell is the scan config's ({report['config']['name']}): choose The Cell Built Here to scan the "
+            f"Scanner Cell's own" if op._swapped else "")
+
+
 class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
     """Run the chosen scan: render, detect, triangulate, and bring the cloud into the scene (Esc cancels)"""
 
@@ -511,9 +538,7 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
 
         s = context.scene.scanner
         cfg = _panel_config(context, self.config).with_overrides(frames=parse_frames(self.frames or s.scan_frames))
-        if s.scan_sensor == "PANEL" and not self.config:
-            cfg = cfg.with_realism(models.sensor_from(s), s.material, s.roughness, s.ambient)
-        return _with_engine(context, cfg, self.engine)
+        return _with_engine(context, _with_panel_sensor(context, cfg, self.config), self.engine)
 
     def _open(self, context):
         from ..scanner import Scanner
@@ -530,17 +555,19 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
 
     def _finish(self, context, scanner, _):
         result = scanner.result(self._folder)
-        if not result.report["points"]:  # nothing to bring in: the scene's cloud stays as it was
+        if not result.report["points"]:  # nothing to bring in
             codes = ", ".join(f"{k.lower()} {v}" for k, v in sorted(result.report["column_codes"].items()) if k != "OK")
-            self.report({"WARNING"}, f"Scanned 0 points: no sensor column gave one ({codes or 'no columns'}); the "
-                                     f"scene's cloud is left as it was; files in {result.files['cloud'].parent}")
+            # (A scan that built its cell afresh took the old cell's cloud with it.)
+            kept = ("the scene's cloud is left as it was" if models.cell_object(models.CLOUD_NAME) is not None
+                    else "no cloud is brought in")
+            self.report({"WARNING"}, f"Scanned 0 points: no sensor column gave one ({codes or 'no columns'}); {kept}; "
+                                     f"files in {result.files['cloud'].parent}")
             return {"FINISHED"}
         _import_result(context, scanner, result)
         warned = _report_warnings(self, result.report)
-        swapped = (f"; the cell is the scan config's ({result.report['config']['name']}): choose The Cell Built "
-                   f"Here to scan the Scanner Cell's own" if self._swapped else "")
         self.report({"INFO"}, f"Scanned {result.report['points']} points, {_error_text(result.report['error_um'])}; "
-                              f"files in {result.files['cloud'].parent}{_colour_text()}{warned}{swapped}")
+                              f"files in {result.files['cloud'].parent}{_colour_text()}{warned}"
+                              f"{_swapped_text(self, result.report)}")
         return {"FINISHED"}
 
 
@@ -646,7 +673,8 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
         from ..scanner import Scanner
 
         s = context.scene.scanner
-        cfg = _with_engine(context, _panel_config(context, self.config), self.engine)
+        cfg = _with_engine(context, _with_panel_sensor(context, _panel_config(context, self.config), self.config),
+                           self.engine)
         self._budget = self.max_profiles or s.adaptive_budget or cfg.adaptive.max_profiles
         self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, f"{cfg.name} adaptive",
                                        cfg.input_files())
@@ -669,7 +697,7 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
         warned = _report_warnings(self, r)
         self.report({"INFO"}, f"Adaptive scan: {views}, {r['frames']} profiles, {r['points']} points, "
                               f"{_error_text(r['error_um'])}; files in {result.files['cloud'].parent}{_colour_text()}"
-                              f"{warned}")
+                              f"{warned}{_swapped_text(self, r)}")
         return {"FINISHED"}
 
 

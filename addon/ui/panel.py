@@ -46,12 +46,20 @@ class SCANNER_PT_joints(_ScannerPanel, bpy.types.Panel):
         col = self.layout.column(align=True)
         for k in range(1, 7):
             col.prop(robot, f'["q{k}"]', text=f"J{k}", slider=True)
+        try:
+            mismatch = models.cell_mismatch(context)
+        except ScannerError:
+            mismatch = None  # the choices cannot be read: their own boxes say why
+        if mismatch is not None:
+            self.layout.label(text="Build Cell again: the choices above changed", icon="ERROR")
+            return
         found = models.clearance_readout(context)
         if found is not None:
             distance, a, b, colliding = found
             row = self.layout.row()
             row.alert = colliding  # drawn in red
-            text = (f"Collision: {a} and {b}" if colliding and distance <= 0 else
+            text = (f"Outside {b}: {a}" if distance != distance else  # NaN: joints beyond their limits
+                    f"Collision: {a} and {b}" if colliding and distance <= 0 else
                     f"Too near: {a} {distance:.1f} mm from {b}" if colliding else
                     f"Clearance {distance:.1f} mm ({a} to {b})")
             row.label(text=text, icon="ERROR" if colliding else "CHECKMARK")

@@ -159,7 +159,7 @@ class ScannerSettings(bpy.types.PropertyGroup):
                                    description="Depth in focus along the camera axis (0: balanced over the "
                                                "probe's range)")
     sensor_seed: IntProperty(name="Seed", default=_SENSOR.seed, min=0, description="Noise and speckle seed")
-    ambient: FloatProperty(name="Ambient light", default=0.08, min=0.0, soft_max=1.0,
+    ambient: FloatProperty(name="Ambient light", default=0.08, min=0.0, max=100.0, soft_max=1.0,
                            description="Ambient light level in the probe views (fraction of the laser's full scale)")
     # -- table ------------------------------------------------------------------------
     table_angle: FloatProperty(name="Table angle", subtype="ANGLE", default=0.0, update=_table_angle_changed,

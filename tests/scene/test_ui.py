@@ -879,3 +879,57 @@ def _in_scene(scene):
         finally:
             window.scene = before
     return shown()
+
+
+def test_go_and_the_views_refuse_a_cell_the_panel_no_longer_describes(panel):
+    """Go solves with the panel's robot and probe and moves the built arm; the views render the
+    built cameras: once the choices change, both refuse until the cell is built again, and the
+    Joints box says so instead of a clearance for a cell that is not there."""
+    from addon.ui import models
+
+    s = panel.scanner
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    assert models.cell_mismatch(bpy.context) is None
+    robot = models.find_robot(panel)
+    before = list(rig.get_joints(robot))
+    s.robot = "puma560"
+    s.target_location = (20.0, -10.0, 150.0)
+    with pytest.raises(RuntimeError, match=r"no longer describes the built cell \(the robot: built Adept Viper s650, "
+                                           r"chosen Unimation PUMA 560\): press Build Cell"):
+        bpy.ops.scanner.go()
+    assert list(rig.get_joints(robot)) == before and models.clearance_readout(bpy.context) is None
+    s.robot = "adept_viper_s650"
+    s.probe_a = 55.0
+    with pytest.raises(RuntimeError, match="its optics, sensor or mount differ from the built one's"):
+        bpy.ops.scanner.render_views()
+    s.probe_a = 60.0
+    assert models.cell_mismatch(bpy.context) is None and bpy.ops.scanner.render_views() == {"FINISHED"}
+    robot["q1"] = 1000.0  # from a script: the sliders keep the limits
+    with pytest.raises(RuntimeError, match=r"outside its joint limits \(J1 = 57295.780° outside \[-170°, 170°\]\)"):
+        bpy.ops.scanner.go()
+    assert math.isnan(models.clearance_readout(bpy.context)[0])
+    robot["q1"] = 0.0
+    s.sensor_realistic, s.sensor_defocus, s.sensor_focus_mm = True, True, 1.0
+    with pytest.raises(RuntimeError, match=r"^Error: Sensor realism: defocus: \[sensor\] focus_mm 1 mm must lie "
+                                           r"beyond the lens's focal length") as caught:
+        bpy.ops.scanner.render_views()
+    assert "Traceback" not in str(caught.value)
+
+
+def test_the_cell_built_here_scans_with_the_cells_laser_and_adaptive_takes_the_panels_sensor(panel, tmp_path):
+    import json
+
+    from addon.ui import models
+
+    s = panel.scanner
+    s.laser = "slit"
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    s.scan_config, s.scan_engine, s.scan_frames, s.output_dir = "CELL", "cycles", "0:2", str(tmp_path)
+    assert bpy.ops.scanner.scan() == {"FINISHED"}
+    assert models.scene_cell(bpy.context).laser_model == "slit"  # the cell's own laser, not the demo's gobo
+    s.laser, s.scan_engine, s.adaptive_budget = "gobo", "raycast", 75
+    s.scan_sensor, s.sensor_realistic, s.sensor_noise = "PANEL", True, True
+    s.ambient = 0.0
+    assert bpy.ops.scanner.adaptive() == {"FINISHED"}
+    report = json.loads(next(tmp_path.rglob("*adaptive*/report.json")).read_text())
+    assert report["config"]["sensor"] == ["noise"]

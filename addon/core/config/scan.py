@@ -202,8 +202,8 @@ class ScanConfig:
             raise InputError(f"material {material!r} is not one of: {', '.join(MATERIALS)}")
         if roughness is not None and not 0.0 <= roughness <= 1.0:
             raise InputError(f"roughness must be in [0, 1], got {roughness}")
-        if ambient is not None and not 0.0 <= ambient <= 1e3:
-            raise InputError(f"ambient must be in [0, 1000], got {ambient}")
+        if ambient is not None and not 0.0 <= ambient <= 100.0:  # RenderOptions' range, as a config's
+            raise InputError(f"ambient must be in [0, 100], got {ambient}")
         detect = replace(self.detect, saturation=1.0) if sensor.clips else self.detect
         render = self.render if ambient is None else replace(self.render, ambient=float(ambient))
         return replace(self, sensor=sensor, detect=detect, render=render,
