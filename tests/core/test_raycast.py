@@ -6,6 +6,10 @@ Its agreement with Cycles, frame by frame, is tests/scene/test_raycast_engine.py
 """
 
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -242,3 +246,23 @@ def test_configs_refuse_raycast_with_light_transport(tmp_path):
     bad.write_text(text.replace('engine = "cycles"', 'engine = "raycast"\nbounces = 3'), encoding="utf-8")
     with pytest.raises(ConfigError, match="bounces"):
         load_scan_config(str(bad))
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is POSIX's")
+def test_a_forked_child_of_a_process_that_cast_rays_casts_too(tmp_path):
+    """The engine's thread pool is the process's: a child forked after it ran (a Gymnasium
+    AsyncVectorEnv's worker) inherits the pool without its threads, and hung in its first cast."""
+    script = (
+        "import os, sys\n"
+        f"sys.path.insert(0, {str(Path(__file__).resolve().parents[2])!r})\n"
+        "from addon.core.optics.raycast import _pool\n"
+        "assert _pool(2).submit(sum, [1, 2]).result() == 3\n"  # the parent's threads start
+        "pid = os.fork()\n"
+        "if pid == 0:\n"
+        "    try:\n"
+        "        os._exit(0 if _pool(2).submit(sum, [3, 4]).result(timeout=20) == 7 else 1)\n"
+        "    except Exception:\n"
+        "        os._exit(2)\n"
+        "os._exit(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, (done.returncode, done.stderr[-1000:])

@@ -279,6 +279,10 @@ def _pool(threads: int):
 
 
 _POOLS: dict = {}
+if hasattr(os, "register_at_fork"):
+    # A forked child (a Gymnasium AsyncVectorEnv's worker, a multiprocessing pool) inherits the
+    # executors but not their threads: work given to them never ran, and the child hung.
+    os.register_at_fork(after_in_child=_POOLS.clear)
 
 
 def cell_raycast_scene(workpiece_mesh: trimesh.Trimesh | None, surface: str = "grey",
