@@ -24,7 +24,7 @@ from ..core.kinematics.transforms import rigid_inverse
 from ..core.optics.probe import Probe
 from ..core.geometry.workpiece import Workpiece
 from . import rig
-from .animation import (SCAN_MOTION_KEY, keyframe_values, mark_scan_motion,
+from .animation import (ARTIST_ACTION_KEY, SCAN_MOTION_KEY, keyframe_values, mark_scan_motion,
                         set_aside_own_motion)
 from .cameras import add_probe_cameras, camera_to_world_cv
 from .laser import add_laser
@@ -349,7 +349,7 @@ def _own_motions(root: bpy.types.Collection) -> dict:
     of the same roles get them back."""
     out = {}
     for obj in own_objects(root):
-        action = obj.get("scanner_artist_action")
+        action = obj.get(ARTIST_ACTION_KEY)
         if action is None and obj.animation_data is not None:
             action = obj.animation_data.action
         if action is not None and not action.get(SCAN_MOTION_KEY):
