@@ -81,8 +81,33 @@ try:
     check(bpy.ops.scanner.render_views() == {"FINISHED"}, "scanner.render_views (Eevee) did not finish")
     out["eevee_views"] = views()
     bpy.context.scene.scanner.laser = "gobo"
-    out["step"] = "scan"
+    out["step"] = "an artist's prop on the turntable and its spin through a scan of the cell built here"
     s = bpy.context.scene.scanner
+    def turntable():
+        return next(o for o in bpy.data.collections["Scanner Cell"].all_objects
+                    if o.get("scanner_cell_role") == "Turntable")
+    table = turntable()
+    prop = bpy.data.objects.new("Prop", None)
+    bpy.context.scene.collection.objects.link(prop)
+    prop.parent = table
+    prop.location = (0.1, 0.0, 0.02)
+    table.keyframe_insert("rotation_euler", index=2, frame=1)
+    table.rotation_euler[2] = 6.283185
+    table.keyframe_insert("rotation_euler", index=2, frame=120)
+    spin = table.animation_data.action
+    bpy.context.view_layer.update()
+    where = prop.matrix_world.translation.copy()
+    s.scan_config, s.scan_engine, s.output_dir = "CELL", "raycast", str(Path(scans).parent / "cell_scans")
+    check(bpy.ops.scanner.scan(frames="0:3") == {"FINISHED"}, "scanner.scan of the cell built here did not finish")
+    bpy.context.view_layer.update()
+    check(prop.parent == turntable() and (prop.matrix_world.translation - where).length < 1e-6,
+          "the prop parented to the turntable lost its place")
+    check(turntable().animation_data is not None and turntable().animation_data.action == spin,
+          "the turntable lost the artist's animation")
+    turntable().animation_data_clear()
+    bpy.data.objects.remove(prop)
+    s.scan_engine = "CONFIG"
+    out["step"] = "scan"
     s.scan_config = "demo"
     s.output_dir = scans
     check(bpy.ops.scanner.scan(frames="0:120:12") == {"FINISHED"}, "scanner.scan did not finish")
