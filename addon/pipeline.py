@@ -148,15 +148,17 @@ class ScanRun:
             # at its own frame number in the path, as Cycles' motion-blur samples depend on the
             # frame's number (a shard keyed from frame 1 gave points up to 0.86 µm away).
             lo, hi = max(0, a - 1), min(total, b + 1)
-            keyed = self.sc.keyframe(self.plan.q[lo:hi], self.plan.table_rad[lo:hi], first_frame=lo + 1)
+            keyed = self.sc.keyframe(self.plan.q[lo:hi], self.plan.table_rad[lo:hi], first_frame=lo + 1,
+                                     **path_motion(config, total, lo, hi))
             self.frames = range(keyed.start + a - lo, keyed.start + b - lo)
         self.settings = replace(render_settings(config), threads=threads)
         self.timing["scene"] = time.perf_counter() - t
         self.n = b - a
         self.acc = CloudAccumulator()
         self.probe2table = config.cell.probe2table(self.plan.q[a:b], self.plan.table_rad[a:b])
-        self.band = Band(probe.rows_px, config.leave_out.band_margin_px, config.leave_out.chunk_frames,
-                          self.plan.predicted_rows[a:b])
+        # Rows around the line: the leave-out's margin, and what the sensor's optics spread beyond it.
+        self.margin = config.leave_out.band_margin_px + config.sensor.spread_px(probe)
+        self.band = Band(probe.rows_px, self.margin, config.leave_out.chunk_frames, self.plan.predicted_rows[a:b])
         self.stats = new_stats()
         self.t_render = self.t_detect = self.t_tri = 0.0
         self.done = 0
@@ -193,7 +195,7 @@ class ScanRun:
         if config.sensor.changes_images:
             # The sensor's noise lands on dark rows too, and the detector reads the noise off
             # rows away from the line: give it as many around the line as a Cycles band has.
-            pad = config.detect_params.window_px + config.leave_out.band_margin_px
+            pad = config.detect_params.window_px + self.margin
             frames = [_padded(pair, band, pad, config.probe.rows_px) for pair, band in frames]
         self.t_render += time.perf_counter() - t
         t = time.perf_counter()
@@ -224,7 +226,7 @@ class ScanRun:
         redo = []
         previous = self.previous_rows
         for i in range(size):
-            if needs_full_frame(lines[i], rows, previous, probe.rows_px, config.leave_out.band_margin_px):
+            if needs_full_frame(lines[i], rows, previous, probe.rows_px, self.margin):
                 redo.append(i)
             previous = [None if ln is None else ln.row for ln in lines[i]]
         if redo:
@@ -293,7 +295,11 @@ class ScanRun:
         if not sensor.changes_images:
             return pair
         row0 = 0 if rows is None else rows[0]
-        return [None if img is None else sensor.apply(img, self.config.probe, camera, index, row0)
+        # Each frame's noise and speckle are drawn for its number in the whole path: a scan of
+        # frames 5:10 gives frame 5 what the whole scan gives it, not frame 0's grain again.
+        numbers = self.config.path_frames
+        frame = int(numbers[index]) if numbers is not None and len(numbers) == len(self.plan.q) else index
+        return [None if img is None else sensor.apply(img, self.config.probe, camera, frame, row0)
                 for camera, img in enumerate(pair)]
 
     def finish(self, out_dir: str | Path | None) -> ScanResult:
@@ -327,6 +333,17 @@ def _padded(pair, band: tuple[int, int], pad: int, rows_px: int):
         big[band[0] - r0:band[1] - r0] = img
         out.append(big)
     return out, (r0, r1)
+
+
+def path_motion(config: ScanConfig, total: int, lo: int, hi: int) -> dict:
+    """What motion blur needs of frames lo..hi−1 of a ``total``-frame plan: each one's path
+    entry and its number in the whole path (a scan of every tenth frame blurs one frame's
+    motion, not ten's)."""
+    wp = config.waypoints
+    segments = wp.segment[lo:hi] if len(wp) == total else None
+    numbers = config.path_frames
+    path_frames = numbers[lo:hi] if numbers is not None and len(numbers) == total else None
+    return {"segments": segments, "path_frames": path_frames}
 
 
 def render_settings(config: ScanConfig) -> RenderOptions:

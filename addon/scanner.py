@@ -578,8 +578,13 @@ class Scanner:
             self._off_path |= own_step
             return [Profile(np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0), probe2table[i], q[i].copy(),
                             math.degrees(table_rad[i]), {}, first + i) for i in range(n)]
-        run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, np.zeros(n, int))), None, progress,
-                      plan=plan, **self._renderers())
+        # The configured path keeps its entries and frame numbers; a step of its own is one entry,
+        # numbered as its frames join this Scanner (the sensor's noise and the motion blur read both).
+        whole_path = not own_step and len(cfg.waypoints) == n
+        segment = cfg.waypoints.segment if whole_path else np.zeros(n, int)
+        numbers = cfg.path_frames if whole_path and cfg.path_frames is not None else np.arange(first, first + n)
+        run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, segment), path_frames=numbers), None,
+                      progress, plan=plan, **self._renderers())
         while not run.step():
             yield run.done, run.n
         yield run.done, run.n

@@ -32,7 +32,7 @@ from .materials import diffuse
 from .meshes import mesh_object
 from .ownership import built_role, mark, own_objects, role_of
 from ..core.config.render import RenderOptions, laser_engine_mismatch
-from .render import configure, opengl_device, render_animation
+from .render import EXPOSURE_KEY_FRAMES, configure, opengl_device, render_animation
 from .turntable import add_fixture, add_turntable, add_workpiece, set_table_angle
 from .units import from_blender
 
@@ -132,8 +132,12 @@ class SceneCell:
         set_table_angle(self.table, table_angle_rad)
         rig.set_joints(self.robot, q)
 
-    def keyframe(self, qs, table_angles_rad=None, first_frame: int = 1) -> range:
-        """Keyframe a path: qs (n, 6) rad and table angles (n,) at frames first..first+n−1."""
+    def keyframe(self, qs, table_angles_rad=None, first_frame: int = 1, segments=None, path_frames=None) -> range:
+        """Keyframe a path: qs (n, 6) rad and table angles (n,) at frames first..first+n−1.
+        ``segments`` (n,): each frame's path entry (default one entry); ``path_frames`` (n,): its
+        number in the whole path (default consecutive), where only some frames are scanned
+        (``--frames 0:60:10``). Motion blur takes the probe's motion from both: within its own
+        path entry, per frame of the whole path."""
         qs = self.cell.robot.check_q(qs)
         if qs.ndim != 2:
             raise InputError("keyframe needs joint vectors of shape (n, 6)")
@@ -150,7 +154,9 @@ class SceneCell:
         for obj in (self.robot, self.table):
             mark_scan_motion(obj)
         # The probe's world pose per frame, for renders that leave the rig out.
-        self.extras["path"] = (int(first_frame), self.cell.robot.fk(qs), thetas.copy())
+        segments = np.zeros(n, dtype=int) if segments is None else np.asarray(segments).reshape(n)
+        path_frames = np.arange(n) if path_frames is None else np.asarray(path_frames, dtype=np.float64).reshape(n)
+        self.extras["path"] = (int(first_frame), self.cell.robot.fk(qs), thetas.copy(), segments, path_frames)
         return range(first_frame, first_frame + n)
 
     # -- what Blender has -----------------------------------------------------------
@@ -241,7 +247,7 @@ class SceneCell:
             finally:
                 self.robot_collection.hide_render = False
             return
-        start, probe2base, thetas = path
+        start, probe2base, thetas, segments, path_frames = path
         frames = np.arange(start, start + len(probe2base))
         probe2table = self.cell.table.base2table(thetas) @ probe2base  # Eq. 8
         quats = np.array([Matrix(T[:3, :3].tolist()).to_quaternion()[:] for T in probe2table])
@@ -260,10 +266,14 @@ class SceneCell:
             quats = np.array([Matrix(T[:3, :3].tolist()).to_quaternion()[:] for T in poses])
         saved_mode = moving.rotation_mode
         moving.rotation_mode = "QUATERNION"
+        values = np.column_stack([poses[:, :3, 3] * 1e-3, quats])
+        keys = frames.astype(np.float64)
+        if move_table:  # motion blur: the motion during each frame's exposure, none across a jump
+            keys, values = exposure_keys(keys, values, segments, path_frames)
         for i in range(3):
-            keyframe_values(moving, "location", frames, poses[:, i, 3] * 1e-3, index=i)
+            keyframe_values(moving, "location", keys, values[:, i], index=i)
         for i in range(4):
-            keyframe_values(moving, "rotation_quaternion", frames, quats[:, i], index=i)
+            keyframe_values(moving, "rotation_quaternion", keys, values[:, 3 + i], index=i)
         layer.exclude = True
         try:
             yield
@@ -283,6 +293,38 @@ class SceneCell:
                 table.animation_data.action = saved_table[0]
             table.matrix_basis = saved_table[1]
             bpy.context.view_layer.update()
+
+
+def exposure_keys(frames: np.ndarray, values: np.ndarray, segments: np.ndarray, path_frames: np.ndarray):
+    """Keys (times (3n,), values (3n, 7): location m, quaternion) that move the probe during
+    each frame's exposure as it moves along the path there, and nowhere else: each frame
+    keyed at its own pose and EXPOSURE_KEY_FRAMES either side, along its motion per frame of
+    the whole path (from the neighbours in its own path entry; one side's where the other is
+    another entry's or missing; none for a frame alone in its entry). Keyed only at the
+    frames themselves, the shutter of an entry's last frame swept the probe halfway to the
+    next entry's first pose (hundreds of µm on the tilted plate), and with every tenth frame
+    scanned it swept ten frames' motion."""
+    n = len(frames)
+    values = np.array(values, dtype=np.float64)
+    q = values[:, 3:]
+    for i in range(1, n):  # q and −q are one turn: keep neighbours on one side for the straight line
+        if segments[i] == segments[i - 1] and np.dot(q[i], q[i - 1]) < 0:
+            q[i] = -q[i]
+    ahead = np.zeros_like(values)  # motion per frame of the path after each frame
+    behind = np.zeros_like(values)  # ... and before it
+    same = segments[1:] == segments[:-1]
+    step = np.diff(path_frames)[:, None]
+    rate = np.where(same[:, None] & (step > 0), np.diff(values, axis=0) / np.where(step > 0, step, 1.0), 0.0)
+    ahead[:-1], behind[1:] = rate, rate
+    has_ahead = np.zeros(n, bool)
+    has_behind = np.zeros(n, bool)
+    has_ahead[:-1], has_behind[1:] = same, same
+    ahead[~has_ahead & has_behind] = behind[~has_ahead & has_behind]
+    behind[~has_behind & has_ahead] = ahead[~has_behind & has_ahead]
+    h = EXPOSURE_KEY_FRAMES
+    times = np.column_stack([frames - h, frames, frames + h]).ravel()
+    keyed = np.stack([values - h * behind, values, values + h * ahead], axis=1).reshape(3 * n, -1)
+    return times, keyed
 
 
 def _layer_collection(layer, collection):

@@ -35,6 +35,8 @@ from .session import use_device
 
 VIEWS = (("left", "_L"), ("right", "_R"))
 
+EXPOSURE_KEY_FRAMES = 0.49  # a frame's motion-blur keys sit this far either side of it (Blender frames)
+
 
 def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, camera_left: bpy.types.Object) -> str:
     """Set the scene up for probe renders; returns the device used (Cycles': the one it was
@@ -53,7 +55,9 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, cam
         r.threads_mode, r.threads = "FIXED", int(settings.threads)
     r.use_motion_blur = settings.motion_blur_shutter > 0
     if r.use_motion_blur:
-        r.motion_blur_shutter = settings.motion_blur_shutter
+        # Within the motion keys either side of each frame (cell.exposure_keys): a whole frame's
+        # shutter would reach the next frame's keys, across a jump between path entries.
+        r.motion_blur_shutter = min(settings.motion_blur_shutter, 2.0 * EXPOSURE_KEY_FRAMES)
         r.motion_blur_position = "CENTER"
     device = "CPU"
     if settings.engine == "eevee":

@@ -37,7 +37,9 @@ def test_sensor_keys_reach_the_model(tmp_path):
 
 
 @pytest.mark.parametrize("extra,workpiece,fragment", [
-    ("[sensor]\nbit_depth = 9\n", "", "[sensor]: bit_depth must be one of (8, 10, 12, 16)"),
+    ("[sensor]\nbit_depth = 9\n", "", "sensor.bit_depth: must be one of 8, 10, 12, 16, got 9"),
+    ("[sensor]\nbit_depth = -8\n", "", "sensor.bit_depth: must be one of 8, 10, 12, 16, got -8"),
+    ("[sensor]\ntarget_peak = 0\n", "", "sensor.target_peak: 0 is out of range; allowed (0, 1]"),
     ("[sensor]\nnosie = true\n", "", "unknown key sensor.nosie"),
     ("[sensor]\nnosie = true\n", "", "distortion"),  # listed among the allowed keys
     ("[sensor]\ndistortion = [0.1]\n", "", "sensor.distortion"),

@@ -159,6 +159,23 @@ def test_defocus_blurs_by_the_thin_lens_circle():
         assert (w1 > w0 * 1.2) == wider, (row, w0, w1)
 
 
+def test_defocus_spreads_each_rows_light_by_its_own_depth_so_a_line_stays_centred():
+    """Where the blur changes fast across the sensor (f/1: σ from 0 to 7 px), a straight line
+    keeps its centre and its light: each row's light spreads with the blur of the depth that
+    row sees. Blurring each row by its own depth instead moved a line by up to 0.3 px."""
+    s = SensorModel(defocus=True, f_number=1.0)
+    sigma = s.blur_sigma_px(PROBE, s.row_depths_mm(PROBE, np.arange(160.0)))
+    assert sigma.max() > 5.0 and np.max(np.abs(np.diff(sigma))) > 0.05  # a steep change across the sensor
+    for row in (20.3, 40.7, 100.4, 130.6):
+        img = line_image(160, np.full(160, row), 0.55, background=0.0)
+        out = s.apply(img, PROBE, 0, 0)
+        found = detect_line(out, "gauss", DetectParams(saturation=np.inf))
+        assert found.valid.all() and abs(np.median(found.row) - row) < 0.03, (row, np.median(found.row))
+        assert out[..., 0].sum() == pytest.approx(img[..., 0].sum(), rel=1e-3)  # no light made or lost
+    # A band of rows rendered around the line gets the rows the blur spreads it over.
+    assert s.spread_px(PROBE) == math.ceil(3 * sigma.max()) and SensorModel().spread_px(PROBE) == 0
+
+
 def test_distortion_moves_points_as_opencv_predicts_and_calibration_undoes_it():
     s = SensorModel(distortion=(-0.8, 0.3, 0.002, -0.004))  # strong: the field of view is narrow
     K, d = PROBE.K, s.dist_coeffs()

@@ -68,6 +68,18 @@ def calibrated_on_another_sensor(tmp: Path):
     return ["scan", scene(tmp, DEMO.replace('rig = "default"', 'rig = "default"\ncalibration = "cal.toml"', 1))]
 
 
+def calibrated_on_another_probe(tmp: Path):
+    """A calibration made on a probe of the same sensor but another geometry (a = 75 mm)."""
+    from dataclasses import replace
+
+    from addon.core.config.rigs import load_probe, probe_toml
+    from addon.core.optics.calibrated import ProbeCalibration
+
+    other = replace(load_probe("default"), a_mm=75.0)
+    (tmp / "cal.toml").write_text(probe_toml(replace(other, calibration=ProbeCalibration.of(other))))
+    return ["scan", scene(tmp, DEMO.replace('rig = "default"', 'rig = "default"\ncalibration = "cal.toml"', 1))]
+
+
 def robot_with(old: str, new: str, count: int = 1):
     def make(tmp: Path):
         assert old in ROBOT, old
@@ -531,6 +543,8 @@ CASES = [
     ("config: calibration file missing", demo_with('rig = "default"', 'rig = "default"\ncalibration = "nope.toml"'),
      2, "nope.toml"),
     ("config: calibration for another sensor", calibrated_on_another_sensor, 2, "sensor"),
+    ("config: calibration of another probe", calibrated_on_another_probe, 2,
+     "was calibrated on another probe (a_mm 75 mm there, 60 mm here"),
     ("calibrate: too few views", lambda t: ["calibrate", "demo", "--views", "3", "--out", str(t / "out")], 2,
      "--views"),
     ("calibrate: poses file missing", lambda t: ["calibrate", "demo", "--poses", str(t / "none.toml"), "--out",

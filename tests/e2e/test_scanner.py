@@ -434,3 +434,28 @@ def test_a_sheet_lying_on_the_table_measures_as_the_table_does(engine):
     assert inside.sum() > 300 and np.abs(s.cloud.points[inside, 2]).max() < 0.01  # mm: the sheet's level
     assert r["points_on_part"] >= inside.sum() and r["outliers"] == 0 and r["error_um"]["max_um"] < 10.0
     assert any("lies flat in the table top" in w for w in r["warnings"])
+
+
+def test_a_part_of_a_path_gets_the_sensor_noise_its_frames_get_in_the_whole_path():
+    """Each frame's noise and speckle are drawn for its number in the whole path: frames 5:10
+    scanned alone are frames 5..9 of the whole scan, not frames 0..4's grain again; and a
+    Scanner's sweeps draw afresh, as their frames join it."""
+    from addon.core.config.scan import load_scan_config
+    from addon.core.optics.sensor import SensorModel
+
+    noisy = load_scan_config("step_block").with_overrides(engine="raycast", frames=slice(0, 10))
+    noisy = noisy.with_realism(SensorModel(noise=True, speckle=True, seed=3))
+    whole = Scanner(config=noisy)
+    whole.run()
+    part = Scanner(config=noisy.with_overrides(frames=slice(5, 10)))
+    part.run()
+    a, b = whole.cloud, part.cloud
+    for k in range(5):
+        mine, theirs = b.points[b.frame == k], a.points[a.frame == 5 + k]
+        assert len(mine) and len(mine) == len(theirs) and np.array_equal(mine, theirs), k
+    # Two equal sweeps, one after the other: their frames differ in their noise.
+    stepper = Scanner(config=noisy)
+    first = stepper.sweep([-30.0, 0.0, 200.0], [30.0, 0.0, 200.0], 3)
+    second = stepper.sweep([-30.0, 0.0, 200.0], [30.0, 0.0, 200.0], 3)
+    assert len(first[0]) and not (len(first[0]) == len(second[0]) and np.array_equal(first[0].points,
+                                                                                    second[0].points))

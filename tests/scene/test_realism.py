@@ -49,6 +49,34 @@ def test_motion_blur_widens_the_line_by_its_travel_during_the_exposure(scene):
     assert w1 > w0 * 1.15
 
 
+def test_the_shutter_blurs_a_frames_own_motion_not_the_jump_to_the_next_path_entry(scene):
+    """The last frame of a path entry, blurred, is as wide as one inside it, however far the
+    next entry starts; a scan of every tenth frame blurs one frame's motion, not ten's."""
+    wp = builtin_workpiece("plane", pose=trans(0, 0, 20))
+    sc = build_cell(scene, Cell(load_robot("adept_viper_s650")), load_probe("default"), wp)
+    qs, q = [], np.radians([0, 40, -100, 0, -30, 0])
+    heights = [150, 155, 160, 165, 215, 220, 225]  # two entries: backing away 5 mm a frame, then 50 mm on
+    for z in heights:
+        q = sc.cell.ik(pose_from_xyz_yzz([0, 0, z], [math.pi / 2, math.pi, 0]), q, relative_to="table").q
+        qs.append(q)
+    settings = RenderOptions(samples=64, filter_width_px=1.0, motion_blur_shutter=0.6)
+
+    def blurred_width(frame_index, **path):
+        frames = sc.keyframe(np.array(qs), **path)
+        image = sc.render(frames.start + frame_index, frames.start + frame_index, settings)[0][0]
+        return float(np.nanmedian(detect_line(image, "cog", FLOAT).width))
+
+    frames = sc.keyframe(np.array(qs))
+    sharp = sc.render(frames.start + 2, frames.start + 2, RenderOptions(samples=16, filter_width_px=1.0))[0][0]
+    w0 = float(np.nanmedian(detect_line(sharp, "gauss", FLOAT).width))
+    entries = {"segments": [0, 0, 0, 0, 1, 1, 1]}
+    inside, last = blurred_width(2, **entries), blurred_width(3, **entries)
+    assert inside > 1.15 * w0  # the entry's own motion blurs it
+    assert last == pytest.approx(inside, rel=0.1), (w0, inside, last)  # and only that
+    tenth = blurred_width(2, segments=[0] * 7, path_frames=np.arange(7) * 10)  # 0.5 mm a frame of the path
+    assert tenth < 0.5 * (w0 + inside), (w0, inside, tenth)
+
+
 def test_glossy_part_with_bounces_shows_reflections_the_detector_rejects():
     # Frames 2-6 of the step block put the line next to a riser: with bounces, the lit
     # floor reflects into the wall (and back), a second line in the same columns. In

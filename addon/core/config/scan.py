@@ -51,6 +51,7 @@ Paths in the file (robot/probe rigs, workpiece files) are relative to the file.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -69,7 +70,7 @@ from ..optics.probe import Probe
 from .render import (DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions, laser_engine_mismatch,
                      raycast_mismatch, with_sensor)
 from .rigs import load_probe
-from ..optics.sensor import SensorModel
+from ..optics.sensor import BIT_DEPTHS, SensorModel
 from ..optics.profile_filter import ProfileFilter
 from ..optics.triangulate import TRIANGULATION_METHODS
 from ..kinematics.turntable import (PAPER_A_R_MM, PAPER_D_R_MM, TABLE_RADIUS_MM, Turntable, box_beyond_table,
@@ -600,15 +601,18 @@ def _sensor(t: Table) -> SensorModel:
     for key in ("integrate_pixels", "saturate", "noise", "speckle", "defocus", "undistort", "motion_blur",
                 "auto_exposure"):
         kw[key] = t.boolean(key, default=getattr(d, key))
-    for key, lo in (("exposure_ms", 0.0), ("target_peak", 0.0), ("gain", 0.0), ("full_well_e", 0.0),
+    for key, lo in (("exposure_ms", 0.0), ("gain", 0.0), ("full_well_e", 0.0),
                     ("electrons_per_unit", 0.0), ("sensor_width_mm", 0.0), ("f_number", 0.0),
                     ("wavelength_nm", 0.0), ("frame_rate_hz", 0.0)):
         kw[key] = t.number(key, default=getattr(d, key), lo=lo, hi=1e7, lo_open=True)
+    kw["target_peak"] = t.number("target_peak", default=d.target_peak, lo=0.0, hi=1.0, lo_open=True)  # of full scale
     for key in ("read_noise_e", "dark_offset_dn", "prnu"):
         kw[key] = t.number(key, default=getattr(d, key), lo=0.0, hi=1e7)
     for key in ("pixel_pitch_um", "focus_mm"):  # absent: derived from the probe (see SensorModel)
         kw[key] = t.number(key, default=None, lo=0.0, hi=1e7, lo_open=True)
-    kw["bit_depth"] = t.integer("bit_depth", default=d.bit_depth, lo=8, hi=16)
+    kw["bit_depth"] = t.integer("bit_depth", default=d.bit_depth)
+    if kw["bit_depth"] not in BIT_DEPTHS:
+        raise t.error("bit_depth", f"must be one of {', '.join(map(str, BIT_DEPTHS))}, got {kw['bit_depth']}")
     kw["seed"] = t.integer("seed", default=d.seed, lo=0, hi=2 ** 31 - 1)
     kw["distortion"] = tuple(float(k) for k in t.number_list("distortion", default=(), lo=-10.0, hi=10.0,
                                                              min_len=4))
@@ -618,6 +622,21 @@ def _sensor(t: Table) -> SensorModel:
         raise t.table_error(str(exc)) from None
     t.finish()
     return model
+
+
+def _geometry_differences(calibrated: Probe, probe: Probe) -> list[str]:
+    """Where the probe a calibration file was made on (its [camera] and [mount], as rendered
+    then) differs from ``probe``: "a_mm 75 there, 60 here", ... (empty: the same probe)."""
+    out = []
+    for key, unit, scale in (("a_mm", " mm", 1.0), ("b_mm", " mm", 1.0), ("phi_rad", "°", 180 / math.pi),
+                             ("gamma_rad", "°", 180 / math.pi)):
+        there, here = getattr(calibrated, key) * scale, getattr(probe, key) * scale
+        if abs(there - here) > 1e-6 * max(1.0, abs(here)):
+            name = key.replace("_rad", "_deg")
+            out.append(f"{name} {there:.6g}{unit} there, {here:.6g}{unit} here")
+    if not np.allclose(calibrated.mount, probe.mount, rtol=0.0, atol=1e-6):
+        out.append("its mount (T_L^6) differs")
+    return out
 
 
 def with_calibration(probe: Probe, calibrated_file, where: str) -> Probe:
@@ -632,6 +651,11 @@ def with_calibration(probe: Probe, calibrated_file, where: str) -> Probe:
     if (found.rows_px, found.cols_px) != (probe.rows_px, probe.cols_px):
         raise ConfigError(f"{where}: {calibrated_file} was calibrated on a {found.cols_px}x{found.rows_px} sensor; "
                           f"this probe has {probe.cols_px}x{probe.rows_px}")
+    differ = _geometry_differences(found, probe)
+    if differ:
+        raise ConfigError(f"{where}: {calibrated_file} was calibrated on another probe ({'; '.join(differ)}): a "
+                          f"calibration holds for the probe it was made on; calibrate this one (python -m headless "
+                          f"calibrate CONFIG --out DIR)")
     source = found.calibration.source
     return replace(probe, calibration=replace(found.calibration,
                                               source=f"{calibrated_file}" + (f" ({source})" if source else "")))

@@ -163,6 +163,15 @@ class SensorModel:
         c_mm = (f / self.f_number) * f * np.abs(z - zf) / (z * (zf - f))
         return c_mm / (self.pitch_um(probe) * 1e-3) / 2.355
 
+    def spread_px(self, probe: Probe) -> int:
+        """Rows beyond the rendered line that the optics spread its light over: three σ of the
+        largest defocus blur on the sensor (0 without defocus). A render of a band of rows
+        around the line needs them, or the blur's tail is cut off on one side."""
+        if not self.defocus:
+            return 0
+        sigma = self.blur_sigma_px(probe, self.row_depths_mm(probe, np.array([0.0, probe.rows_px - 1.0])))
+        return int(math.ceil(3.0 * float(np.max(sigma))))
+
     def speckle_grain_px(self, probe: Probe, depth_mm) -> np.ndarray:
         """Mean speckle grain diameter on the sensor (px) at object distance ``depth_mm``."""
         f = self.focal_mm(probe)
@@ -244,17 +253,28 @@ class SensorModel:
         return self._cache[key]
 
     def _defocus(self, img, probe, rows) -> np.ndarray:
+        """Each sensor row's light spread by the blur of the depth that row sees on the laser
+        plane: a few blur levels, each row's light shared between the two nearest. The light
+        is spread from where it comes (each source row its own blur), not gathered into each
+        row by that row's blur: where the blur changes across the line's few rows (f/1), the
+        gathered line came out lopsided and every point 290 µm deep; spread, a line at one
+        depth stays symmetric and its light is kept."""
         sigma = self.blur_sigma_px(probe, self.row_depths_mm(probe, rows))
-        # A few blur levels, each row taking the two nearest: a row-dependent Gaussian blur.
         levels = np.unique(np.round(np.linspace(sigma.min(), sigma.max(), 6), 3))
-        blurred = [img if s < 0.05 else cv2.GaussianBlur(img, (0, 0), float(s)) for s in levels]
         if len(levels) == 1:
-            return blurred[0]
+            return img if levels[0] < 0.05 else cv2.GaussianBlur(img, (0, 0), float(levels[0]),
+                                                                 borderType=cv2.BORDER_REPLICATE)
         idx = np.clip(np.searchsorted(levels, sigma) - 1, 0, len(levels) - 2)
         w = np.clip((sigma - levels[idx]) / np.maximum(levels[idx + 1] - levels[idx], 1e-9), 0.0, 1.0)
-        out = np.empty_like(img)
-        for r in range(img.shape[0]):
-            out[r] = (1 - w[r]) * blurred[idx[r]][r] + w[r] * blurred[idx[r] + 1][r]
+        out = np.zeros_like(img)
+        shape = (-1,) + (1,) * (img.ndim - 1)  # a weight per row, over the columns (and channels)
+        for k, s in enumerate(levels):
+            share = np.where(idx == k, 1.0 - w, 0.0) + np.where(idx + 1 == k, w, 0.0)
+            if not share.any():
+                continue
+            part = (img * share.reshape(shape)).astype(img.dtype, copy=False)
+            # (The band's edge rows continued outward: mirrored, a line near the edge gained a twin.)
+            out += part if s < 0.05 else cv2.GaussianBlur(part, (0, 0), float(s), borderType=cv2.BORDER_REPLICATE)
         return out
 
     def _distort(self, img, probe, row0) -> np.ndarray:
