@@ -135,6 +135,8 @@ def _tables(rows, sens) -> str:
     for r in rows:
         out.append(f"| {r['sensor']} | {r['views']} | {r['reproj'] or '–'} | {r['field'] or '–'} | "
                    + " | ".join("–" if r[n] is None else f"{r[n]:.1f}" for n in names) + f" | {r['seconds'] or '–'} |")
+    if not sens:  # (that table is made from the 20-pose calibrations: none among --views)
+        return "\n".join(out)
     out += ["", "Which parameter moves the points most (20 board poses; the true probe with one group of "
             "calibrated parameters swapped in; error field over the view, µm):", "",
             "| sensor | parameters from the calibration | RMS | max |", "|---|---|---|---|"]
