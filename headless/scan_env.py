@@ -118,6 +118,9 @@ class ScanPlanningEnv(gym.Env):
             "grid": spaces.Box(0, 2, (self.grid,) * 3, dtype=np.uint8),
             "probe": spaces.Box(np.array([-PROBE_REACH_MM] * 3 + [-1.0] * 3 + [0.0], dtype=np.float32),
                                 np.array([PROBE_REACH_MM] * 3 + [1.0] * 3 + [1.0], dtype=np.float32)),
+            # The share of the profile budget left: what ends the episode and masks the views
+            # too large for it (an RL user's trial: a policy saw it only through the mask).
+            "budget": spaces.Box(0.0, 1.0, (1,), dtype=np.float32),
         })
         self.scanner = None
         self.planner = None
@@ -236,7 +239,8 @@ class ScanPlanningEnv(gym.Env):
         pose = self.scanner.pose("table")
         probe = np.r_[np.clip(pose[:3, 3], -PROBE_REACH_MM, PROBE_REACH_MM), pose[:3, 2],
                       self.scanner.table_deg % 360.0 / 360.0].astype(np.float32)
-        return {"grid": grid, "probe": probe}
+        left = max(0.0, 1.0 - self.profiles / self.max_profiles)
+        return {"grid": grid, "probe": probe, "budget": np.array([left], dtype=np.float32)}
 
     def _key(self, table_step: int, view: int, kind: int) -> tuple:
         table_deg = 0.0 if kind == 1 else 360.0 * table_step / next_view.TABLE_STEPS

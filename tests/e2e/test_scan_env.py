@@ -48,7 +48,9 @@ def test_a_sweep_steeper_than_any_the_planner_sweeps_is_refused_and_scans_nothin
     assert steep  # the views reach lower than the sweeps do (table turns only there)
     obs2, reward, _, _, info = env.step(np.array([0, steep[0], 0]))
     assert reward == -env.refusal_cost and info["refused"] and info["profiles"] == 0
-    assert np.array_equal(obs2["grid"], obs["grid"])
+    assert np.array_equal(obs2["grid"], obs["grid"]) and obs["budget"][0] == obs2["budget"][0] == 1.0
+    obs3, _, _, _, info = env.step(np.array([1, 2, 0]))  # a sweep the robot can do: profiles taken
+    assert 0 < info["profiles"] <= 150 and obs3["budget"][0] == pytest.approx(1.0 - info["profiles"] / 150)
     # The same view as a table turn is one of the planner's candidates.
     assert any(c.kind == "turn" and c.tilt_deg == env.tilts[steep[0]] for c in env.planner.pool)
 
