@@ -30,7 +30,7 @@ import numpy as np
 
 from .core.calibration import BoardView, ChArUcoBoard, board2table, board_for, board_views, calibrate_probe
 from .core.calibration import deviations, triangulation_error
-from .core.calibration.solve import MIN_VIEWS
+from .core.calibration.solve import MIN_CORNERS, MIN_VIEWS
 from .core.config.rigs import probe_toml
 from .core.config.scan import ScanConfig, load_scan_config
 from .core.errors import CalibrationError, CollisionError, check_whole
@@ -42,6 +42,7 @@ from .core.kinematics.transforms import rigid_inverse
 FILES = ("probe.toml", "calibration.json", "calibration.png")
 BOARD_SAMPLES = 32      # samples per pixel of the board images: a one-pixel box filter, integrated
 CHUNK_PIXELS = 200_000  # sensor pixels per render call of the calibration images (both cameras render each)
+CLIPPED_SHARE = 0.5     # a board image at least this clipped where the board went unfound: an exposure hint
 ROOM_LIGHT = 0.7        # world strength for the board images: the white print at about 0.6 of full scale
 
 
@@ -148,6 +149,7 @@ def calibrate_steps(config: ScanConfig | str | Path, out_dir: str | Path | None 
         found.append(BoardView(flange2base[i], [d[0] for d in det], [d[1] for d in det], lines[i]))
     source = (f"calibrated in the cell of {cfg.name!r}: {len(q)} board views, {board.squares[0]}x{board.squares[1]} "
               f"ChArUco board of {board.square_mm:g} mm squares" + (", lens distortion fitted" if distortion else ""))
+    _refuse_clipped_boards(images, found, sensor)
     fit = calibrate_probe(truth, board, found, distortion=distortion, source=source)
     fit.probe = replace(fit.probe, name=f"{truth.name} (calibrated)")
     summary = _summary(cfg, board, fit, found, dropped, distortion, time.perf_counter() - t0)
@@ -158,6 +160,25 @@ def calibrate_steps(config: ScanConfig | str | Path, out_dir: str | Path | None 
                     "calibration.png": png_bytes(_picture(images, found))}
         files = write_set(out_dir, contents)
     return CalibrationRun(fit, summary, files)
+
+
+def _refuse_clipped_boards(images, found, sensor) -> None:
+    """Refuse, naming the exposure, where a camera found the board in too few views for the solve
+    and the images it missed it in are mostly clipped (the sensor saturates): there the exposure,
+    not the poses, is what to change."""
+    if not sensor.clips:
+        return
+    for c in (0, 1):
+        missed = [i for i, view in enumerate(found) if len(view.ids[c]) < MIN_CORNERS]
+        if len(found) - len(missed) >= MIN_VIEWS or not missed:
+            continue
+        clipped = float(np.median([np.mean(np.asarray(images[i][c], float)[..., :3].mean(axis=-1) >= 0.999)
+                                   for i in missed]))
+        if clipped >= CLIPPED_SHARE:
+            raise CalibrationError(
+                f"camera {c} found the board in {len(found) - len(missed)} of {len(found)} views (a calibration "
+                f"needs at least {MIN_VIEWS}): the images it missed it in are {clipped:.0%} clipped (median); lower "
+                f"[sensor] exposure_ms or gain (the board images take exposure_ms as set, auto-exposure or not)")
 
 
 def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene):

@@ -24,7 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
     parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>-calibration)")
-    parser.add_argument("--views", type=int, default=20, help="board poses the robot shows the probe (default 20)")
+    parser.add_argument("--views", type=int, default=None,
+                        help="board poses the robot shows the probe (default 20; not with --poses)")
     parser.add_argument("--poses", metavar="FILE",
                         help="the board views to take, a TOML file of [[view]] tables with xyz_mm and yzz_deg (probe "
                              "poses in the table frame; the board lies face up at the table's centre) instead of "
@@ -43,6 +44,9 @@ def run(args: argparse.Namespace) -> int:
     from headless.scan import progress_and_lock
 
     config = load_scan_config(args.config)
+    if args.views is not None and args.poses:
+        raise InputError(f"--views {args.views} and --poses {args.poses} both choose the board views; give one")
+    args.views = 20 if args.views is None else args.views
     if not 4 <= args.views <= 1000:
         raise InputError(f"--views must be in [4, 1000] (a calibration needs at least 4 board poses), "
                          f"got {args.views}")

@@ -291,3 +291,33 @@ def test_views_spread_over_depth_and_tilt():
     depth = np.linalg.norm(poses[:, :3, 3] - centre[:3], axis=1)
     assert (depth > z0).all() and (depth < z1).all() and depth.max() - depth.min() > 0.3 * (z1 - z0)
     assert math.isclose(float(np.abs(np.cross(beams, centre[:3] - poses[:, :3, 3])).max()), 0.0, abs_tol=1e-9)
+
+
+def test_undistort_false_keeps_a_calibrated_probe_from_undistorting():
+    """``[sensor] undistort = false`` triangulates a calibrated probe's raw detections (its lens
+    model is not applied); true (the default) moves each through the calibration's distortion,
+    as OpenCV's undistortPoints does independently here."""
+    from addon.core.config.scan import load_scan_config
+    from addon.core.scan.frames import frame_profile
+
+    k = [-0.2, 0.02, 0.0, 0.0, 0.0]
+    cams = tuple(CameraModel(np.array([[330.0, 0, 80.0], [0, 330.0, 80.0], [0, 0, 1]]), k, PROBE.cam2probe(c))
+                 for c in (0, 1))
+    probe = replace(PROBE, calibration=ProbeCalibration(cams, np.array([1.0, 0.0, 0.0]), 0.0, "test"))
+    config = load_scan_config("demo")
+    config = replace(config, probe=probe, fuse=False,
+                     profile_filter=replace(config.profile_filter, max_sigma_mm=float("inf")))
+    rows = np.full(PROBE.cols_px, 60.0)
+    line = given_rows(rows)
+    raw = triangulate_profile(probe, line, 0)
+    for undistort, expect_raw in ((False, True), (True, False)):
+        cfg = replace(config, sensor=replace(config.sensor, undistort=undistort))
+        got = frame_profile(probe, [line, None], cfg)
+        assert len(got) > 100
+        same = np.abs(got.points[:, None] - raw.points[None]).sum(axis=2).min(axis=1) < 1e-9
+        assert same.all() == expect_raw and (same.any() or not expect_raw)
+    # the undistorted detection's pixel, by OpenCV directly, is where the kept point images
+    u = np.arange(PROBE.cols_px, dtype=float)
+    und = cv2.undistortPoints(np.column_stack([u, rows]).reshape(-1, 1, 2), cams[0].K, np.array(k),
+                              P=cams[0].K).reshape(-1, 2)
+    assert np.abs(und - np.column_stack([u, rows])).max() > 0.5  # the lens model moves them

@@ -555,6 +555,8 @@ CASES = [
     ("calibrate: a view with NaN", lambda t: ((t / "p.toml").write_text("[[view]]\nxyz_mm = [0, 0, nan]\n"
                                                                         "yzz_deg = [0, 180, 0]\n"),
                                               ["calibrate", "demo", "--poses", str(t / "p.toml")])[1], 2, "xyz_mm"),
+    ("calibrate: views and poses both", lambda t: ["calibrate", "demo", "--views", "8", "--poses", str(t / "p.toml"),
+                                                  "--out", str(t / "out")], 2, "give one"),
     ("calibrate: out is a file", lambda t: ((t / "f").write_text("x"), ["calibrate", "demo", "--out", str(t / "f")])[1],
      2, "is a file"),
     ("calibrate: calibration.json is a folder",

@@ -157,3 +157,23 @@ def test_views_left_out_as_unreachable_are_named_as_such():
     message = str(info.value)
     assert message.startswith("only 1 of 4 board views can be reached without a collision (3 left out); "
                               "a calibration needs at least 4; first refusal (view 1): unreachable"), message
+
+
+def test_an_overexposed_board_is_refused_with_an_exposure_hint(tmp_path, capsys):
+    """A sensor that clips the whole lit board (an exposure 200 times too long) cannot find it;
+    the refusal says to lower the exposure, not to give other poses."""
+    from addon.core.calibration import board_for, board_views
+
+    probe = load_probe("default")
+    poses = _poses_file(tmp_path / "poses.toml", board_views(board_for(probe), probe.z_range_mm, 4))
+    text = (Path(__file__).parents[2] / "rigs" / "scenes" / "demo.toml").read_text()
+    text += "\n[sensor]\nsaturate = true\nexposure_ms = 200.0\n"
+    assert "[sensor]" not in text.split("[sensor]\nsaturate")[0]  # the demo has no [sensor] of its own
+    cfg = tmp_path / "bright.toml"
+    cfg.write_text(text)
+    rc = main(["calibrate", str(cfg), "--poses", poses, "--out", str(tmp_path / "cal"), "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert "found the board in 0 of 4" in err[0] and "clipped" in err[0] and "exposure_ms" in err[0], err
+    assert "poses" not in err[0], err
+    assert not (tmp_path / "cal").exists() or not any((tmp_path / "cal").iterdir())

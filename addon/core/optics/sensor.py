@@ -60,7 +60,7 @@ class SensorModel:
     speckle: bool = False
     defocus: bool = False
     distortion: tuple = ()           # (k1, k2, p1, p2[, k3]); empty: none
-    undistort: bool = True           # the probe is calibrated: detections are undistorted
+    undistort: bool = True           # detections undistorted (by the true lens, or a calibration's)
     motion_blur: bool = False        # renderer: the probe moves during the exposure
 
     exposure_ms: float = 1.0

@@ -57,7 +57,7 @@ def detect_all(images, rows, config: ScanConfig):
 
 def frame_profile(probe, lines, config: ScanConfig):
     sensor = config.sensor
-    if probe.calibration is not None:  # the calibration's own lens model, whatever the truth is
+    if probe.calibration is not None and sensor.undistort:  # the calibration's lens model, whatever the truth is
         lines = [None if ln is None else _undistorted(ln, probe.measuring_camera(cam).undistort)
                  for cam, ln in enumerate(lines)]
     elif sensor.distortion and sensor.undistort:  # a perfectly calibrated probe removes its lens distortion
