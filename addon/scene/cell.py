@@ -378,11 +378,21 @@ def remove_cell(scene: bpy.types.Scene, name: str = "Scanner Cell") -> None:
 
 def _children_kept(root: bpy.types.Collection) -> list:
     """The artist's objects parented to one of the cell's: (object, the parent's role, parent
-    type, parent bone, world matrix), to put back on the rebuilt cell where they were."""
+    type, parent bone, world matrix, pose in the parent's frame), to put back on the rebuilt
+    cell where they were on their parent."""
     own_names = {o.name for o in own_objects(root)}
-    return [(o, role_of(o.parent), o.parent_type, o.parent_bone, o.matrix_world.copy())
+    return [(o, role_of(o.parent), o.parent_type, o.parent_bone, o.matrix_world.copy(),
+             _parent_frame(o).inverted() @ o.matrix_world)
             for o in bpy.data.objects if o.name not in own_names and o.parent is not None
             and o.parent.name in own_names]
+
+
+def _parent_frame(obj):
+    """The world frame ``obj`` hangs from: its parent's, or its parent bone's as posed now."""
+    parent = obj.parent
+    if obj.parent_type == "BONE" and parent.pose is not None and obj.parent_bone in parent.pose.bones:
+        return parent.matrix_world @ parent.pose.bones[obj.parent_bone].matrix
+    return parent.matrix_world.copy()
 
 
 def _own_motions(root: bpy.types.Collection) -> dict:
@@ -401,16 +411,20 @@ def _own_motions(root: bpy.types.Collection) -> dict:
 
 def _put_back(kept: list, root: bpy.types.Collection) -> None:
     """Parent each of :func:`_children_kept`'s objects to the rebuilt cell's object of the same
-    role (unparented where there is none), at the world position it had."""
+    role, where it was on the old one: a prop on the turntable stays on the same spot of the
+    table, which the rebuilt table (at 0°, or the panel's angle once set again) carries round.
+    Where the rebuilt cell has no such object it is unparented, where it was in the world."""
     roles = {role_of(o): o for o in own_objects(root)}
-    for obj, role, parent_type, bone, world in kept:
+    for obj, role, parent_type, bone, world, on_parent in kept:
         parent = roles.get(role)
-        if parent is not None:
-            obj.parent = parent
-            obj.parent_type = parent_type
-            if parent_type == "BONE":
-                obj.parent_bone = bone
-        obj.matrix_world = world
+        obj.parent = parent
+        if parent is None:
+            obj.matrix_world = world
+            continue
+        obj.parent_type = parent_type
+        if parent_type == "BONE":
+            obj.parent_bone = bone
+        obj.matrix_world = _parent_frame(obj) @ on_parent
 
 
 def add_probe(collection, probe: Probe, laser: str = "gobo", laser_power_w: float | None = None,

@@ -564,6 +564,40 @@ def test_the_artists_objects_and_names_survive_the_cells_builds_and_scans(panel,
     assert unused == [], unused
 
 
+def test_props_on_a_turned_table_and_on_a_posed_arm_stay_where_they_were_through_a_scan(panel, tmp_path):
+    """A rebuilt cell (a scan rebuilds it) takes the table at 0° and the arm at rest, and the
+    panel then turns and poses them again: a prop parented to the turntable, or to the arm's
+    last bone, is where it was in the world once the scan is over, not turned by the angle
+    again."""
+    from addon.scene.cell import cell_object
+
+    s = panel.scanner
+    s.table_angle = math.radians(35)
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    s.target_location = (0.0, 0.0, 210.0)
+    assert bpy.ops.scanner.go() == {"FINISHED"}
+    table, robot = cell_object("Turntable"), cell_object("Robot")
+    bpy.context.view_layer.update()
+    on_table = bpy.data.objects.new("Prop on the table", None)
+    on_arm = bpy.data.objects.new("Prop on the arm", None)
+    for prop, parent in ((on_table, table), (on_arm, robot)):
+        panel.collection.objects.link(prop)
+        prop.location = (0.08, 0.03, 0.25)
+        bpy.context.view_layer.update()
+        world = prop.matrix_world.copy()
+        prop.parent = parent
+        if parent is robot:
+            prop.parent_type, prop.parent_bone = "BONE", rig.bone_name(6)
+        prop.matrix_world = world
+    where = [_world_position(p) for p in (on_table, on_arm)]
+    assert np.allclose(where, [[0.08, 0.03, 0.25]] * 2, atol=1e-6)
+    s.scan_config, s.scan_engine, s.scan_frames, s.output_dir = "CELL", "raycast", "0:4", str(tmp_path)
+    assert bpy.ops.scanner.scan() == {"FINISHED"}
+    assert abs(cell_object("Turntable").rotation_euler[2] - math.radians(35)) < 1e-6
+    assert on_table.parent == cell_object("Turntable") and on_arm.parent == cell_object("Robot")
+    assert np.allclose([_world_position(p) for p in (on_table, on_arm)], where, atol=1e-5)
+
+
 def test_while_a_scan_runs_the_operators_that_would_pull_the_scene_from_under_it_are_greyed_out(panel):
     from addon.ui import ops
 
