@@ -181,21 +181,41 @@ def _refuse_clipped_boards(images, found, sensor) -> None:
                 f"[sensor] exposure_ms or gain (the board images take exposure_ms as set, auto-exposure or not)")
 
 
+def _cell_keeping_cloud(cfg: ScanConfig, scene):
+    """Build the config's scan cell in ``scene`` (the panel's), keeping the scene's scan cloud:
+    rebuilt, a cell drops what it made, the cloud included; unmarked for the rebuild, the cloud
+    is kept as an object of the artist's on the turntable, then filed with the results again."""
+    from .pipeline import build_scan_cell
+    from .scene.cell import cell_object
+    from .scene.cloud_object import CLOUD_ROLE
+    from .scene.ownership import ROLE_KEY, mark
+
+    cloud = cell_object(CLOUD_ROLE, scene=scene)
+    if cloud is not None:
+        del cloud[ROLE_KEY]
+    sc = build_scan_cell(cfg, scene)
+    if cloud is not None:
+        mark(cloud, CLOUD_ROLE)
+        for col in list(cloud.users_collection):
+            col.objects.unlink(cloud)
+        sc.results_collection().objects.link(cloud)
+    return sc
+
+
 def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene):
     """Board images (room light, laser off) and laser lines on the plain plate (dark room) per
     view: ([view][camera] images, [view][camera] (m, 2) line pixels). A generator: yields
     (images rendered, images in all) after each render call."""
     from .core.scan.frames import detect_all
-    from .pipeline import render_settings
-    from .scene.cell import build_cell
-    from .core.optics.laser_profile import laser_power_w
-    from .scene.session import new_scene
+    from .pipeline import build_scan_cell, render_settings
     from .scene.target import add_board, show_print
 
-    if scene is None:
-        scene = new_scene(cfg.render.device)
-    sc = build_cell(scene, cfg.cell, cfg.probe, None, cfg.render.laser,
-                    laser_power_w(cfg.probe, peak=cfg.render.laser_peak))
+    # The cell a scan of the config builds, the scene's cloud kept on its table: the panel's
+    # cell is as it was once the calibration is over. Its part and fixtures stay out of the
+    # calibration's images (the board takes the part's place).
+    sc = _cell_keeping_cloud(cfg, scene) if scene is not None else build_scan_cell(cfg)
+    scene = sc.scene
+    put_away = [o for o in sc.root.children["Table"].objects if o != sc.table and not o.hide_render]
     plate = add_board(sc.root.children["Table"], board, board2table(board), sc.table)
     frames = sc.keyframe(q, np.zeros(len(q)))
     first, last = frames.start, frames.stop - 1
@@ -221,6 +241,8 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
     import bpy
 
     try:
+        for obj in put_away:
+            obj.hide_render = True
         show_print(plate, True)
         try:
             board_images = yield from render_all(board_settings, "board images", 0)
@@ -232,6 +254,8 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
                                              "laser images", len(q))
     finally:
         bpy.data.objects.remove(plate, do_unlink=True)  # the cell is the scan's again (Esc too)
+        for obj in put_away:
+            obj.hide_render = False
     images, lines = [], []
     for i in range(len(q)):
         pair = board_images[i]

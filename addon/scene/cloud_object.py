@@ -19,6 +19,7 @@ from .materials import bare_material
 from .ownership import mark
 from .units import M_PER_MM
 
+CLOUD_ROLE = "Scan cloud"  # the role (ownership.mark) of a scan cloud brought into the scene
 POINT_RADIUS_MM = 0.35
 _TURBO = None
 
@@ -116,7 +117,7 @@ def import_cloud(collection, cloud: Cloud, parent: bpy.types.Object | None, erro
     c = me.color_attributes.new("error_colour", "FLOAT_COLOR", "POINT")
     c.data.foreach_set("color", rgba.ravel())
     me.update()
-    obj = mark(bpy.data.objects.new(name, me), "Scan cloud")  # the cell's: a rebuilt cell drops it
+    obj = mark(bpy.data.objects.new(name, me), CLOUD_ROLE)  # the cell's: a rebuilt cell drops it
     collection.objects.link(obj)
     if parent is not None:
         obj.parent = parent

@@ -18,9 +18,10 @@ from ..core.optics.sensor import SensorModel
 from ..core.kinematics.turntable import Turntable
 from ..core.geometry.workpiece import builtin_workpiece, load_workpiece, resting_on_table
 from ..scene.cell import CELL_NAME, cell_object
+from ..scene.cloud_object import CLOUD_ROLE
 from .props import CELL, FILE
 
-CLOUD_NAME = "Scan cloud"
+CLOUD_NAME = CLOUD_ROLE  # the scan cloud is found by its role
 # The extension's own package ("bl_ext.<repo>.<id>"); empty when these modules are used outside one.
 ROOT_PACKAGE = ".".join(__package__.split(".")[:-2])
 

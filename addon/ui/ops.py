@@ -614,7 +614,7 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
 
 
 class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
-    """Calibrate the probe of the chosen scan config from rendered ChArUco boards and laser lines; writes probe.toml, calibration.json and calibration.png (rebuilds the cell; Esc cancels)"""
+    """Calibrate the probe of the chosen scan config from rendered ChArUco boards and laser lines; writes probe.toml, calibration.json and calibration.png (rebuilds the cell, keeping its part and the scan cloud; Esc cancels)"""
 
     bl_idname = "scanner.calibrate"
     bl_label = "Calibrate Probe"

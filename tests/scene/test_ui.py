@@ -392,15 +392,35 @@ def test_go_refuses_a_colliding_target_and_leaves_the_robot_still(panel):
 
 def test_the_calibrate_operator_writes_a_calibrated_probe_and_keeps_the_scene(panel, tmp_path):
     """The panel's Calibrate button: files written, the board gone again, the artist's
-    render settings as they were."""
+    render settings as they were, and the cell the panel scanned in still there: its part
+    (rendered again) and the scan's cloud where it was, the cell not taken for stale by Go."""
+    from addon.scene.cell import cell_object
+    from addon.scene.cloud_object import CLOUD_ROLE, cloud_from_object
+
     scene = bpy.context.scene
+    s = panel.scanner
+    s.scan_config, s.scan_engine, s.scan_frames = "CELL", "raycast", "0:60:6"
+    s.output_dir, s.table_angle = str(tmp_path / "scan"), math.radians(20)
+    assert bpy.ops.scanner.scan() == {"FINISHED"}
+    cloud = cloud_from_object(cell_object(CLOUD_ROLE))
+    assert len(cloud) > 100
+    where = _world_position(cell_object(CLOUD_ROLE))
+    hidden = {o.name: o.hide_render for o in bpy.data.collections["Table"].objects}
     scene.render.resolution_x, scene.cycles.samples = 777, 9
-    assert bpy.ops.scanner.calibrate(config="demo", views=6, output_dir=str(tmp_path)) == {"FINISHED"}
-    folder = next(tmp_path.iterdir())
+    assert bpy.ops.scanner.calibrate(views=6, output_dir=str(tmp_path / "cal")) == {"FINISHED"}  # the panel's
+    folder = next((tmp_path / "cal").iterdir())
     assert sorted(p.name for p in folder.iterdir()) == ["calibration.json", "calibration.png", "probe.toml"]
     assert load_probe(folder / "probe.toml").calibration is not None
     assert "Calibration board" not in bpy.data.objects
     assert (scene.render.resolution_x, scene.cycles.samples) == (777, 9)
+    assert hidden == {o.name: o.hide_render for o in bpy.data.collections["Table"].objects}
+    assert hidden["Workpiece sphere"] is False
+    kept = cell_object(CLOUD_ROLE)
+    assert kept is not None and kept.parent == cell_object("Turntable")
+    assert np.allclose(_world_position(kept), where, atol=1e-5)
+    assert np.allclose(cloud_from_object(kept).points, cloud.points, atol=1e-3)
+    s.target_frame, s.target_location = "table", (0.0, 0.0, 210.0)
+    assert bpy.ops.scanner.go() == {"FINISHED"}  # the cell is the panel's, not a stale one
 
 
 def test_the_scan_box_sets_engine_frames_and_budget_and_the_operators_own_values_win(panel, tmp_path):
