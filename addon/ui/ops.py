@@ -200,6 +200,10 @@ class SCANNER_OT_render_views(bpy.types.Operator):
             rgba = np.dstack([img, np.ones((H, W), np.float32)])[::-1]  # Blender rows run bottom-up
             target.pixels.foreach_set(rgba.ravel())
             target.update()
+            # Kept with the .blend: a rendered image has no user (it would be dropped on save)
+            # and no file (its pixels would be lost); packed, it is saved as EXR inside the file.
+            target.use_fake_user = True
+            target.pack()
         for area in (context.screen.areas if context.screen else []):
             if area.type == "IMAGE_EDITOR":
                 area.spaces.active.image = bpy.data.images["Probe camera 0"]

@@ -94,6 +94,30 @@ def test_probe_views_render_into_images(panel, laser):
         assert (px[..., 0] - px[..., 1]).max() > 0.2  # the red line is there
 
 
+def test_probe_views_are_saved_with_the_blend_file(panel, tmp_path):
+    """The probe views survive a save: read back from the saved file (appended from it, as
+    another file would), each has the pixels it was rendered with."""
+    bpy.ops.scanner.build_cell()
+    panel.scanner.target_location = (0.0, 0.0, 210.0)
+    bpy.ops.scanner.go()
+    assert bpy.ops.scanner.render_views() == {"FINISHED"}
+    rendered = {}
+    for camera in (0, 1):
+        img = bpy.data.images[f"Probe camera {camera}"]
+        rendered[camera] = np.empty(len(img.pixels), np.float32)
+        img.pixels.foreach_get(rendered[camera])
+    path = str(tmp_path / "views.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+    with bpy.data.libraries.load(path) as (there, here):
+        assert {"Probe camera 0", "Probe camera 1"} <= set(there.images)
+        here.images = ["Probe camera 0", "Probe camera 1"]
+    for camera, img in enumerate(here.images):
+        px = np.empty(len(img.pixels), np.float32)
+        img.pixels.foreach_get(px)
+        assert px.shape == rendered[camera].shape and np.abs(px - rendered[camera]).max() < 1e-6
+        bpy.data.images.remove(img)
+
+
 def _artists_settings(scene):
     """Render settings an artist might have, none of them the scanner's."""
     r = scene.render
