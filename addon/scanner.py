@@ -582,7 +582,10 @@ class Scanner:
         # numbered as its frames join this Scanner (the sensor's noise and the motion blur read both).
         whole_path = not own_step and len(cfg.waypoints) == n
         segment = cfg.waypoints.segment if whole_path else np.zeros(n, int)
-        numbers = cfg.path_frames if whole_path and cfg.path_frames is not None else np.arange(first, first + n)
+        if whole_path:  # the path's own frame numbers, whatever this Scanner measured before
+            numbers = cfg.path_frames if cfg.path_frames is not None else np.arange(n)
+        else:
+            numbers = np.arange(first, first + n)
         run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, segment), path_frames=numbers), None,
                       progress, plan=plan, **self._renderers())
         while not run.step():

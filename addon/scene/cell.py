@@ -75,12 +75,17 @@ def _six_figures(value):
     return value
 
 
+def in_scene(root: bpy.types.Collection, scene: bpy.types.Scene) -> bool:
+    """Is the cell's collection in ``scene``, at its top or filed in one of its collections?"""
+    return any(c == root for c in scene.collection.children_recursive)
+
+
 def cell_object(name: str, cell_name: str = CELL_NAME, scene=None):
     """The built cell's object that is ``name`` ("Robot", "Turntable", ...: its role, whatever
     Blender named it), or None; with ``scene``, None too where the cell is not in that scene
     (a file holds one cell: Build Cell in another scene takes it there)."""
     root = bpy.data.collections.get(cell_name)
-    if root is None or (scene is not None and root.name not in scene.collection.children):
+    if root is None or (scene is not None and not in_scene(root, scene)):
         return None
     return next((o for o in own_objects(root) if role_of(o) == name), None)
 
@@ -110,7 +115,7 @@ class SceneCell:
                ) -> "SceneCell | None":
         """Handles on a cell built earlier (e.g. by the panel before a file save), or None."""
         root = bpy.data.collections.get(name)
-        if root is None or root.name not in scene.collection.children:
+        if root is None or not in_scene(root, scene):
             return None
         objs = {role_of(o): o for o in own_objects(root)}
         robot_col = root.children.get("Robot")
@@ -284,7 +289,10 @@ class SceneCell:
                 table.animation_data.action = None
                 if temp is not None and temp is not saved_table[0]:
                     bpy.data.actions.remove(temp)
+            temp = pf.animation_data.action if pf.animation_data else None
             pf.animation_data_clear()
+            if temp is not None and temp.users == 0:  # the probe's keyed motion, made for this render
+                bpy.data.actions.remove(temp)
             moving.rotation_mode = saved_mode
             pf.rotation_mode = saved_pf[5]
             pf.parent, pf.parent_type, pf.parent_bone = saved_pf[0], saved_pf[1], saved_pf[2]
@@ -460,11 +468,15 @@ def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Work
     motions = {} if old_root is None else _own_motions(old_root)
     for action in motions.values():
         action.use_fake_user = True  # through the removal, which drops what nothing uses
+    # Where the artist filed the cell in this scene (under a collection of theirs): the new one goes there too.
+    homes = [] if old_root is None else [c for c in (scene.collection, *scene.collection.children_recursive)
+                                         if c != old_root and old_root.name in c.children]
     remove_cell(scene, name)
     names_before = set(bpy.data.objects.keys())
     cell = replace(cell, robot=cell.robot.with_tool(probe.mount))
     root = bpy.data.collections.new(name)
-    scene.collection.children.link(root)
+    for home in homes or [scene.collection]:
+        home.children.link(root)
     robot_col = _child_collection(root, "Robot")
     probe_col = _child_collection(root, "Probe")
     table_col = _child_collection(root, "Table")

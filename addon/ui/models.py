@@ -17,7 +17,7 @@ from ..core.config.rigs import load_probe
 from ..core.optics.sensor import SensorModel
 from ..core.kinematics.turntable import Turntable
 from ..core.geometry.workpiece import builtin_workpiece, load_workpiece, resting_on_table
-from ..scene.cell import CELL_NAME, cell_object
+from ..scene.cell import CELL_NAME, cell_object, in_scene
 from ..scene.cloud_object import CLOUD_ROLE
 from .props import CELL, FILE
 
@@ -141,7 +141,7 @@ def cell_mismatch(context) -> str | None:
     from ..scene.cell import BUILT_FROM_KEY, built_from
 
     root = bpy.data.collections.get(CELL_NAME)
-    if root is None or root.name not in context.scene.collection.children or BUILT_FROM_KEY not in root:
+    if root is None or not in_scene(root, context.scene) or BUILT_FROM_KEY not in root:
         return None
     s = context.scene.scanner
     key = _choices_key(s) + (s.probe_rows, s.probe_cols)

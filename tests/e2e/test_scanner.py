@@ -459,3 +459,23 @@ def test_a_part_of_a_path_gets_the_sensor_noise_its_frames_get_in_the_whole_path
     second = stepper.sweep([-30.0, 0.0, 200.0], [30.0, 0.0, 200.0], 3)
     assert len(first[0]) and not (len(first[0]) == len(second[0]) and np.array_equal(first[0].points,
                                                                                     second[0].points))
+
+
+def test_a_scanner_runs_its_path_with_the_paths_own_noise_whatever_it_measured_before():
+    """A config without a frame pick is numbered 0.. as written: its run after a measure()
+    draws the same noise and speckle per path frame as a fresh Scanner's run."""
+    from addon.core.config.scan import load_scan_config
+    from addon.core.optics.sensor import SensorModel
+
+    noisy = load_scan_config("step_block").with_overrides(engine="raycast")
+    noisy = noisy.with_realism(SensorModel(noise=True, speckle=True, seed=3))
+    assert noisy.path_frames is None
+    fresh = Scanner(config=noisy)
+    fresh.run()
+    later = Scanner(config=noisy)
+    later.measure()  # frame 0 of this Scanner: the path's frames join it from 1
+    later.run()
+    a, b = fresh.cloud, later.cloud
+    for k in range(3):
+        mine, theirs = b.points[b.frame == k + 1], a.points[a.frame == k]
+        assert len(mine) and len(mine) == len(theirs) and np.array_equal(mine, theirs), k

@@ -642,6 +642,33 @@ def test_props_on_a_turned_table_and_on_a_posed_arm_stay_where_they_were_through
     assert np.allclose([_world_position(p) for p in (on_table, on_arm)], where, atol=1e-5)
 
 
+def test_a_cell_filed_under_a_collection_of_the_artists_is_still_the_scenes_cell(panel):
+    """The artist files the built cell under a collection of theirs: Go still reaches, and a
+    rebuild puts the new cell where they filed the old one."""
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    root = bpy.data.collections["Scanner Cell"]
+    setup = bpy.data.collections.new("Setup")
+    panel.collection.children.link(setup)
+    setup.children.link(root)
+    panel.collection.children.unlink(root)
+    panel.scanner.target_location = (0.0, 0.0, 210.0)
+    assert bpy.ops.scanner.go.poll() and bpy.ops.scanner.go() == {"FINISHED"}
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    root = bpy.data.collections["Scanner Cell"]
+    assert root.name in setup.children and root.name not in panel.collection.children
+
+
+def test_a_cycles_scan_leaves_no_data_without_users(panel, tmp_path):
+    """Each render call keys the probe's motion on an action of its own; once the frames are
+    rendered nothing of it stays behind (a scan of a few chunks left one action per chunk)."""
+    s = panel.scanner
+    s.scan_config, s.scan_engine, s.scan_frames, s.output_dir = "CELL", "cycles", "0:3", str(tmp_path)
+    assert bpy.ops.scanner.scan() == {"FINISHED"}
+    unused = [d.name for coll in (bpy.data.meshes, bpy.data.cameras, bpy.data.lights, bpy.data.armatures,
+                                   bpy.data.materials, bpy.data.actions) for d in coll if d.users == 0]
+    assert unused == [], unused
+
+
 def test_while_a_scan_runs_the_operators_that_would_pull_the_scene_from_under_it_are_greyed_out(panel):
     from addon.ui import ops
 
