@@ -30,7 +30,7 @@ from .cameras import add_probe_cameras, camera_to_world_cv
 from .laser import add_laser
 from .materials import diffuse
 from .meshes import mesh_object
-from .ownership import built_role, mark, own_objects, role_of
+from .ownership import built_role, mark, own_objects, register_built, role_of
 from ..core.config.render import RenderOptions, laser_engine_mismatch
 from .render import EXPOSURE_KEY_FRAMES, configure, opengl_device, render_animation
 from .turntable import add_fixture, add_turntable, add_workpiece, set_table_angle
@@ -491,6 +491,7 @@ def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Work
         add_fixture(table_col, fixture, table)
     for obj in root.all_objects:
         mark(obj, built_role(obj.name, names_before))
+    register_built(root)
     root[BUILT_FROM_KEY] = json.dumps(built_from(cell.robot, probe, workpiece))
     bpy.context.view_layer.update()
     if kept or motions:

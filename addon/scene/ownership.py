@@ -4,6 +4,8 @@ The cell finds its objects by what they are ("Robot", "Turntable", ...), kept as
 property on each: never by the object's name, which Blender changes to "Turntable.001" where
 the artist's scene has a "Turntable" already. An object without the property is the artist's:
 rebuilding or removing the cell keeps it (linked to the scene, still parented where it was).
+So is a copy the artist made of one of the cell's (Shift+D copies the property): the cell's
+collection records the objects its build made (``register_built``).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import re
 import bpy
 
 ROLE_KEY = "scanner_cell_role"
+BUILT_OBJECTS_KEY = "scanner_built_objects"  # on the cell's collection: the objects its build made
 
 
 def mark(obj: bpy.types.Object, role: str) -> bpy.types.Object:
@@ -33,9 +36,23 @@ def built_role(name: str, names_before: set) -> str:
     return m.group(1) if m and m.group(1) in names_before else name
 
 
+def register_built(root: bpy.types.Collection) -> None:
+    """Record the objects the cell's collections hold now as the ones the build made, by
+    reference on the cell's collection: a copy the artist makes of one of them (Shift+D copies
+    its mark too) is not among them, and a renamed one still is."""
+    root[BUILT_OBJECTS_KEY] = {str(i): o for i, o in enumerate(root.all_objects)}
+
+
 def own_objects(root: bpy.types.Collection) -> list:
-    """The objects of the cell's collections that the cell made: the marked ones, or every one
-    where none is marked (a cell built before the marks, which owned all it held)."""
+    """The objects of the cell's collections that the cell made: those its build recorded
+    (:func:`register_built`), and marked ones of a role none of those has (made since, as a
+    scan's cloud); in a cell built before that record, the marked ones, or every one where none
+    is marked (a cell built before the marks, which owned all it held)."""
     objs = list(root.all_objects)
+    built = root.get(BUILT_OBJECTS_KEY)
+    if built is not None:
+        made = {o for o in built.values() if o is not None}
+        roles = {role_of(o) for o in made}
+        return [o for o in objs if o in made or (ROLE_KEY in o and o[ROLE_KEY] not in roles)]
     marked = [o for o in objs if ROLE_KEY in o]
     return marked if marked else objs

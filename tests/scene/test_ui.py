@@ -658,6 +658,30 @@ def test_a_cell_filed_under_a_collection_of_the_artists_is_still_the_scenes_cell
     assert root.name in setup.children and root.name not in panel.collection.children
 
 
+def test_the_artists_copies_of_the_cells_objects_are_the_artists(panel):
+    """Shift+D on the part or a probe camera copies its mark: the copy stays the artist's. A
+    rebuild keeps it, and the cell's cameras are still its own."""
+    from addon.scene.cell import cell_object
+
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    copies = []
+    for role in ("Workpiece sphere", "ProbeCam_L"):
+        original = cell_object(role)
+        copy = original.copy()  # what Shift+D does: the custom properties come along
+        for col in original.users_collection:
+            col.objects.link(copy)
+        copy.name = f"My {role}"
+        copies.append(copy)
+    from addon.ui import models
+
+    sc = models.scene_cell(bpy.context)
+    assert [c.name for c in sc.cameras] == ["ProbeCam_L", "ProbeCam_R"]
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    for copy in copies:  # kept, in the scene
+        assert copy.name in bpy.data.objects and copy.users_collection
+    assert cell_object("ProbeCam_L").name == "ProbeCam_L" and cell_object("Workpiece sphere") not in copies
+
+
 def test_a_cycles_scan_leaves_no_data_without_users(panel, tmp_path):
     """Each render call keys the probe's motion on an action of its own; once the frames are
     rendered nothing of it stays behind (a scan of a few chunks left one action per chunk)."""
