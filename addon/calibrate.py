@@ -191,14 +191,16 @@ def _cell_keeping_cloud(cfg: ScanConfig, scene):
     from .scene.ownership import ROLE_KEY, mark
 
     cloud = cell_object(CLOUD_ROLE, scene=scene)
-    if cloud is not None:
-        del cloud[ROLE_KEY]
-    sc = build_scan_cell(cfg, scene)
-    if cloud is not None:
-        mark(cloud, CLOUD_ROLE)
-        for col in list(cloud.users_collection):
-            col.objects.unlink(cloud)
-        sc.results_collection().objects.link(cloud)
+    if cloud is None:
+        return build_scan_cell(cfg, scene)
+    del cloud[ROLE_KEY]
+    try:
+        sc = build_scan_cell(cfg, scene)
+    finally:
+        mark(cloud, CLOUD_ROLE)  # the cloud's again, even where the build failed
+    for col in list(cloud.users_collection):
+        col.objects.unlink(cloud)
+    sc.results_collection().objects.link(cloud)
     return sc
 
 

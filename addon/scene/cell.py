@@ -47,13 +47,15 @@ BUILT_FROM_KEY = "scanner_built_from"  # on the cell's collection: what it was b
 _SAMPLE_JOINTS = np.array([[0.0] * 6, [0.3, -0.4, 0.5, -0.6, 0.7, -0.8]])
 
 
-def built_from(robot, probe: Probe, workpiece: Workpiece | None) -> dict:
+def built_from(robot, probe: Probe, workpiece: Workpiece | None, table=None) -> dict:
     """What tells one cell from another, as plain values: the robot's name and its flange
     at two joint vectors (a robot file edited under the same name differs), the probe's
-    optics, sensor, line and mount, the part's source and size. The panel compares the
-    cell it describes with the one in the scene before it moves or renders that one."""
+    optics, sensor, line and mount, the part's source and size, the table's place (Eq. 4's
+    a_R and d_R). The panel compares the cell it describes with the one in the scene before
+    it moves or renders that one."""
     flange = np.array([robot.link_frames(q)[-1] for q in _SAMPLE_JOINTS])  # without the tool: the probe's part
     out = {"robot": robot.name, "robot_poses": flange,
+           "table": None if table is None else [table.a_mm, table.d_mm],
            "probe": [probe.name, probe.a_mm, probe.b_mm, probe.phi_rad, probe.gamma_rad, probe.rows_px,
                      probe.cols_px, probe.line_width_mm, probe.mount],
            "workpiece": None if workpiece is None else [workpiece.source, workpiece.mesh.bounds]}
@@ -362,12 +364,15 @@ def remove_cell(scene: bpy.types.Scene, name: str = "Scanner Cell") -> None:
     collections = [root, *root.children_recursive]
     own = own_objects(root)
     own_names = {o.name for o in own}
+    # The artist's objects filed with the cell stay in the scene that held it (Build Cell in
+    # another scene takes the cell there, not their objects out of theirs).
+    home = next((s for s in bpy.data.scenes if in_scene(root, s)), scene)
     for col in collections:
         for obj in list(col.objects):
             if obj.name not in own_names:
                 col.objects.unlink(obj)
                 if not obj.users_collection:
-                    scene.collection.objects.link(obj)
+                    home.collection.objects.link(obj)
     data = []
     for obj in own:
         data += [obj.data] if obj.data is not None else []
@@ -492,7 +497,7 @@ def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Work
     for obj in root.all_objects:
         mark(obj, built_role(obj.name, names_before))
     register_built(root)
-    root[BUILT_FROM_KEY] = json.dumps(built_from(cell.robot, probe, workpiece))
+    root[BUILT_FROM_KEY] = json.dumps(built_from(cell.robot, probe, workpiece, cell.table))
     bpy.context.view_layer.update()
     if kept or motions:
         roles = {role_of(o): o for o in own_objects(root)}

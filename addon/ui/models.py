@@ -147,11 +147,14 @@ def cell_mismatch(context) -> str | None:
     key = _choices_key(s) + (s.probe_rows, s.probe_cols)
     described = _DESCRIBED.get(key)
     if described is None:
-        described = built_from(robot_from(s), probe_from(s), workpiece_from(s))
+        described = built_from(robot_from(s), probe_from(s), workpiece_from(s), cell_from(s).table)
         _DESCRIBED.clear()
         _DESCRIBED[key] = described
     built = json.loads(root[BUILT_FROM_KEY])
     differ = []
+    if "table" in built and built["table"] != described["table"]:  # (a cell saved before the table was recorded)
+        differ.append("the turntable's place: built at a_R {:g} mm, d_R {:g} mm, the panel's at {:g} and {:g} "
+                      "mm".format(*built["table"], *described["table"]))
     for what, detail in (("robot", "its joints or links"), ("probe", "its optics, sensor or mount"),
                          ("workpiece", "its size")):
         same = built.get(what) == described[what] and (what != "robot"

@@ -635,7 +635,9 @@ class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
     def _open(self, context):
         from ..calibrate import calibrate_steps
 
-        cfg = _panel_config(context, self.config)
+        # The sensor and material a scan from the panel would have: the images are calibrated on
+        # as they will be scanned with, and the cell is the one a scan builds.
+        cfg = _with_panel_sensor(context, _panel_config(context, self.config), self.config)
         self._folder = models.output_dir(self.output_dir or context.scene.scanner.output_dir,
                                          f"{cfg.name} calibration")
         return None, calibrate_steps(cfg, self._folder, views=self.views, scene=context.scene)

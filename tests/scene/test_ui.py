@@ -1,5 +1,6 @@
 """The Scanner panel's operators, called through bpy.ops with the UI registered."""
 
+import json
 import math
 
 import bpy
@@ -431,8 +432,11 @@ def test_the_calibrate_operator_writes_a_calibrated_probe_and_keeps_the_scene(pa
     where = _world_position(cell_object(CLOUD_ROLE))
     hidden = {o.name: o.hide_render for o in bpy.data.collections["Table"].objects}
     scene.render.resolution_x, scene.cycles.samples = 777, 9
+    # The Scan box's sensor from the probe panel, with lens distortion: the calibration fits it.
+    s.scan_sensor, s.sensor_realistic, s.sensor_distortion = "PANEL", True, True
     assert bpy.ops.scanner.calibrate(views=6, output_dir=str(tmp_path / "cal")) == {"FINISHED"}  # the panel's
     folder = next((tmp_path / "cal").iterdir())
+    assert json.loads((folder / "calibration.json").read_text())["distortion_fitted"] is True
     assert sorted(p.name for p in folder.iterdir()) == ["calibration.json", "calibration.png", "probe.toml"]
     assert load_probe(folder / "probe.toml").calibration is not None
     assert "Calibration board" not in bpy.data.objects
@@ -979,6 +983,8 @@ def test_a_cell_built_in_one_scene_is_not_taken_for_built_in_another(panel):
     from addon.scene.cell import cell_object
 
     assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    bpy.data.collections["Scanner Cell"].objects.link(lamp)  # the artist's, filed with the cell
     other = bpy.data.scenes.new("Shot 2")
     with _in_scene(other):
         assert not bpy.ops.scanner.go.poll() and not bpy.ops.scanner.render_views.poll()
@@ -988,6 +994,7 @@ def test_a_cell_built_in_one_scene_is_not_taken_for_built_in_another(panel):
         assert bpy.ops.scanner.build_cell() == {"FINISHED"}
         assert cell_object("Robot", scene=other) is not None and bpy.ops.scanner.render_views.poll()
     assert cell_object("Robot", scene=panel) is None  # one cell a file: it went to the other scene
+    assert lamp.name in panel.objects and lamp.name not in other.objects  # the lamp stayed where it was
 
 
 def _in_scene(scene):
@@ -1033,6 +1040,18 @@ def test_go_and_the_views_refuse_a_cell_the_panel_no_longer_describes(panel):
         bpy.ops.scanner.render_views()
     s.probe_a = 60.0
     assert models.cell_mismatch(bpy.context) is None and bpy.ops.scanner.render_views() == {"FINISHED"}
+    # A cell built with the table elsewhere (a scan config's cell, as a Scan of it builds one)
+    from addon.core.kinematics.turntable import Turntable
+    from addon.scene.cell import build_cell
+
+    here = models.cell_from(s)
+    moved = type(here)(here.robot, Turntable(here.table.a_mm + 40.0, here.table.d_mm))
+    build_cell(panel, moved, models.probe_from(s), models.workpiece_from(s), name=models.CELL_NAME)
+    with pytest.raises(RuntimeError, match=r"the turntable's place: built at a_R -460 mm, d_R -200 mm, the "
+                                           r"panel's at -500 and -200 mm"):
+        bpy.ops.scanner.go()
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"} and models.cell_mismatch(bpy.context) is None
+    robot = models.find_robot(panel)
     robot["q1"] = 1000.0  # from a script: the sliders keep the limits
     with pytest.raises(RuntimeError, match=r"outside its joint limits \(J1 = 57295.780° outside \[-170°, 170°\]\)"):
         bpy.ops.scanner.go()
