@@ -90,7 +90,7 @@ def workpiece_from(s):
 
 
 def cell_from(s) -> Cell:
-    return Cell(robot_from(s), Turntable())
+    return Cell(robot_from(s), Turntable(s.table_a_mm, s.table_d_mm))
 
 
 def scene_cell(context):
@@ -113,14 +113,14 @@ _CLEARANCE_MODELS: dict = {}  # the panel's collision model per robot, probe and
 
 
 def collision_model(s):
-    """The collision model of the panel's robot, probe and workpiece (built once per choice)."""
+    """The collision model of the panel's robot, table, probe and workpiece (built once per choice)."""
     from ..core.safety import CollisionModel, Safety
 
     key = _choices_key(s)
     model = _CLEARANCE_MODELS.get(key)
     if model is None:
         probe = probe_from(s)
-        cell = Cell(robot_from(s).with_tool(probe.mount), Turntable())
+        cell = Cell(robot_from(s).with_tool(probe.mount), cell_from(s).table)
         model = CollisionModel(cell.robot, probe, cell.table, workpiece_from(s).mesh, (), Safety().min_clearance_mm)
         _CLEARANCE_MODELS.clear()
         _CLEARANCE_MODELS[key] = model
@@ -176,8 +176,8 @@ def _name_of(entry) -> str:
 
 
 def _choices_key(s) -> tuple:
-    return (s.robot, s.robot_file, s.probe, s.probe_file, s.probe_a, s.probe_b, s.probe_phi, s.probe_gamma,
-            s.workpiece, s.workpiece_file, s.workpiece_scale)
+    return (s.robot, s.robot_file, s.table_a_mm, s.table_d_mm, s.probe, s.probe_file, s.probe_a, s.probe_b,
+            s.probe_phi, s.probe_gamma, s.workpiece, s.workpiece_file, s.workpiece_scale)
 
 
 def stale_cell_message(mismatch: str) -> str:

@@ -250,13 +250,14 @@ def _cell_config(s):
 
     base = load_scan_config("demo")
     robot, probe, wp = models.robot_from(s), models.probe_from(s), models.workpiece_from(s)
+    table = models.cell_from(s).table
     # The cell's own laser (the spots are Eevee's line); the Scan box's engine may still change it.
     render = replace(base.render, laser=s.laser, engine="eevee" if s.laser == "spot" else base.render.engine)
     return frames_in_range(replace(
-        base, name=f"The cell built here, {wp.name}", source="", robot=robot, probe=probe, workpiece=wp,
+        base, name=f"The cell built here, {wp.name}", source="", robot=robot, table=table, probe=probe, workpiece=wp,
         material=s.material, roughness=s.roughness, fixtures=(), render=render,
-        q_start=base.q_start if robot.name == base.robot.name else None,
-        waypoints=around_part(wp.mesh, base.table, standoff_mm=0.5 * sum(probe.z_range_mm))))
+        q_start=base.q_start if robot.name == base.robot.name and table == base.table else None,
+        waypoints=around_part(wp.mesh, table, standoff_mm=0.5 * sum(probe.z_range_mm))))
 
 
 def _with_engine(context, cfg, engine: str):

@@ -27,6 +27,10 @@ class SCANNER_PT_cell(_ScannerPanel, bpy.types.Panel):
                 col.prop(s, file_prop, text="")
                 if prop == "workpiece":
                     col.prop(s, "workpiece_scale")
+            if prop == "robot":  # where the table stands from this robot
+                row = col.row(align=True)
+                row.prop(s, "table_a_mm", text="Table a_R")
+                row.prop(s, "table_d_mm", text="d_R")
         col.prop(s, "material")
         if s.material == "glossy":
             col.prop(s, "roughness")

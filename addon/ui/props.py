@@ -17,6 +17,7 @@ from ..core.config.toml import available_rigs
 from ..core.config.scan import MATERIALS
 from ..core.optics.sensor import BIT_DEPTHS, SensorModel
 from ..core.geometry.workpiece import BUILTINS
+from ..core.kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM
 
 FILE = "FILE"
 
@@ -75,7 +76,12 @@ class ScannerSettings(bpy.types.PropertyGroup):
     robot: EnumProperty(name="Robot", items=ROBOT_ITEMS, default=ROBOT_ITEMS[0][0],
                         description="Robot rig: a DH table with joint limits")
     robot_file: StringProperty(name="Robot file", subtype="FILE_PATH", options=BLEND_RELATIVE,
-                               description="Robot rig file (TOML)")
+                               description="Robot file: a rig (TOML, a DH table) or a URDF")
+    table_a_mm: FloatProperty(name="Table a_R (mm)", default=PAPER_A_R_MM, soft_min=-3000.0, soft_max=3000.0,
+                              description="The turntable's axis from the robot base's, along the base's x (Eq. 4's "
+                                          "a_R; a gantry's table stands under it at 0)")
+    table_d_mm: FloatProperty(name="Table d_R (mm)", default=PAPER_D_R_MM, soft_min=-3000.0, soft_max=3000.0,
+                              description="The table top's height from the robot base's origin (Eq. 4's d_R)")
     probe: EnumProperty(name="Probe", items=PROBE_ITEMS, default="default", update=_probe_changed,
                         description="Probe rig: laser, cameras and mount; choosing one loads its optics into "
                                     "the fields below, where they can be edited")

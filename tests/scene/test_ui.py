@@ -686,6 +686,32 @@ def test_the_artists_copies_of_the_cells_objects_are_the_artists(panel):
     assert cell_object("ProbeCam_L").name == "ProbeCam_L" and cell_object("Workpiece sphere") not in copies
 
 
+def test_a_gantry_from_its_urdf_file_gets_its_table_under_it(panel):
+    """The Cell panel places the table (Eq. 4's a_R, d_R): a gantry read from its URDF file
+    with the table under it reaches over the part, the turntable stands where a_R and d_R put
+    it, and a table moved after the build makes Go refuse until the cell is built again."""
+    from pathlib import Path
+
+    from addon.scene.cell import cell_object
+    from addon.ui import models
+
+    s = panel.scanner
+    s.robot, s.robot_file = "FILE", str(Path(__file__).parents[2] / "rigs" / "robots" / "urdf" / "gantry.urdf")
+    s.table_a_mm, s.table_d_mm = 0.0, 0.0
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    table = np.array(from_blender(cell_object("Turntable").matrix_world))[:3, 3]
+    assert np.allclose(table, [0.0, 0.0, 0.0], atol=1e-3)  # mm, in the robot base's frame
+    s.target_frame, s.target_location, s.target_rotation = "table", (10.0, -5.0, 210.0), (0.3, math.pi, 0.0)
+    assert bpy.ops.scanner.go() == {"FINISHED"}
+    probe2world = from_blender(bpy.data.objects["Probe frame"].matrix_world)
+    assert np.allclose(probe2world[:3, 3], [10.0, -5.0, 210.0], atol=0.05)
+    s.table_a_mm = -300.0
+    with pytest.raises(RuntimeError, match="the turntable's place: built at a_R 0 mm, d_R 0 mm, the panel's at -300"):
+        bpy.ops.scanner.go()
+    assert models.cell_from(s).table.a_mm == -300.0
+
+
 def test_a_cycles_scan_leaves_no_data_without_users(panel, tmp_path):
     """Each render call keys the probe's motion on an action of its own; once the frames are
     rendered nothing of it stays behind (a scan of a few chunks left one action per chunk)."""
