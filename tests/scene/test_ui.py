@@ -712,6 +712,28 @@ def test_a_gantry_from_its_urdf_file_gets_its_table_under_it(panel):
     assert models.cell_from(s).table.a_mm == -300.0
 
 
+def test_a_robot_file_edited_on_disk_makes_the_built_cell_stale(panel, tmp_path):
+    """The same file chosen, edited since Build Cell (a link 20 mm longer): Go refuses until
+    the cell is built again, as for a new choice."""
+    import os
+    from pathlib import Path
+
+    text = (Path(__file__).parents[2] / "rigs" / "robots" / "puma560.toml").read_text()
+    rig_file = tmp_path / "arm.toml"
+    rig_file.write_text(text.replace("../../.cache", str(Path(__file__).parents[2] / ".cache")))
+    s = panel.scanner
+    s.robot, s.robot_file = "FILE", str(rig_file)
+    s.target_frame, s.target_location = "table", (0.0, 0.0, 210.0)
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    assert bpy.ops.scanner.go() == {"FINISHED"}
+    rig_file.write_text(rig_file.read_text().replace("a_mm = 431.8", "a_mm = 451.8", 1))
+    stat = rig_file.stat()
+    os.utime(rig_file, ns=(stat.st_atime_ns, stat.st_mtime_ns + 10**9))  # a second later, however fast the test
+    with pytest.raises(RuntimeError, match="its joints or links differ from the built one's"):
+        bpy.ops.scanner.go()
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"} and bpy.ops.scanner.go() == {"FINISHED"}
+
+
 def test_a_cycles_scan_leaves_no_data_without_users(panel, tmp_path):
     """Each render call keys the probe's motion on an action of its own; once the frames are
     rendered nothing of it stays behind (a scan of a few chunks left one action per chunk)."""
