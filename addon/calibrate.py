@@ -186,14 +186,19 @@ def _cell_keeping_cloud(cfg: ScanConfig, scene):
     rebuilt, a cell drops what it made, the cloud included; unmarked for the rebuild, the cloud
     is kept as an object of the artist's on the turntable, then filed with the results again."""
     from .pipeline import build_scan_cell
-    from .scene.cell import cell_object
+    import bpy
+
+    from .scene.cell import CELL_NAME, cell_object
     from .scene.cloud_object import CLOUD_ROLE
-    from .scene.ownership import ROLE_KEY, mark
+    from .scene.ownership import BUILT_OBJECTS_KEY, ROLE_KEY, mark, register_made
 
     cloud = cell_object(CLOUD_ROLE, scene=scene)
-    if cloud is None:
+    if cloud is None or ROLE_KEY not in cloud:  # none, or a cell from before the marks, which owns all it holds
         return build_scan_cell(cfg, scene)
     del cloud[ROLE_KEY]
+    root = bpy.data.collections.get(CELL_NAME)
+    if root is not None and BUILT_OBJECTS_KEY in root:  # out of the cell's record, so the rebuild keeps it
+        root[BUILT_OBJECTS_KEY] = {k: o for k, o in root[BUILT_OBJECTS_KEY].items() if o != cloud}
     try:
         sc = build_scan_cell(cfg, scene)
     finally:
@@ -201,6 +206,7 @@ def _cell_keeping_cloud(cfg: ScanConfig, scene):
     for col in list(cloud.users_collection):
         col.objects.unlink(cloud)
     sc.results_collection().objects.link(cloud)
+    register_made(sc.root, cloud)
     return sc
 
 
@@ -210,6 +216,7 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
     (images rendered, images in all) after each render call."""
     from .core.scan.frames import detect_all
     from .pipeline import build_scan_cell, render_settings
+    from .scene.ownership import register_made
     from .scene.target import add_board, show_print
 
     # The cell a scan of the config builds, the scene's cloud kept on its table: the panel's
@@ -219,6 +226,7 @@ def _render(cfg: ScanConfig, board: ChArUcoBoard, q: np.ndarray, progress, scene
     scene = sc.scene
     put_away = [o for o in sc.root.children["Table"].objects if o != sc.table and not o.hide_render]
     plate = add_board(sc.root.children["Table"], board, board2table(board), sc.table)
+    register_made(sc.root, plate)
     frames = sc.keyframe(q, np.zeros(len(q)))
     first, last = frames.start, frames.stop - 1
     sensor = cfg.sensor

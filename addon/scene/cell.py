@@ -30,7 +30,7 @@ from .cameras import add_probe_cameras, camera_to_world_cv
 from .laser import add_laser
 from .materials import diffuse
 from .meshes import mesh_object
-from .ownership import built_role, mark, own_objects, register_built, role_of
+from .ownership import built_role, mark, own_objects, recorded_objects, register_built, role_of
 from ..core.config.render import RenderOptions, laser_engine_mismatch
 from .render import EXPOSURE_KEY_FRAMES, configure, opengl_device, render_animation
 from .turntable import add_fixture, add_turntable, add_workpiece, set_table_angle
@@ -267,6 +267,9 @@ class SceneCell:
             table.animation_data.action = None
         table.matrix_basis.identity()
         pf.parent = None
+        pf_action = pf.animation_data.action if pf.animation_data else None  # an artist's, set aside
+        if pf_action is not None:
+            pf.animation_data.action = None
         moving, poses = (table, rigid_inverse(probe2table)) if move_table else (pf, probe2table)
         if move_table:
             pf.matrix_basis.identity()
@@ -293,8 +296,10 @@ class SceneCell:
                     bpy.data.actions.remove(temp)
             temp = pf.animation_data.action if pf.animation_data else None
             pf.animation_data_clear()
-            if temp is not None and temp.users == 0:  # the probe's keyed motion, made for this render
+            if temp is not None and temp is not pf_action and temp.users == 0:  # the motion keyed for this render
                 bpy.data.actions.remove(temp)
+            if pf_action is not None:
+                pf.animation_data_create().action = pf_action
             moving.rotation_mode = saved_mode
             pf.rotation_mode = saved_pf[5]
             pf.parent, pf.parent_type, pf.parent_bone = saved_pf[0], saved_pf[1], saved_pf[2]
@@ -373,6 +378,8 @@ def remove_cell(scene: bpy.types.Scene, name: str = "Scanner Cell") -> None:
                 col.objects.unlink(obj)
                 if not obj.users_collection:
                     home.collection.objects.link(obj)
+    # The cell's objects the artist deleted: their record kept them from being freed.
+    own += [o for o in (recorded_objects(root) or []) if not o.users_collection and o not in own]
     data = []
     for obj in own:
         data += [obj.data] if obj.data is not None else []
@@ -394,9 +401,10 @@ def _children_kept(root: bpy.types.Collection) -> list:
     type, parent bone, world matrix, pose in the parent's frame), to put back on the rebuilt
     cell where they were on their parent."""
     own_names = {o.name for o in own_objects(root)}
+    made = own_names | {o.name for o in recorded_objects(root) or []}  # (the cell's that the artist deleted too)
     return [(o, role_of(o.parent), o.parent_type, o.parent_bone, o.matrix_world.copy(),
              _parent_frame(o).inverted() @ o.matrix_world)
-            for o in bpy.data.objects if o.name not in own_names and o.parent is not None
+            for o in bpy.data.objects if o.name not in made and o.parent is not None
             and o.parent.name in own_names]
 
 

@@ -43,16 +43,30 @@ def register_built(root: bpy.types.Collection) -> None:
     root[BUILT_OBJECTS_KEY] = {str(i): o for i, o in enumerate(root.all_objects)}
 
 
-def own_objects(root: bpy.types.Collection) -> list:
-    """The objects of the cell's collections that the cell made: those its build recorded
-    (:func:`register_built`), and marked ones of a role none of those has (made since, as a
-    scan's cloud); in a cell built before that record, the marked ones, or every one where none
-    is marked (a cell built before the marks, which owned all it held)."""
-    objs = list(root.all_objects)
+def register_made(root: bpy.types.Collection, obj: bpy.types.Object) -> None:
+    """Add ``obj``, made for the cell after its build (a scan's cloud, the calibration's
+    board), to the cell's record (:func:`register_built`); nothing for a cell without one."""
+    made = recorded_objects(root)
+    if made is not None and obj not in made:
+        root[BUILT_OBJECTS_KEY] = {str(i): o for i, o in enumerate([*made, obj])}
+
+
+def recorded_objects(root: bpy.types.Collection) -> list | None:
+    """The objects the cell's record holds (those the artist deleted too, which the record
+    keeps from being freed until the cell is removed); None for a cell built before the record."""
     built = root.get(BUILT_OBJECTS_KEY)
-    if built is not None:
-        made = {o for o in built.values() if o is not None}
-        roles = {role_of(o) for o in made}
-        return [o for o in objs if o in made or (ROLE_KEY in o and o[ROLE_KEY] not in roles)]
+    return None if built is None else [o for o in built.values() if o is not None]
+
+
+def own_objects(root: bpy.types.Collection) -> list:
+    """The objects of the cell's collections that the cell made: those its record holds
+    (:func:`register_built`, :func:`register_made`); in a cell built before that record, the
+    marked ones, or every one where none is marked (a cell built before the marks, which owned
+    all it held)."""
+    objs = list(root.all_objects)
+    made = recorded_objects(root)
+    if made is not None:
+        made = set(made)
+        return [o for o in objs if o in made]
     marked = [o for o in objs if ROLE_KEY in o]
     return marked if marked else objs

@@ -16,7 +16,7 @@ from ..core.config.rigs import load_robot
 from ..core.optics.probe import Probe
 from ..core.config.rigs import load_probe
 from ..core.optics.sensor import SensorModel
-from ..core.kinematics.turntable import Turntable
+from ..core.kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM, Turntable
 from ..core.geometry.workpiece import builtin_workpiece, load_workpiece, resting_on_table
 from ..scene.cell import CELL_NAME, cell_object, in_scene
 from ..scene.cloud_object import CLOUD_ROLE
@@ -153,7 +153,9 @@ def cell_mismatch(context) -> str | None:
         _DESCRIBED[key] = described
     built = json.loads(root[BUILT_FROM_KEY])
     differ = []
-    if "table" in built and built["table"] != described["table"]:  # (a cell saved before the table was recorded)
+    # A cell saved before the table was recorded was built on the default table (Turntable()).
+    built.setdefault("table", [PAPER_A_R_MM, PAPER_D_R_MM])
+    if built["table"] != described["table"]:
         differ.append("the turntable's place: built at a_R {:g} mm, d_R {:g} mm, the panel's at {:g} and {:g} "
                       "mm".format(*built["table"], *described["table"]))
     for what, detail in (("robot", "its joints or links"), ("probe", "its optics, sensor or mount"),

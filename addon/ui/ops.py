@@ -486,8 +486,12 @@ def _import_result(context, scanner, result) -> None:
         if mesh is not None and mesh.users == 0:
             bpy.data.meshes.remove(mesh)
     if context.scene.scanner.import_cloud and scanner.scene_cell is not None:
-        import_cloud(scanner.scene_cell.results_collection(), result.cloud, scanner.scene_cell.table,
-                     result.error_um, name=models.CLOUD_NAME, on_part=result.on_part, on_fixture=result.on_fixture)
+        from ..scene.ownership import register_made
+
+        sc = scanner.scene_cell
+        cloud = import_cloud(sc.results_collection(), result.cloud, sc.table, result.error_um, name=models.CLOUD_NAME,
+                             on_part=result.on_part, on_fixture=result.on_fixture)
+        register_made(sc.root, cloud)  # the cell's (a copy the artist makes of it is theirs)
 
 
 def _engine_property():

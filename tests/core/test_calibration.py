@@ -316,8 +316,16 @@ def test_undistort_false_keeps_a_calibrated_probe_from_undistorting():
         assert len(got) > 100
         same = np.abs(got.points[:, None] - raw.points[None]).sum(axis=2).min(axis=1) < 1e-9
         assert same.all() == expect_raw and (same.any() or not expect_raw)
-    # the undistorted detection's pixel, by OpenCV directly, is where the kept point images
+    # undistort = true: the points are those of the detection undistorted by OpenCV directly
     u = np.arange(PROBE.cols_px, dtype=float)
     und = cv2.undistortPoints(np.column_stack([u, rows]).reshape(-1, 1, 2), cams[0].K, np.array(k),
                               P=cams[0].K).reshape(-1, 2)
     assert np.abs(und - np.column_stack([u, rows])).max() > 0.5  # the lens model moves them
+    W = PROBE.cols_px
+    moved = LineDetection(und[:, 0], und[:, 1], np.ones(W), np.ones(W), np.zeros(W, np.uint8), "given",
+                          (PROBE.rows_px, W))
+    expected = triangulate_profile(probe, moved, 0)
+    got = frame_profile(probe, [line, None], replace(config, sensor=replace(config.sensor, undistort=True)))
+    assert len(got) >= len(expected) - 2 > 100  # (the filter drops the line's two end columns)
+    nearest = np.linalg.norm(got.points[:, None] - expected.points[None], axis=2).min(axis=1)
+    assert nearest.max() < 1e-6

@@ -13,7 +13,7 @@ from addon.core.config.rigs import load_robot
 from addon.core.config.rigs import load_probe
 from addon.core.kinematics.turntable import Turntable
 from addon.scene import rig
-from addon.scene.ownership import mark
+from addon.scene.ownership import mark, register_made
 from addon.scene.units import from_blender
 
 
@@ -734,6 +734,79 @@ def test_a_robot_file_edited_on_disk_makes_the_built_cell_stale(panel, tmp_path)
     assert bpy.ops.scanner.build_cell() == {"FINISHED"} and bpy.ops.scanner.go() == {"FINISHED"}
 
 
+def test_a_cell_object_the_artist_deletes_is_freed_and_a_copied_cloud_kept(panel, tmp_path):
+    """The cell's record holds its objects by reference: one the artist deletes is freed by the
+    next build (its name free again, no object without users left), and a copy the artist
+    makes of the scan's cloud is theirs while the cloud stays the cell's."""
+    from addon.scene.cell import cell_object
+    from addon.scene.cloud_object import CLOUD_ROLE
+
+    s = panel.scanner
+    s.scan_config, s.scan_engine, s.scan_frames, s.output_dir = "CELL", "raycast", "0:40:8", str(tmp_path)
+    assert bpy.ops.scanner.scan() == {"FINISHED"}
+    cloud = cell_object(CLOUD_ROLE)
+    copy = cloud.copy()  # Shift+D
+    for col in cloud.users_collection:
+        col.objects.link(copy)
+    copy.name = "My cloud"
+    assert cell_object(CLOUD_ROLE) == cloud
+    part = cell_object("Workpiece sphere")
+    for col in list(part.users_collection):  # what X in the viewport does: out of every collection
+        col.objects.unlink(part)
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    assert cell_object("Workpiece sphere").name == "Workpiece sphere"
+    assert [o.name for o in bpy.data.objects if o.users == 0] == []
+    assert "My cloud" in bpy.data.objects and bpy.data.objects["My cloud"].users_collection
+
+
+def test_a_cell_from_before_the_marks_is_calibrated_in_without_a_traceback(panel, tmp_path):
+    """A cell saved before its objects were marked (and recorded) owns all it holds: keeping
+    its cloud through the calibration's build is not tried, and nothing raises."""
+    from addon.calibrate import _cell_keeping_cloud
+    from addon.core.config.scan import load_scan_config
+    from addon.scene.cell import cell_object
+    from addon.scene.ownership import BUILT_OBJECTS_KEY, ROLE_KEY
+
+    s = panel.scanner
+    s.scan_config, s.scan_engine, s.scan_frames, s.output_dir = "demo", "raycast", "0:40:8", str(tmp_path)
+    assert bpy.ops.scanner.scan() == {"FINISHED"}
+    root = bpy.data.collections["Scanner Cell"]
+    del root[BUILT_OBJECTS_KEY]
+    for obj in root.all_objects:
+        obj.pop(ROLE_KEY, None)
+    sc = _cell_keeping_cloud(load_scan_config("demo"), panel)
+    assert sc.table is not None and cell_object("Turntable") is not None
+
+
+def test_the_artists_action_on_the_probe_frame_survives_a_cycles_render(panel, tmp_path):
+    from addon.scene.cell import cell_object
+
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    frame = cell_object("Probe frame")
+    action = bpy.data.actions.new("Wobble")
+    frame.animation_data_create().action = action
+    s = panel.scanner
+    s.scan_config, s.scan_engine, s.scan_frames, s.output_dir = "CELL", "cycles", "0:2", str(tmp_path)
+    assert bpy.ops.scanner.scan() == {"FINISHED"}
+    assert "Wobble" in bpy.data.actions
+
+
+def test_a_cell_saved_before_the_table_was_recorded_is_stale_once_the_table_moves(panel):
+    import json
+
+    from addon.scene.cell import BUILT_FROM_KEY
+    from addon.ui import models
+
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    root = bpy.data.collections["Scanner Cell"]
+    record = json.loads(root[BUILT_FROM_KEY])
+    del record["table"]
+    root[BUILT_FROM_KEY] = json.dumps(record)
+    assert models.cell_mismatch(bpy.context) is None  # built on the default table, as then
+    panel.scanner.table_a_mm = -460.0
+    assert "the turntable's place" in models.cell_mismatch(bpy.context)
+
+
 def test_a_cycles_scan_leaves_no_data_without_users(panel, tmp_path):
     """Each render call keys the probe's motion on an action of its own; once the frames are
     rendered nothing of it stays behind (a scan of a few chunks left one action per chunk)."""
@@ -1019,6 +1092,7 @@ def test_a_mesh_file_rests_on_the_table_and_bad_values_from_a_script_are_refused
                           (str(tmp_path / "nowhere" / "x.ply"), "the folder .*nowhere does not exist")):
         cloud = mark(bpy.data.objects.new("Scan cloud", bpy.data.meshes.new("Scan cloud")), "Scan cloud")
         bpy.data.collections["Scanner Cell"].objects.link(cloud)  # something to export, where a scan puts it
+        register_made(bpy.data.collections["Scanner Cell"], cloud)  # and as the cell's, as a scan records it
         with pytest.raises(RuntimeError, match=words) as caught:
             bpy.ops.scanner.export_ply(filepath=target)
         assert ".part" not in str(caught.value)
