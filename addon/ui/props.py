@@ -77,10 +77,12 @@ class ScannerSettings(bpy.types.PropertyGroup):
                         description="Robot rig: a DH table with joint limits")
     robot_file: StringProperty(name="Robot file", subtype="FILE_PATH", options=BLEND_RELATIVE,
                                description="Robot file: a rig (TOML, a DH table) or a URDF")
-    table_a_mm: FloatProperty(name="Table a_R (mm)", default=PAPER_A_R_MM, soft_min=-3000.0, soft_max=3000.0,
+    table_a_mm: FloatProperty(name="Table a_R (mm)", default=PAPER_A_R_MM, min=-10000.0, max=10000.0,
+                              soft_min=-3000.0, soft_max=3000.0,
                               description="The turntable's axis from the robot base's, along the base's x (Eq. 4's "
                                           "a_R; a gantry's table stands under it at 0)")
-    table_d_mm: FloatProperty(name="Table d_R (mm)", default=PAPER_D_R_MM, soft_min=-3000.0, soft_max=3000.0,
+    table_d_mm: FloatProperty(name="Table d_R (mm)", default=PAPER_D_R_MM, min=-10000.0, max=10000.0,
+                              soft_min=-3000.0, soft_max=3000.0,
                               description="The table top's height from the robot base's origin (Eq. 4's d_R)")
     probe: EnumProperty(name="Probe", items=PROBE_ITEMS, default="default", update=_probe_changed,
                         description="Probe rig: laser, cameras and mount; choosing one loads its optics into "
