@@ -266,7 +266,8 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
         # three-point fit has nothing to fit on that side. "None to speak of" is below
         # CUT_SHARE of the peak, not 0: a renderer's tail of the Gaussian far beyond the edge
         # (1e-45 in Cycles) is no light either; a whole line's neighbour, a pixel from its peak,
-        # is at least that bright down to a line σ of 0.2 px.
+        # is at least that bright down to a line σ of 0.3 px at any sub-pixel phase (the far
+        # neighbour of a peak half a pixel off centre gets exp(−1/σ²) of it).
         floor = CUT_SHARE * S[rr, cols]
         cut = (S[rr - 1, cols] <= floor) | (S[rr + 1, cols] <= floor)
         code[(code == 0) & cut] = LineCode.EDGE
@@ -474,8 +475,10 @@ def _skew_shift(offsets: np.ndarray, w: np.ndarray, r: np.ndarray, rows_px: int)
     which the three-point fit finds (the density φ(x)/|a + 2cx| is largest at
     x ≈ −2cσ²/a), by 2cσ² the other way. To first order in c, μ₃ = 6a²cσ⁴ and
     var = a²σ², so the peak's shift is μ₃ / (3·var). Moments of the window ``w`` around the
-    peak row (:func:`_lit_window`, wide enough that sampling a whole Gaussian reads under
-    0.01 px) of an image ``rows_px`` high; a symmetric profile gives 0."""
+    peak row (:func:`_lit_window`) of an image ``rows_px`` high; a symmetric profile gives 0.
+    Sampling reads as skew on a narrow line: a whole Gaussian of σ 0.65 px reads under
+    0.01 px at any sub-pixel phase, of σ 0.55 px up to 0.04 px, of σ 0.45 px up to 0.13 px
+    (docs/optics.md says what taking that out did)."""
     half = (len(offsets) - 1) // 2
     # Within `half` rows of the image's first or last row the sensor cuts a tail off, which
     # would read as asymmetry (and a shrunken window misreads a whole Gaussian by up to 0.1 px):
