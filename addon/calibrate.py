@@ -185,20 +185,17 @@ def _cell_keeping_cloud(cfg: ScanConfig, scene):
     """Build the config's scan cell in ``scene`` (the panel's), keeping the scene's scan cloud:
     rebuilt, a cell drops what it made, the cloud included; unmarked for the rebuild, the cloud
     is kept as an object of the artist's on the turntable, then filed with the results again."""
-    from .pipeline import build_scan_cell
     import bpy
 
+    from .pipeline import build_scan_cell
     from .scene.cell import CELL_NAME, cell_object
     from .scene.cloud_object import CLOUD_ROLE
-    from .scene.ownership import BUILT_OBJECTS_KEY, ROLE_KEY, mark, register_made
+    from .scene.ownership import ROLE_KEY, disown, mark, register_made
 
     cloud = cell_object(CLOUD_ROLE, scene=scene)
     if cloud is None or ROLE_KEY not in cloud:  # none, or a cell from before the marks, which owns all it holds
         return build_scan_cell(cfg, scene)
-    del cloud[ROLE_KEY]
-    root = bpy.data.collections.get(CELL_NAME)
-    if root is not None and BUILT_OBJECTS_KEY in root:  # out of the cell's record, so the rebuild keeps it
-        root[BUILT_OBJECTS_KEY] = {k: o for k, o in root[BUILT_OBJECTS_KEY].items() if o != cloud}
+    disown(bpy.data.collections[CELL_NAME], cloud)
     try:
         sc = build_scan_cell(cfg, scene)
     finally:

@@ -297,8 +297,8 @@ class ScanRun:
         row0 = 0 if rows is None else rows[0]
         # Each frame's noise and speckle are drawn for its number in the whole path: a scan of
         # frames 5:10 gives frame 5 what the whole scan gives it, not frame 0's grain again.
-        numbers = self.config.path_frames
-        frame = int(numbers[index]) if numbers is not None and len(numbers) == len(self.plan.q) else index
+        numbers = path_numbers(self.config, len(self.plan.q))
+        frame = int(numbers[index]) if numbers is not None else index
         return [None if img is None else sensor.apply(img, self.config.probe, camera, frame, row0)
                 for camera, img in enumerate(pair)]
 
@@ -341,9 +341,15 @@ def path_motion(config: ScanConfig, total: int, lo: int, hi: int) -> dict:
     motion, not ten's)."""
     wp = config.waypoints
     segments = wp.segment[lo:hi] if len(wp) == total else None
+    numbers = path_numbers(config, total)
+    return {"segments": segments, "path_frames": None if numbers is None else numbers[lo:hi]}
+
+
+def path_numbers(config: ScanConfig, total: int):
+    """Each of a ``total``-frame plan's frames' number in the whole path (config.path_frames),
+    or None where the config numbers none or another plan (consecutive from 0)."""
     numbers = config.path_frames
-    path_frames = numbers[lo:hi] if numbers is not None and len(numbers) == total else None
-    return {"segments": segments, "path_frames": path_frames}
+    return numbers if numbers is not None and len(numbers) == total else None
 
 
 def render_settings(config: ScanConfig) -> RenderOptions:

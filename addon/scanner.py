@@ -580,12 +580,11 @@ class Scanner:
                             math.degrees(table_rad[i]), {}, first + i) for i in range(n)]
         # The configured path keeps its entries and frame numbers; a step of its own is one entry,
         # numbered as its frames join this Scanner (the sensor's noise and the motion blur read both).
-        whole_path = not own_step and len(cfg.waypoints) == n
-        segment = cfg.waypoints.segment if whole_path else np.zeros(n, int)
-        if whole_path:  # the path's own frame numbers, whatever this Scanner measured before
+        if not own_step and len(cfg.waypoints) == n:  # the path's own, whatever this Scanner measured before
+            segment = cfg.waypoints.segment
             numbers = cfg.path_frames if cfg.path_frames is not None else np.arange(n)
         else:
-            numbers = np.arange(first, first + n)
+            segment, numbers = np.zeros(n, int), np.arange(first, first + n)
         run = ScanRun(replace(cfg, waypoints=Waypoints(probe2table, table_rad, segment), path_frames=numbers), None,
                       progress, plan=plan, **self._renderers())
         while not run.step():

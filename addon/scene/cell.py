@@ -79,7 +79,7 @@ def _six_figures(value):
 
 def in_scene(root: bpy.types.Collection, scene: bpy.types.Scene) -> bool:
     """Is the cell's collection in ``scene``, at its top or filed in one of its collections?"""
-    return any(c == root for c in scene.collection.children_recursive)
+    return root in scene.collection.children_recursive
 
 
 def cell_object(name: str, cell_name: str = CELL_NAME, scene=None):

@@ -51,6 +51,15 @@ def register_made(root: bpy.types.Collection, obj: bpy.types.Object) -> None:
         root[BUILT_OBJECTS_KEY] = {str(i): o for i, o in enumerate([*made, obj])}
 
 
+def disown(root: bpy.types.Collection, obj: bpy.types.Object) -> None:
+    """The cell lets ``obj`` go: its mark and its place in the cell's record removed, a rebuild
+    keeps it as the artist's (``mark`` and :func:`register_made` take it back)."""
+    obj.pop(ROLE_KEY, None)
+    made = recorded_objects(root)
+    if made is not None:
+        root[BUILT_OBJECTS_KEY] = {str(i): o for i, o in enumerate(o for o in made if o != obj)}
+
+
 def recorded_objects(root: bpy.types.Collection) -> list | None:
     """The objects the cell's record holds (those the artist deleted too, which the record
     keeps from being freed until the cell is removed); None for a cell built before the record."""

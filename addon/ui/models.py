@@ -120,9 +120,9 @@ def collision_model(s):
     key = _choices_key(s)
     model = _CLEARANCE_MODELS.get(key)
     if model is None:
-        probe = probe_from(s)
-        cell = Cell(robot_from(s).with_tool(probe.mount), cell_from(s).table)
-        model = CollisionModel(cell.robot, probe, cell.table, workpiece_from(s).mesh, (), Safety().min_clearance_mm)
+        probe, cell = probe_from(s), cell_from(s)
+        model = CollisionModel(cell.robot.with_tool(probe.mount), probe, cell.table, workpiece_from(s).mesh, (),
+                               Safety().min_clearance_mm)
         _CLEARANCE_MODELS.clear()
         _CLEARANCE_MODELS[key] = model
     return model
