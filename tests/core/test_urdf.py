@@ -496,3 +496,35 @@ def test_a_non_finite_joint_origin_or_axis_is_named_where_it_was_written(joint, 
     message = str(info.value)
     assert "\n" not in message and message.startswith(f"{path}: ") and words in message, message
     assert "a_mm" not in message and "NaN or inf" not in message
+
+
+def test_a_mesh_file_edited_after_loading_is_read_again(tmp_path):
+    """The loaded robot is cached; the cache must not outlive an edit of a mesh the URDF names
+    (the collision checks would run on the old shape)."""
+    import os
+
+    import trimesh
+
+    def write_box(size_mm, when_ns):
+        mesh_file = tmp_path / "link2.stl"
+        mesh_file.write_bytes(trimesh.creation.box((size_mm, 10.0, 10.0)).export(file_type="stl"))
+        os.utime(mesh_file, ns=(when_ns, when_ns))
+
+    write_box(20.0, 1_000_000_000_000_000_000)
+    origins = [("0 0 0.1", "0 0 0")] * 6
+    path = write_chain(tmp_path / "robot.urdf", origins, ["0 0 1", "0 1 0", "0 1 0", "1 0 0", "0 1 0", "1 0 0"])
+    path.write_text(path.read_text().replace(
+        '<link name="l2"/>', '<link name="l2"><collision><geometry><mesh filename="link2.stl" scale="0.001 0.001 0.001"/>'
+        '</geometry></collision></link>'))
+
+    def extent_mm(robot):
+        return float(np.ptp(robot.collision_meshes[1][0].vertices, axis=0).max())  # the box's long side
+
+    first = load_robot(path)
+    assert load_robot(path) is first  # unchanged files: the cached robot
+    assert extent_mm(first) == pytest.approx(20.0, abs=1e-6)
+    write_box(30.0, 1_000_000_100_000_000_000)  # edited later (a box's binary STL keeps its byte count)
+    assert extent_mm(load_robot(path)) == pytest.approx(30.0, abs=1e-6)
+    (tmp_path / "link2.stl").unlink()
+    with pytest.raises(ConfigError, match="link2.stl"):
+        load_robot(path)

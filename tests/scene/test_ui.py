@@ -734,6 +734,44 @@ def test_a_robot_file_edited_on_disk_makes_the_built_cell_stale(panel, tmp_path)
     assert bpy.ops.scanner.build_cell() == {"FINISHED"} and bpy.ops.scanner.go() == {"FINISHED"}
 
 
+def test_a_urdf_robots_mesh_edited_on_disk_renews_the_panels_collision_model(panel, tmp_path):
+    """The panel's collision model (the clearance readout) is kept per choice; a collision mesh
+    the chosen URDF names, edited since, makes it another choice, so the checks take the new
+    shape."""
+    import os
+    from pathlib import Path
+
+    import trimesh
+
+    from addon.ui import models
+
+    def write_box(size_mm, when_ns):
+        stl = tmp_path / "carriage.stl"
+        stl.write_bytes(trimesh.creation.box((size_mm, 10.0, 10.0)).export(file_type="stl"))
+        os.utime(stl, ns=(when_ns, when_ns))
+
+    write_box(20.0, 1_000_000_000_000_000_000)
+    text = (Path(__file__).parents[2] / "rigs" / "robots" / "urdf" / "gantry.urdf").read_text()
+    urdf = tmp_path / "gantry.urdf"
+    urdf.write_text(text.replace('<link name="carriage">', '<link name="carriage"><collision><geometry>'
+                                 '<mesh filename="carriage.stl" scale="0.001 0.001 0.001"/></geometry></collision>', 1))
+    s = panel.scanner
+    s.robot, s.robot_file = "FILE", str(urdf)
+    s.table_a_mm, s.table_d_mm = 0.0, 0.0
+
+    def longest_side_mm(model):
+        mesh, _ = model.robot.collision_meshes[model.robot.link_names.index("carriage")]
+        return float(np.ptp(mesh.vertices, axis=0).max())
+
+    models.collision_model(s)
+    first = models.collision_model(s)
+    assert models.collision_model(s) is first  # nothing changed: the same model
+    assert longest_side_mm(first) == pytest.approx(20.0, abs=1e-6)
+    write_box(80.0, 1_000_000_100_000_000_000)
+    renewed = models.collision_model(s)
+    assert renewed is not first and longest_side_mm(renewed) == pytest.approx(80.0, abs=1e-6)
+
+
 def test_a_cell_object_the_artist_deletes_is_freed_and_a_copied_cloud_kept(panel, tmp_path):
     """The cell's record holds its objects by reference: one the artist deletes is freed by the
     next build (its name free again, no object without users left), and a copy the artist

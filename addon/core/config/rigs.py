@@ -32,7 +32,8 @@ def load_robot(name_or_path: str | Path, *, base_link: str | None = None, tool_l
     """Robot from ``rigs/robots/<name>.toml``, a path to such a file, or a URDF file (``.urdf``
     or ``.xml``, or any name with ``urdf=True``: the chain from ``base_link`` to ``tool_link``,
     meshes found through ``package_dirs``; see addon.core.kinematics.urdf). A xacro file is
-    named as one, to be expanded first. Cached while the file is unchanged."""
+    named as one, to be expanded first. Cached while the file is unchanged (a URDF: and the mesh
+    files it names)."""
     lower = str(name_or_path).lower()
     if lower.endswith(".xacro"):
         from ..kinematics.urdf import unexpanded_xacro
@@ -42,19 +43,53 @@ def load_robot(name_or_path: str | Path, *, base_link: str | None = None, tool_l
         path = Path(name_or_path).expanduser()
         if not path.is_file():
             raise ConfigError(f"{path}: no such file")
-        return _urdf_cached(path.resolve(), path.stat().st_mtime_ns, base_link, tool_link,
-                            tuple(str(Path(d).expanduser()) for d in package_dirs))
+        return _urdf_cached(path.resolve(), base_link, tool_link, tuple(str(Path(d).expanduser()) for d in package_dirs))
     if base_link or tool_link or package_dirs:
         raise ConfigError(f"{name_or_path}: base_link, tool_link and package_dirs apply to URDF robots only")
     path = resolve_rig("robots", name_or_path)
     return _robot_cached(path, path.stat().st_mtime_ns)
 
 
-@functools.lru_cache(maxsize=16)
-def _urdf_cached(path: Path, mtime_ns: int, base_link, tool_link, package_dirs) -> Robot:
+URDF_CACHE_SIZE = 16
+_urdf_cache: dict = {}  # (path, base_link, tool_link, package_dirs) -> (file stamps, Robot)
+
+
+def _stamp(path: Path):
+    """What tells a changed file: its time of change and size (None: it cannot be read)."""
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return st.st_mtime_ns, st.st_size
+
+
+def urdf_mesh_files(path: str | Path) -> tuple[Path, ...]:
+    """The mesh files the URDF robot last loaded from ``path`` read (empty where none is
+    loaded): what else makes that robot another one when edited."""
+    resolved = Path(path).expanduser().resolve()
+    for (held_path, *_), (stamps, _robot) in reversed(_urdf_cache.items()):
+        if held_path == resolved:
+            return tuple(f for f, _ in stamps[1:])
+    return ()
+
+
+def _urdf_cached(path: Path, base_link, tool_link, package_dirs) -> Robot:
+    """The URDF robot, read again when the file or one of the mesh files it read changed (a
+    collision mesh edited while the panel is open must not leave the checks on the old one)."""
     from ..kinematics.urdf import load_urdf_robot
 
-    return load_urdf_robot(path, base_link, tool_link, package_dirs)
+    key = (path, base_link, tool_link, package_dirs)
+    held = _urdf_cache.get(key)
+    if held is not None and all(_stamp(f) == stamp for f, stamp in held[0]):
+        return held[1]
+    files: list = []
+    stamp = _stamp(path)
+    robot = load_urdf_robot(path, base_link, tool_link, package_dirs, files)
+    _urdf_cache.pop(key, None)
+    while len(_urdf_cache) >= URDF_CACHE_SIZE:
+        _urdf_cache.pop(next(iter(_urdf_cache)))  # the oldest
+    _urdf_cache[key] = (((path, stamp), *((f, _stamp(f)) for f in dict.fromkeys(files))), robot)
+    return robot
 
 
 def load_probe(name_or_path: str | Path) -> Probe:

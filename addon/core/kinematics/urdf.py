@@ -277,9 +277,10 @@ def dh_from_axes(points, dirs, tool_pose: np.ndarray):
 
 
 def load_urdf_robot(path: str | Path, base_link: str | None = None, tool_link: str | None = None,
-                    package_dirs=()) -> Robot:
+                    package_dirs=(), files_read: list | None = None) -> Robot:
     """A Robot from a URDF file (see the module's docstring). Problems are ConfigErrors that
-    name the file and what is wrong."""
+    name the file and what is wrong. The mesh files it reads are appended to ``files_read``
+    (a cache of the robot is stale once one of them changes)."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: no such file")
@@ -296,7 +297,7 @@ def load_urdf_robot(path: str | Path, base_link: str | None = None, tool_link: s
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None
     _check_conversion(robot, chain)
-    (visual, base_visual), (collision, base_collision) = _meshes(urdf, chain, robot, package_dirs)
+    (visual, base_visual), (collision, base_collision) = _meshes(urdf, chain, robot, package_dirs, files_read)
     from dataclasses import replace
 
     return replace(robot, link_meshes=visual, collision_meshes=collision, base_mesh=base_visual,
@@ -399,12 +400,15 @@ def resolve_mesh_file(name: str, urdf_path: Path, package_dirs=()) -> Path:
     return p
 
 
-def _geometry_mesh(geometry, urdf_path: Path, package_dirs):
-    """A URDF geometry as a trimesh in its own frame, metres (None: nothing drawable)."""
+def _geometry_mesh(geometry, urdf_path: Path, package_dirs, files_read: list | None = None):
+    """A URDF geometry as a trimesh in its own frame, metres (None: nothing drawable); a mesh
+    file it reads is appended to ``files_read``."""
     import trimesh
 
     if geometry.mesh is not None:
         file = resolve_mesh_file(geometry.mesh.filename, urdf_path, package_dirs)
+        if files_read is not None:
+            files_read.append(file)
         try:
             mesh = trimesh.load(file, force="mesh", process=False)
         except Exception as exc:
@@ -424,7 +428,7 @@ def _geometry_mesh(geometry, urdf_path: Path, package_dirs):
     return None
 
 
-def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs) -> tuple[tuple, tuple]:
+def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs, files_read: list | None = None) -> tuple[tuple, tuple]:
     """((visuals per DH link 1..6, the base's visuals), (the same for the collision geometry)),
     each merged into one mesh in the DH frame of its link (the base: frame 0), mm; per link
     ("", identity) where it has none, () where no link has any. The base is the base link and
@@ -442,7 +446,7 @@ def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs) -> tuple[tuple, 
             if k is None:
                 continue  # not on the chain, nor fixed to it
             for item in getattr(link, kind):
-                mesh = _geometry_mesh(item.geometry, chain.path, package_dirs)
+                mesh = _geometry_mesh(item.geometry, chain.path, package_dirs, files_read)
                 if mesh is None:
                     continue
                 origin = np.eye(4) if item.origin is None else _in_mm(item.origin)
