@@ -31,6 +31,24 @@ def test_equal_seeds_and_actions_give_equal_episodes():
     assert 0.0 < runs[0][3] <= runs[0][6] <= 1.0  # and the model's own coverage estimate grew
 
 
+def test_an_environment_that_has_stepped_pickles_and_copies_and_the_copy_goes_on_alike():
+    """A training loop pickles, deep-copies or ships environments under way; the copy (its ray
+    casting rebuilt on loading) steps as the original does."""
+    import copy
+    import pickle
+
+    env = ScanPlanningEnv("demo", max_profiles=300, max_steps=3, engine="raycast")
+    env.reset(seed=1)
+    env.step(np.array([1, 2, 0]))
+    copies = [pickle.loads(pickle.dumps(env)), copy.deepcopy(env)]
+    outcomes = []
+    for e in [env, *copies]:
+        obs, reward, _, _, info = e.step(np.array([5, 0, 0]))
+        outcomes.append((obs["grid"].tobytes(), obs["probe"].tobytes(), round(reward, 12), info["coverage_estimate"]))
+    assert outcomes[1] == outcomes[0] and outcomes[2] == outcomes[0]
+    assert outcomes[0][2] != 0.0  # the step measured something
+
+
 def test_the_reference_planner_beats_random_sweeps_on_the_same_budget():
     env = ScanPlanningEnv("demo", max_profiles=225, max_steps=6)
     ref = coverage_curve(env, reference_policy, seed=0)

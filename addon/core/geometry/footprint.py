@@ -66,6 +66,14 @@ class SurfaceCaster:
         self.caster = _intersector(self.mesh)
         self.part_faces = int(part_faces)
 
+    # The ray-casting structure (Embree's scene) cannot be pickled: it is built again on loading.
+    def __getstate__(self) -> dict:
+        return {"mesh": self.mesh, "part_faces": self.part_faces}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.caster = _intersector(self.mesh)
+
 
 # A surface exactly at a range end must count as in range: the probe's pose comes from the
 # robot's joints and reads it 1e-13 mm off (a plate at 70 mm read 69.99999999999989 on one

@@ -139,7 +139,7 @@ class RaycastScene:
         """``threads``: how many cores cast rays (None: all)."""
         self.threads = max(1, int(threads or os.cpu_count() or 1))
         try:
-            from embreex import mesh_construction, rtcore_scene
+            import embreex  # noqa: F401
         except ImportError as exc:  # pragma: no cover - the lock installs it
             raise InputError("the raycast engine needs the embreex package (Embree); use engine cycles") from exc
         meshes = [m for m, _ in surfaces]
@@ -156,9 +156,23 @@ class RaycastScene:
         self.albedo = np.concatenate([np.tile(np.asarray(rgb, dtype=np.float64), (len(m.faces), 1))
                                       for m, rgb in surfaces])
         whole = trimesh.util.concatenate(meshes)
+        self._triangles = (np.asarray(whole.vertices, dtype=np.float32), np.asarray(whole.faces, dtype=np.int32))
+        self._build_embree()
+
+    def _build_embree(self) -> None:
+        from embreex import mesh_construction, rtcore_scene
+
         self._scene = rtcore_scene.EmbreeScene()
-        self._mesh = mesh_construction.TriangleMesh(self._scene, np.asarray(whole.vertices, dtype=np.float32),
-                                                    np.asarray(whole.faces, dtype=np.int32))
+        self._mesh = mesh_construction.TriangleMesh(self._scene, *self._triangles)
+
+    # Embree's scene cannot be pickled: it is left out and built again on loading (a training
+    # loop pickles, deep-copies or ships its environments, and with them this scene).
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k not in ("_scene", "_mesh")}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._build_embree()
 
     def first_hits(self, origins: np.ndarray, dirs: np.ndarray, dists: np.ndarray | None = None):
         """(face (n,) int, −1: none; u, v (n,) barycentrics of vertices 1 and 2; t (n,) mm) of rays
