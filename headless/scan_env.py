@@ -33,7 +33,8 @@ Scanner over a part that only its bounding box reveals.
   now), or every view has been scanned (terminated), or after ``max_steps`` steps (truncated); ``info`` has the same keys after ``reset`` and every ``step``: the sweep
   (None after reset) and why it was refused (None: it was scanned), the profiles so far, the
   cells learnt and the surface cells found by the last step, the model's surface cells and its
-  own coverage estimate (``KnownSpace.coverage_estimate``, a guide that runs above the truth).
+  own coverage estimate (``KnownSpace.coverage_estimate``, a guide: it may run above or below the
+  truth, see docs/adaptive.md).
 - a step after the episode ended (terminated or truncated) is refused until ``reset()``.
 - ``render_mode="rgb_array"``: ``render()`` gives the cloud so far over the part, coloured by
   its error against the mesh (the scan's preview), for people watching, never for the agent.
@@ -356,6 +357,7 @@ def run(args) -> int:
     """The baselines through the environment (the reference planner, random actions, random
     actions the mask allows), their coverage curves printed one under the other."""
     check_whole(args.seeds, "--seeds", 1, 1000)
+    check_whole(args.seed, "--seed", 0, 2 ** 63 - 1)  # Gymnasium's seeds are whole numbers from 0
     env = ScanPlanningEnv(args.config, max_profiles=args.max_profiles, engine=args.engine)
     seeds = list(range(args.seed, args.seed + args.seeds))
     print(f"ScanPlanningEnv on {env.config.name}: {args.max_profiles} profiles per episode, "

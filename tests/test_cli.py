@@ -455,6 +455,13 @@ def test_gym_baselines_prints_each_policys_curve_and_the_random_ones_over_seeds(
 
 
 @needs_bpy
+def test_gym_baselines_refuses_a_negative_seed_in_one_line():
+    out = run_cli("gym-baselines", "--engine", "raycast", "--seed", "-1", "--max-profiles", "75")
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    assert out.stderr.strip().splitlines()[-1] == "error: --seed must be a whole number in [0, 9223372036854775807], got -1"
+
+
+@needs_bpy
 def test_an_adaptive_budget_below_every_view_names_the_smallest_and_that_budget_scans(tmp_path):
     out = run_cli("adaptive", "demo", "--engine", "raycast", "--max-profiles", "40", "--quiet",
                   "--out", str(tmp_path / "small"))
