@@ -301,6 +301,9 @@ class NextBestView:
         if not callable(getattr(c, "waypoints", None)):
             raise InputError(f"scan: expected a view (a candidate from live() or choose()), got {c!r}"
                              + (": choose() gives None when no view is left worth scanning" if c is None else ""))
+        # Profiles measured since this planner last learnt (a manual sweep between its views)
+        # first: its own frames below would otherwise count them as seen.
+        self.catch_up(scanner)
         before = self.space.counts()["unknown"]
         expected = next_view.new_cells(self.space, self.probe, c.waypoints().probe2table)
         profiles = yield from scanner.scan_path_steps(c.waypoints(), progress)
@@ -349,11 +352,13 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
 def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 30,
                    target_coverage: float | None = None, voxel_mm: float = VOXEL_MM, progress=None,
                    log=None, planner: NextBestView | None = None, setup_s: float = 0.0,
-                   steps: list | None = None):
+                   steps: list | None = None, numbered_from: int = 0):
     """:func:`adaptive_scan` as a generator: yields the profiles taken so far after each chunk
     of frames and between decisions; returns the decisions, each also appended to ``steps``
     (when given) as soon as its sweep is scanned, so a caller that drops the generator still
-    knows what was done. Its arguments are checked when it is first advanced."""
+    knows what was done. Its arguments are checked when it is first advanced.
+    ``numbered_from``: the sweeps an earlier run on the same Scanner took (the log numbers this
+    run's after them, as the report lists them)."""
     if isinstance(max_profiles, bool) or not isinstance(max_profiles, (int, np.integer)) \
             or not 1 <= max_profiles <= MAX_PROFILES:
         raise InputError(f"max_profiles must be a whole number from 1 to {MAX_PROFILES}, got {max_profiles!r}")
@@ -371,6 +376,10 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
     if log and caught:
         log(f"adaptive: learnt from the {caught} profiles measured before this run")
     steps = [] if steps is None else steps
+
+    def sweeps(n: int) -> str:
+        return f"{n} sweeps" + (f" ({numbered_from + n} in all)" if numbered_from else "")
+
     taken = 0
     say = progress or (lambda stage, done, total: None)
     smallest = planner.smallest_view()
@@ -387,7 +396,7 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
                 log(f"  refused {why}")
         if chosen is None:
             if log:
-                log(f"adaptive: stopping after {len(steps)} sweeps: no reachable sweep promises {min_gain} new surface "
+                log(f"adaptive: stopping after {sweeps(len(steps))}: no reachable sweep promises {min_gain} new surface "
                     f"cells within the budget")
             break
         say("adaptive", taken, max_profiles)  # ... or during the planning
@@ -407,19 +416,19 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
         steps.append(step)
         setup_s = 0.0
         if log:
-            log(f"adaptive: sweep {len(steps)}: {step.sweep}; it found {step.new_surface_cells} new surface "
+            log(f"adaptive: sweep {numbered_from + len(steps)}: {step.sweep}; it found {step.new_surface_cells} new surface "
                 f"cells (the model learnt {step.new_cells} cells, air and surface), coverage estimate "
                 f"{estimate * 100:.0f} % (planned in {planning:.2f} s, {step.refused} refused)")
         if progress:
             progress("adaptive", taken, max_profiles)
         if target_coverage is not None and estimate >= target_coverage:
             if log:
-                log(f"adaptive: stopping after {len(steps)} sweeps: the coverage estimate {estimate * 100:.1f} % "
+                log(f"adaptive: stopping after {sweeps(len(steps))}: the coverage estimate {estimate * 100:.1f} % "
                     f"reached the target {target_coverage * 100:.1f} %")
             break
         if len(steps) >= 2 and all(s.new_cells < min_gain for s in steps[-2:]):
             if log:
-                log(f"adaptive: stopping after {len(steps)} sweeps: the last two taught fewer than {min_gain} cells")
+                log(f"adaptive: stopping after {sweeps(len(steps))}: the last two taught fewer than {min_gain} cells")
             break
     new = planner.points_seen - seen
     outside = (planner.points_outside - outside) / new if new else 0.0

@@ -440,8 +440,8 @@ class Scanner:
     def _sweep_waypoints(self, from_mm, to_mm, frames, beam, line, table_deg) -> Waypoints:
         """The checked arguments of a sweep as its waypoints (table frame)."""
         check_whole(frames, "sweep frames", 1, MAX_FRAMES)
-        if table_deg is not None and not (isinstance(table_deg, (int, float, np.number)) and math.isfinite(table_deg)):
-            raise InputError(f"sweep table_deg must be a finite number of degrees, got {table_deg!r}")
+        if table_deg is not None:
+            _check_table_deg(table_deg, "sweep table_deg")  # as turn_table_to's angle
         table_rad = self._table_rad if table_deg is None else math.radians(float(table_deg))
         for name, value in (("from_mm", from_mm), ("to_mm", to_mm), ("beam", beam)):
             try:
@@ -669,11 +669,14 @@ class Scanner:
         try:
             yield from adaptive_steps(self, lo, hi, max_profiles=budget, min_gain=gain, target_coverage=target,
                                       voxel_mm=settings.voxel_mm, progress=progress, log=log,
-                                      planner=self._planner, setup_s=setup, steps=steps)
+                                      planner=self._planner, setup_s=setup, steps=steps, numbered_from=len(done))
             finished = True
         finally:  # a run dropped or stopped after some sweeps still lists them beside their frames
             if finished or steps:
-                self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": budget,
+                # Over every adaptive() call on this Scanner: the sweeps all of them took, within
+                # the budgets all of them were given.
+                earlier = self._extra.get("adaptive", {}).get("max_profiles", 0) if done else 0
+                self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": earlier + budget,
                                            "target_coverage": target,
                                            "sweeps": done + [s.as_dict() for s in steps]}
         return steps

@@ -192,6 +192,10 @@ def test_a_second_adaptive_run_goes_on_from_what_the_first_learnt():
     taken = scanner.report().to_dict()["frames"]
     lines = []
     second = scanner.adaptive(max_profiles=200, log=lines.append)
+    # The log numbers the second run's sweeps after the first's, as the report lists them.
+    numbers = [int(line.split("sweep ")[1].split(":")[0]) for line in lines if line.startswith("adaptive: sweep ")]
+    assert numbers == list(range(len(first) + 1, len(first) + len(second) + 1)), lines
+    assert scanner.report().to_dict()["adaptive"]["max_profiles"] == 400  # both runs' budgets
     views = lambda steps: {(s.sweep.split(" at ")[0], s.table_deg, s.tilt_deg) for s in steps}
     assert first and second and not views(first) & views(second), (views(first), views(second))
     assert not any("set up" in line for line in lines)  # the same model, not a new one
@@ -215,6 +219,33 @@ def test_a_planner_joining_a_scan_under_way_learns_what_was_measured_and_skips_t
     # The model it planned on holds the points measured before it joined.
     fresh = NextBestView(Scanner(config=config), *part_box(config))
     assert scanner.planner.space.counts()["surface"] > fresh.space.counts()["surface"] + 100
+
+
+def test_a_manual_sweep_between_two_views_reaches_the_planners_model():
+    """Profiles measured outside the planner (a sweep of one's own) before one of its views are
+    learnt as well as those measured after: the model holds the same points either way (its
+    cells to within the order rays carve them in)."""
+    from addon import Scanner
+    from addon.adaptive import NextBestView, part_box
+
+    def surface_cells(order):
+        config, _, _ = _raycast_planner("demo")
+        scanner = Scanner(config=config)
+        planner = NextBestView(scanner, *part_box(config))
+        turn = next(c for c in planner.live() if c.kind == "turn" and c.tilt_deg == 45)
+        for step in order:
+            if step == "sweep":
+                scanner.sweep([-40, 0, 170], [40, 0, 170], 40)
+            else:
+                planner.scan(scanner, turn)
+        planner.catch_up(scanner)
+        assert planner.frames_seen == sum(1 for _ in scanner.measurements())
+        return planner.space.counts()["surface"], planner.points_seen
+
+    turn_first, sweep_first = surface_cells(["turn", "sweep"]), surface_cells(["sweep", "turn"])
+    turn_only = surface_cells(["turn"])
+    assert sweep_first[1] == turn_first[1] > turn_only[1]
+    assert abs(sweep_first[0] - turn_first[0]) <= 0.01 * turn_first[0] and sweep_first[0] > turn_only[0]
 
 
 def test_a_stop_asked_for_during_a_sweep_takes_effect_before_the_next_one_renders():
