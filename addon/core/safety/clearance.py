@@ -114,6 +114,10 @@ class PathClearance:
         # The nearest the run comes, not where it starts: a probe that dives into the part
         # first passes the limit at about the limit.
         how = ("touches" if worst.distance_mm <= 0 else f"comes within {worst.distance_mm:.2f} mm of")
+        # Over a run of frames, the one to look at first: where the two come nearest (or overlap most).
+        nearest_at = ""
+        if first.frame != last.frame and worst.frame >= 0:
+            nearest_at = f" (worst {'at' if float(worst.position).is_integer() else 'moving to'} frame {worst.frame})"
         allowed = ("they must not touch" if _robot_pair(first) else
                    f"at least {self.min_clearance_mm:g} mm allowed ([safety] min_clearance_mm)")
         if not _robot_pair(first) and any(b.startswith("link ") for b in (first.body_a, first.body_b)):
@@ -121,7 +125,8 @@ class PathClearance:
             # table scanned the same path once started elbow up).
             allowed += ("; the arm itself is in the way: another posture may clear it (IK takes the branch nearest "
                         "the joints it starts from: [robot] start_deg in a config)")
-        return f"{where}: {_the(self.label(first.body_a))} {how} {_the(self.label(first.body_b))}; {allowed}"
+        return (f"{where}: {_the(self.label(first.body_a))} {how} {_the(self.label(first.body_b))}{nearest_at}; "
+                f"{allowed}")
 
     def label(self, body: str) -> str:
         """A body's name for people: a URDF link's own name beside its number."""
