@@ -186,9 +186,12 @@ class Scanner:
             self._look_at_the_table()
 
     @property
-    def _frames(self) -> int:
-        """Measurements taken so far (the next one's frame number)."""
+    def frames_taken(self) -> int:
+        """Profiles measured so far (the report's ``frames``; the next one's frame number),
+        without measuring them against the part as report() does: a planner's budget count."""
         return sum(len(q) for q, _ in self._poses)
+
+    _frames = frames_taken
 
     def _look_at_the_table(self) -> None:
         """Without a path, start with the probe looking straight down at the table's centre from
@@ -526,7 +529,9 @@ class Scanner:
                                       clearance=plan.clearance, warnings=plan.warnings)
 
     def _scene_cell(self):
-        if self._sc is None:
+        # Built at the first measurement, and again where another Scanner's cell (or the
+        # panel's) has replaced it in this Blender session since.
+        if self._sc is None or not self._sc.alive():
             from .pipeline import build_scan_cell
 
             t = time.perf_counter()

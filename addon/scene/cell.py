@@ -132,6 +132,18 @@ class SceneCell:
                    objs["Robot"], objs["Probe frame"], [objs["ProbeCam_L"], objs["ProbeCam_R"]], laser,
                    objs["Turntable"], wp)
 
+    def alive(self) -> bool:
+        """Whether Blender still holds every object this handle names: another cell built in the
+        same session (a second Scanner, the panel's Build Cell) removes this one's."""
+        held = [self.root, self.robot_collection, self.robot, self.probe_frame, self.table, *self.cameras,
+                *self.laser, *([] if self.workpiece_object is None else [self.workpiece_object])]
+        try:
+            for item in held:
+                item.name  # noqa: B018 - raises ReferenceError once Blender has removed it
+        except ReferenceError:
+            return False
+        return True
+
     # -- posing -------------------------------------------------------------------
     def pose(self, q, table_angle_rad: float = 0.0) -> None:
         """Set joints q (6,) rad and the table angle; the scene is updated."""

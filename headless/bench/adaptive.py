@@ -178,9 +178,9 @@ def run_planner(config, budget: int, factory=None) -> dict:
             raise InputError(f"your planner chose {_describe(c)} with {frames!r} profiles while "
                              f"{budget - taken} were left in the budget: choose() must return a view that fits "
                              f"the profiles it is given, or None")
-        before = scanner._frames
+        before = scanner.frames_taken
         yours("scan()", lambda: planner.scan(scanner, c))
-        taken += scanner._frames - before  # what the scanner took, whatever scan() returns
+        taken += scanner.frames_taken - before  # what the scanner took, whatever scan() returns
         curve.append((taken, scanner.result().report["coverage"]))
         views.append(_describe(c))
     result = scanner.result()

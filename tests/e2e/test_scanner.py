@@ -219,6 +219,27 @@ def test_save_writes_every_time_and_bad_arguments_are_named(scanner, tmp_path):
             call()
 
 
+def test_frames_taken_counts_every_profile_measured_as_the_report_does(scanner):
+    before = scanner.frames_taken
+    scanner.sweep([-10, 0, 210], [10, 0, 210], 5)
+    scanner.measure()
+    assert scanner.frames_taken == before + 6 == scanner.report().frames
+    assert scanner.frames_taken == sum(1 for _ in scanner.measurements())
+
+
+def test_two_scanners_in_one_session_each_measure_on_their_own_cell():
+    """A second Scanner builds its cell over the first's; the first builds its own again at its
+    next measurement (it raised Blender's ReferenceError), and measures what it measured before."""
+    first, second = Scanner.from_config("demo"), Scanner.from_config("step_block")
+    a = first.measure()
+    second.move_to(([12.0, 0.0, 210.0], [90.0, 180.0, 0.0]))  # looking down at the block
+    b = second.measure()
+    again = first.measure()
+    assert len(a) > 100 and len(b) > 100
+    np.testing.assert_allclose(again.points, a.points, atol=1e-9)
+    assert not np.allclose(np.sort(b.points[:, 2])[:50], np.sort(a.points[:, 2])[:50])
+
+
 def test_a_scanner_from_objects_starts_looking_at_the_table():
     s = Scanner(robot="puma560", probe="default", workpiece="sphere")
     z0, z1 = s.config.probe.z_range_mm
