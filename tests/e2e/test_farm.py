@@ -54,6 +54,16 @@ def test_the_raycast_engine_on_the_farm_gives_its_single_process_cloud(config, t
     assert any("cell reused" in line for line in lines)  # a worker kept its ray-cast scene between shards
 
 
+def test_frames_from_one_path_entry_report_that_entrys_clearance_on_the_farm_and_alone(tmp_path):
+    """--frames 150:154 picks the demo's sweep (path entry 1): one process and the farm both key
+    its clearance by that entry (one process renumbered it 0)."""
+    rc = load_scan_config("demo").with_overrides(engine="raycast", frames=slice(150, 154))
+    alone = run_scan(rc, None, write_outputs=False)
+    res = farm.run_farm(rc, tmp_path / "out", workers=1, shard_frames=2, log=lambda m: None)
+    assert set(alone.report["clearance"]["per_path"]) == set(res.report["clearance"]["per_path"]) == {"1"}
+    assert alone.report["clearance"]["per_path"] == res.report["clearance"]["per_path"]
+
+
 def test_with_motion_blur_a_shard_scans_its_frames_as_the_whole_path_does():
     """Motion blur samples the path around each frame; Cycles' samples also depend on the
     frame's number in Blender. A shard keyed from Blender frame 1 gave its frames up to 0.86 µm

@@ -134,11 +134,16 @@ class PathClearance:
 
     @staticmethod
     def merge(parts: list["PathClearance"]) -> "PathClearance":
-        """One record of several checks (a scanner's moves): their path entries numbered on."""
+        """One record of several checks (a scanner's moves): their path entries numbered on, the
+        first check's keeping its own numbers (a path scanned from its entry 1, ``--frames``
+        picking the sweep, is reported as entry 1, as a farm's merged shards report it)."""
         out = PathClearance(parts[0].min_clearance_mm)
         for p in parts:
             out.labels.update(p.labels)
-            base = len(out.nearest)
+            if not out.nearest:
+                out.nearest.update(p.nearest)
+                continue
+            base = max(out.nearest) + 1
             out.nearest.update({base + i: c for i, (_, c) in enumerate(sorted(p.nearest.items()))})
             out.collisions += p.collisions
             out.deepest += p.deepest if len(p.deepest) == len(p.collisions) else [c[0] for c in p.collisions]
