@@ -147,8 +147,10 @@ def cluster_client(workers: int, scheduler: str | None):
     # For the cluster's whole life, not only its start: a worker that dies is started again by
     # its nanny in this process, and the new one must be as deaf as the first.
     with workers_deaf_to_ctrl_c():
+        # The dashboard on a free loopback port: None means Dask's 8787, and where another cluster
+        # holds that every run warned of it.
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=logging.CRITICAL)
+                               dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
         client = Client(cluster)
         try:
             yield client

@@ -152,6 +152,16 @@ class ProgressBar:
             self.stream.write(self.drawn)
             self.stream.flush()
 
+    def note(self, line: str) -> None:
+        """Print ``line`` on stderr with the progress (a farm's running log), the bar cleared
+        first and drawn again below it on a terminal: stdout keeps the results alone."""
+        if self.drawn:
+            self.stream.write("\r\033[K")
+        self.stream.write(line + "\n")
+        if self.drawn:
+            self.stream.write(self.drawn)
+        self.stream.flush()
+
     def finish(self) -> None:
         """End the bar's line where the work stopped short of its total (a budget not spent)."""
         if self.drawn:
@@ -317,7 +327,7 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
 
         result = run_farm(config, out, workers=args.workers if args.workers is not None else 2,
                           scheduler=args.scheduler, shard_frames=args.shard_frames,
-                          log=(lambda m: None) if args.quiet else (lambda m: print(m, flush=True)),
+                          log=(lambda m: None) if args.quiet else bar.note,
                           progress=progress, merge_only=args.merge,
                           measured=None if stops is None else stops.finish)
     else:

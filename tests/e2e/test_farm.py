@@ -64,6 +64,23 @@ def test_frames_from_one_path_entry_report_that_entrys_clearance_on_the_farm_and
     assert alone.report["clearance"]["per_path"] == res.report["clearance"]["per_path"]
 
 
+def test_the_farm_commands_log_goes_to_stderr_and_stdout_keeps_the_summary(tmp_path):
+    """A farm scan's running log (its shards, its cluster) is progress: on stderr, so that stdout
+    piped on holds the results alone, as a one-process scan's does."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    run = subprocess.run([sys.executable, "-m", "headless", "scan", "demo", "--engine", "raycast", "--frames", "0:6",
+                          "--workers", "1", "--shard-frames", "3", "--out", str(tmp_path / "out")],
+                         cwd=repo, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "farm: 6 frames in 2 shards" in run.stderr and "shard 1 done" in run.stderr
+    assert "farm:" not in run.stdout and "shard" not in run.stdout.split("points")[0]
+    assert run.stdout.lstrip().startswith("scan:") and "Port 8787" not in run.stderr
+
+
 def test_with_motion_blur_a_shard_scans_its_frames_as_the_whole_path_does():
     """Motion blur samples the path around each frame; Cycles' samples also depend on the
     frame's number in Blender. A shard keyed from Blender frame 1 gave its frames up to 0.86 µm
