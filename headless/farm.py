@@ -280,6 +280,22 @@ def _compute_shards(config, plan, todo, folder: Path, fp: str, out_dir, workers:
     """Compute the shards ``todo`` ((shard, why) pairs) on the cluster, each writing its file
     into ``folder``; returns the scheduler's address and the workers'."""
     threads = render_threads or (None if scheduler else max(1, (os.cpu_count() or 1) // workers))
+    try:
+        return _run_on_cluster(config, plan, todo, folder, fp, out_dir, workers, scheduler, threads, log, progress)
+    except Exception as exc:  # Dask hands a worker's ImportError on wrapped in a plain Exception
+        text = f"{type(exc).__name__}: {exc}"
+        if "No module named" not in text and "deserializ" not in text.lower():
+            raise
+        # An external cluster started where Python cannot import this tool's code: its scheduler
+        # cannot read the task graph, or its workers the tasks.
+        repo = Path(__file__).resolve().parents[1]
+        raise ScannerError(f"the cluster at {scheduler or 'the local cluster'} cannot load the scanner's code "
+                           f"({text[:160]}): start its scheduler and its workers with PYTHONPATH={repo} "
+                           f"(docs/farm.md)") from None
+
+
+def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers: int, scheduler: str | None,
+                    threads: int | None, log, progress) -> tuple[str, list]:
     with cluster_client(workers, scheduler) as client:
         from dask.distributed import as_completed
 

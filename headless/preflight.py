@@ -32,6 +32,7 @@ EXR_BYTES_PER_PIXEL = 12  # RGB float32, uncompressed, per view
 PIXELS_PER_SECOND = 4e5  # Cycles at one sample, two CPU cores (bench scan: the demo at 160x160)
 MAX_HOURS = 8.0  # a longer estimate is refused unless --force
 SCHEDULER_TIMEOUT_S = 5.0
+SCHEDULER_GRACE_S = 5.0  # beyond Dask's own connect timeout, for its handshake
 
 
 @dataclass(frozen=True)
@@ -156,6 +157,41 @@ def check_scheduler_answers(address: str, timeout_s: float = SCHEDULER_TIMEOUT_S
     except OSError as exc:
         raise InputError(f"--scheduler {address}: cannot connect ({exc.strerror or exc}); start a scheduler "
                          f"there (dask scheduler) or use --workers N for a local cluster") from None
+    _check_speaks_dask(address, timeout_s)
+
+
+def _check_speaks_dask(address: str, timeout_s: float) -> None:
+    """Something accepts connections at ``address``: refuse it unless a Dask scheduler answers
+    there within ``timeout_s`` (+ a grace). A program that accepts and stays silent (a stopped
+    scheduler, another service on the port) would hang Dask's client: its handshake has no
+    time limit of its own, so it runs on a daemon thread that is given up on."""
+    import threading
+
+    answer: dict = {}
+
+    def handshake():
+        try:
+            from dask.distributed import Client
+
+            client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
+            try:
+                answer["workers"] = len(client.scheduler_info().get("workers", {}))
+            finally:
+                client.close()
+        except BaseException as exc:  # noqa: BLE001 - whatever it is, it is not a scheduler answering
+            answer["error"] = exc
+
+    thread = threading.Thread(target=handshake, name="scheduler-handshake", daemon=True)
+    thread.start()
+    thread.join(timeout_s + SCHEDULER_GRACE_S)
+    if thread.is_alive():
+        raise InputError(f"--scheduler {address}: something accepts connections there but no Dask scheduler "
+                         f"answered within {timeout_s + SCHEDULER_GRACE_S:g} s (a stopped scheduler, or another "
+                         f"program on that port)")
+    if "error" in answer:
+        exc = answer["error"]
+        raise InputError(f"--scheduler {address}: what answers there is not a Dask scheduler "
+                         f"({type(exc).__name__}); give the address `dask scheduler` prints") from None
 
 
 def check_scan(config, out: str | Path, *, names=(), farm: bool = False, scheduler: str | None = None,

@@ -81,6 +81,72 @@ def test_the_farm_commands_log_goes_to_stderr_and_stdout_keeps_the_summary(tmp_p
     assert run.stdout.lstrip().startswith("scan:") and "Port 8787" not in run.stderr
 
 
+def _cli(*args, env=None):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    return subprocess.run([sys.executable, "-m", "headless", *args], cwd=Path(__file__).resolve().parents[2],
+                          capture_output=True, text=True, env=env, timeout=300)
+
+
+def test_a_scheduler_port_that_accepts_and_stays_silent_is_refused_not_waited_on(tmp_path):
+    """A stopped scheduler (or another program) accepts connections and never answers: Dask's
+    own handshake would wait for ever; the command refuses it in one line."""
+    import socket
+    import threading
+    import time
+
+    server = socket.create_server(("127.0.0.1", 0))
+    held = []
+    threading.Thread(target=lambda: [held.append(server.accept()) for _ in range(8)], daemon=True).start()
+    port = server.getsockname()[1]
+    t = time.monotonic()
+    out = _cli("scan", "demo", "--engine", "raycast", "--frames", "0:4", "--scheduler", f"tcp://127.0.0.1:{port}",
+               "--out", str(tmp_path / "out"))
+    assert time.monotonic() - t < 60
+    assert out.returncode == 2 and "Traceback" not in out.stderr, out.stderr[-2000:]
+    assert "something accepts connections there but no Dask scheduler answered" in out.stderr.splitlines()[-1]
+    assert not (tmp_path / "out").exists()
+    server.close()
+
+
+def test_a_cluster_that_cannot_import_the_scanner_is_named_in_one_line(tmp_path):
+    """A scheduler and a worker started away from the repository without it on PYTHONPATH (as
+    docs/farm.md warns): one line naming PYTHONPATH, exit 2, nothing written."""
+    import os
+    import socket
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    dask = str(Path(sys.executable).with_name("dask"))
+    address = f"tcp://127.0.0.1:{port}"
+    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+                              cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        time.sleep(3)
+        procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard"], cwd=tmp_path,
+                                      env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        time.sleep(4)
+        out = _cli("scan", "demo", "--engine", "raycast", "--frames", "0:4", "--scheduler", address,
+                   "--out", str(tmp_path / "out"))
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.wait(timeout=30)
+    assert out.returncode == 2 and "Traceback" not in out.stderr, out.stderr[-2000:]
+    last = out.stderr.strip().splitlines()[-1]
+    assert "cannot load the scanner's code" in last and "PYTHONPATH=" in last, last
+    assert not (tmp_path / "out" / "cloud.ply").exists()
+
+
 def test_with_motion_blur_a_shard_scans_its_frames_as_the_whole_path_does():
     """Motion blur samples the path around each frame; Cycles' samples also depend on the
     frame's number in Blender. A shard keyed from Blender frame 1 gave its frames up to 0.86 µm
