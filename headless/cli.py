@@ -208,14 +208,20 @@ def _exit_code(args: argparse.Namespace, stops) -> int:
     from headless.lifecycle import SIGNAL_NAMES, Interrupted
 
     try:
-        stops.record_only = False
-        stops.check()  # Ctrl-C while the command started
-        code = args.run(args)
-        if stops.signum is not None and code == 0:  # asked for once nothing was left to stop
-            print(f"({SIGNAL_NAMES.get(stops.signum, 'the stop')} came after the last frame: the command "
-                  f"finished and wrote its results)", file=sys.stderr, flush=True)
-        sys.stdout.flush()  # a closed pipe shows here, inside the handlers, not at the interpreter's exit
-        return code
+        try:
+            stops.record_only = False
+            stops.check()  # Ctrl-C while the command started
+            code = args.run(args)
+            if stops.signum is not None and code == 0:  # asked for once nothing was left to stop
+                print(f"({SIGNAL_NAMES.get(stops.signum, 'the stop')} came after the last frame: the command "
+                      f"finished and wrote its results)", file=sys.stderr, flush=True)
+            sys.stdout.flush()  # a closed pipe shows here, inside the handlers, not at the interpreter's exit
+            return code
+        except BaseException:
+            # The failure is being told below: a signal from now on is only noted (the command
+            # ends with the failure's code), never raised into the handler printing it.
+            stops.record_only = True
+            raise
     except FolderBusy as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BUSY

@@ -563,3 +563,29 @@ def test_frames_counted_from_the_paths_end_are_taken_as_the_options_value():
 
     for value in ("-5:", "-10:-2", "-20::2"):
         assert cli.build_parser().parse_args(["scan", "demo", "--frames", value]).frames == value
+
+
+def test_a_signal_while_an_error_is_told_ends_with_the_errors_code_and_line():
+    """SIGTERM landing while the error line is printed (before Blender is loaded, where the
+    first signal raises at once) is only noted: exit 2 and the error's one line, no traceback."""
+    script = """
+import argparse, os, signal, sys
+from addon.core.errors import ScannerError
+from headless.cli import _exit_code
+from headless.lifecycle import StopRequests
+
+class Loud:
+    def __str__(self):
+        os.kill(os.getpid(), signal.SIGTERM)
+        return "the part is not readable"
+
+def run(args):
+    raise ScannerError(Loud())
+
+stops = StopRequests(exiting=False).install()
+print("code", _exit_code(argparse.Namespace(run=run), stops), "bpy" in sys.modules)
+"""
+    out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["code", "2", "False"]
+    assert out.stderr.strip().splitlines() == ["error: the part is not readable"]
