@@ -259,7 +259,9 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
         software["blender"] = ", ".join(sorted(blenders))
     extra = {"render_device": ", ".join(sorted(devices)) if devices else None, "software": software,
              # A merge computes nothing: no workers; all its shards were there ("reused").
-             "farm": {"workers": None if scheduler or merge_only else workers, "scheduler": address or scheduler,
+             # The workers that computed shards (a scheduler's, as it had them at the start); None
+             # where none ran (every shard was there already: a merge).
+             "farm": {"workers": len(worker_addresses) if todo else None, "scheduler": address or scheduler,
                       "worker_addresses": worker_addresses, "shards": len(parts), "shard_frames": size, "computed": len(todo), "reused": reused,
                       "wall_s": round(wall, 4), "profiles_per_s_wall": n / wall if wall > 0 and todo else None}}
     return assemble(config, plan, cloud, stats, timing, out_dir, t_all, extra)
@@ -279,6 +281,7 @@ def _compute_shards(config, plan, todo, folder: Path, fp: str, out_dir, workers:
                     render_threads: int | None, log, progress) -> tuple[str, list]:
     """Compute the shards ``todo`` ((shard, why) pairs) on the cluster, each writing its file
     into ``folder``; returns the scheduler's address and the workers'."""
+    workers = min(workers, len(todo))  # a local cluster starts no worker that would have no shard
     threads = render_threads or (None if scheduler else max(1, (os.cpu_count() or 1) // workers))
     try:
         return _run_on_cluster(config, plan, todo, folder, fp, out_dir, workers, scheduler, threads, log, progress)

@@ -103,12 +103,16 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 60:.0f} min"
 
 
-def check_render_size(budget: RenderBudget, force: bool = False, memory: int | None = None) -> None:
-    """Refuse a render whose frame needs more memory than is free, or whose time estimate
-    exceeds MAX_HOURS, unless ``force``."""
+def check_render_size(budget: RenderBudget, force: bool = False, memory: int | None = None, workers: int = 1) -> None:
+    """Refuse a render whose frame needs more memory than is free (each of ``workers`` local
+    processes rendering one at once), or whose time estimate exceeds MAX_HOURS, unless ``force``."""
     size = f"{budget.width}x{budget.height}"
     memory = available_memory() if memory is None else memory
-    if not force and memory is not None and budget.memory_bytes > memory:
+    if not force and memory is not None and budget.memory_bytes * workers > memory:
+        if workers > 1:
+            raise InputError(f"{workers} local workers each render a {size} frame at once, about "
+                             f"{_size(budget.memory_bytes * workers)} of memory, and this machine has {_size(memory)} "
+                             f"free; use fewer --workers or a smaller --resolution (or --force)")
         raise InputError(f"a {size} frame needs about {_size(budget.memory_bytes)} of memory to render and this "
                          f"machine has {_size(memory)} free; use a smaller --resolution (or --force)")
     if not force and budget.seconds > MAX_HOURS * 3600:
@@ -195,15 +199,16 @@ def _check_speaks_dask(address: str, timeout_s: float) -> None:
 
 
 def check_scan(config, out: str | Path, *, names=(), farm: bool = False, scheduler: str | None = None,
-               force: bool = False) -> None:
-    """Every check above for a scan of ``config`` into ``out``."""
+               force: bool = False, local_workers: int = 1) -> None:
+    """Every check above for a scan of ``config`` into ``out`` (``local_workers``: the processes a
+    local farm renders in side by side)."""
     check_output_folder(out, names, "--out", config.input_files())
     if farm:
         shards = Path(out) / "shards"
         if shards.exists() and not shards.is_dir():
             raise InputError(f"--out {out}: {shards} is a file where the farm keeps its shard files; move it away")
     budget = render_budget(config)
-    check_render_size(budget, force)
+    check_render_size(budget, force, workers=max(1, min(int(local_workers), budget.frames)))
     check_temp_room(budget)
     if scheduler is not None:
         check_scheduler_answers(scheduler)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from addon.core.config.scan import load_scan_config
+from addon.core.errors import InputError
 from addon.pipeline import run_scan
 from headless import farm
 
@@ -32,7 +33,7 @@ def test_two_workers_give_the_single_process_cloud_on_loopback_only(config, sing
     res = farm.run_farm(config, tmp_path / "out", workers=2, shard_frames=5, log=lines.append)
     same_cloud(res.cloud, single.cloud)
     f = res.report["farm"]
-    assert (f["shards"], f["computed"], f["reused"]) == (4, 4, 0)
+    assert (f["shards"], f["computed"], f["reused"], f["workers"]) == (4, 4, 0, 2)
     assert f["scheduler"].startswith("tcp://127.0.0.1:")
     assert len(f["worker_addresses"]) == 2 and all(a.startswith("tcp://127.0.0.1:") for a in f["worker_addresses"])
     assert res.report["column_codes"] == single.report["column_codes"]
@@ -145,6 +146,23 @@ def test_a_cluster_that_cannot_import_the_scanner_is_named_in_one_line(tmp_path)
     last = out.stderr.strip().splitlines()[-1]
     assert "cannot load the scanner's code" in last and "PYTHONPATH=" in last, last
     assert not (tmp_path / "out" / "cloud.ply").exists()
+
+
+def test_a_local_cluster_starts_no_more_workers_than_shards(config, tmp_path):
+    lines = []
+    res = farm.run_farm(config.with_overrides(engine="raycast"), tmp_path / "out", workers=6, shard_frames=10,
+                        log=lines.append)
+    assert res.report["farm"]["shards"] == 2 and res.report["farm"]["workers"] == 2
+    assert len(res.report["farm"]["worker_addresses"]) == 2 and any("2 workers" in line for line in lines)
+
+
+def test_the_memory_check_counts_a_frame_per_local_worker():
+    from headless.preflight import RenderBudget, check_render_size
+
+    budget = RenderBudget(1000, 1000, 100, 2, 1, 8)  # 100 MB a frame
+    check_render_size(budget, memory=250_000_000, workers=2)
+    with pytest.raises(InputError, match="3 local workers each render a 1000x1000 frame at once, about 300.0 MB"):
+        check_render_size(budget, memory=250_000_000, workers=3)
 
 
 def test_with_motion_blur_a_shard_scans_its_frames_as_the_whole_path_does():
