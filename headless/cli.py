@@ -43,6 +43,7 @@ import os
 import re
 import signal
 import sys
+from pathlib import Path
 
 from addon.core.errors import FolderBusy, ScannerError
 
@@ -250,5 +251,19 @@ def _exit_code(args: argparse.Namespace, stops) -> int:
         return 128 + signal.SIGPIPE
     except OSError as exc:  # a disk full, a folder that vanished, a permission taken away mid-run
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"error: {where}{exc.strerror or exc} (nothing was written)", file=sys.stderr)
+        # The results are written all together or not at all; a farm's finished shards stay
+        # (for the next run to reuse), so say so where there are some.
+        print(f"error: {where}{exc.strerror or exc} (no results written{_shards_kept(args)})", file=sys.stderr)
         return EXIT_USER_ERROR
+
+
+def _shards_kept(args) -> str:
+    """"; N finished shards kept in OUT/shards" where a farm's shard files are there, else ""."""
+    out = getattr(args, "out", None)
+    if not out:
+        return ""
+    try:
+        n = sum(1 for _ in (Path(out) / "shards").glob("shard_*.npz"))
+    except OSError:
+        return ""
+    return f"; {n} finished shard{'s' if n != 1 else ''} kept in {Path(out) / 'shards'}" if n else ""

@@ -401,7 +401,10 @@ def print_summary(result, wall: float) -> None:
           f"{dropped or 'none'}")
     stages = ", ".join(f"{name} {ts[name]:.2f}" for name in ("plan", "scene", "render", "detect", "triangulate",
                                                              "neighbours", "metrics", "write") if name in ts)
-    print(f"  time          {wall:.1f} s: {stages}")
+    # A farm's shards ran side by side, or in earlier tasks (a merge): their stages add up over
+    # the workers and can exceed the command's own time.
+    summed = " (scene to triangulate summed over the shards' workers)" if "farm" in r else ""
+    print(f"  time          {wall:.1f} s: {stages}{summed}")
     print(f"  speed         {r['profiles_per_s']:.1f} profiles/s (render + detect + triangulate) on "
           f"{r.get('render_device') or 'CPU'}; "
           f"cameras {r['cameras_rendered']}, {r['mean_rows_rendered']:.0f} of {r['config']['sensor_px'][1]} rows "

@@ -589,3 +589,29 @@ print("code", _exit_code(argparse.Namespace(run=run), stops), "bpy" in sys.modul
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == ["code", "2", "False"]
     assert out.stderr.strip().splitlines() == ["error: the part is not readable"]
+
+
+def test_a_failed_write_says_no_results_were_written_and_which_shards_stay(tmp_path, capsys):
+    """A disk that fills up mid-write: the results (all together or none) are not there; a
+    farm's finished shards are kept for the next run, and the line says so."""
+    import argparse
+    import errno
+
+    from headless.cli import _exit_code
+    from headless.lifecycle import StopRequests
+
+    (tmp_path / "shards").mkdir()
+    for k in range(2):
+        (tmp_path / "shards" / f"shard_{10 * k:06d}_{10 * k + 9:06d}.npz").write_bytes(b"x")
+
+    def full(args):
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "cloud.ply"))
+
+    code = _exit_code(argparse.Namespace(run=full, out=str(tmp_path)), StopRequests(exiting=False))
+    line = capsys.readouterr().err.strip()
+    assert code == 2
+    assert line == (f"error: {tmp_path / 'cloud.ply'}: No space left on device (no results written; 2 finished "
+                    f"shards kept in {tmp_path / 'shards'})")
+    code = _exit_code(argparse.Namespace(run=full, out=str(tmp_path / "elsewhere")), StopRequests(exiting=False))
+    assert capsys.readouterr().err.strip().endswith("No space left on device (no results written)")
+
