@@ -202,6 +202,9 @@ class ScanPlanningEnv(gym.Env):
         elif not self.planner.feasible(self.scanner, c):
             info = {"sweep": c.describe(), "refused": self.planner.refused[-1]}
             reward, learnt, found = -self.refusal_cost, 0, 0
+            # Refused from where the robot stands now, not for good (the mask leaves it open):
+            # the reference planner's choice (reference_action) may take it from another pose.
+            self.planner.impossible.discard(c.key)
         else:
             info = {"sweep": c.describe(), "refused": None}
             seconds = next_view.seconds(c, self.scanner.table_deg, self.scanner.pose("table")[:3, 3])

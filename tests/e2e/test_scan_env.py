@@ -49,6 +49,28 @@ def test_an_environment_that_has_stepped_pickles_and_copies_and_the_copy_goes_on
     assert outcomes[0][2] != 0.0  # the step measured something
 
 
+def test_a_view_refused_from_one_pose_stays_open_to_the_reference_planner():
+    """An agent's action refused where the robot stands (here: its motion said to collide) is
+    refused for that step only: reference_action() may still choose the view."""
+    from addon.core.errors import CollisionError
+
+    env = ScanPlanningEnv("demo", max_profiles=300, max_steps=3, engine="raycast")
+    env.reset(seed=0)
+    action = np.array(env.reference_action())
+    real = env.scanner.plan_path
+
+    def refuse(waypoints):
+        raise CollisionError("the probe touches the table (made up for the test)")
+
+    env.scanner.plan_path = refuse
+    _, reward, _, _, info = env.step(action)
+    env.scanner.plan_path = real
+    assert info["refused"] and "made up for the test" in info["refused"] and reward < 0
+    assert np.array_equal(np.array(env.reference_action()), action)
+    _, reward, _, _, info = env.step(action)
+    assert info["refused"] is None and reward > 0
+
+
 def test_the_reference_planner_beats_random_sweeps_on_the_same_budget():
     env = ScanPlanningEnv("demo", max_profiles=225, max_steps=6)
     ref = coverage_curve(env, reference_policy, seed=0)
