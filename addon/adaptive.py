@@ -14,6 +14,7 @@ the profile budget is spent. The ground truth is used only afterwards, to score.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -277,7 +278,7 @@ class NextBestView:
         """Whether the robot can do candidate ``c`` from where it is now (nothing moves); an
         impossible one is remembered."""
         try:
-            scanner.plan_path(c.waypoints())
+            scanner.plan_path(waypoints_from_here(c.waypoints(), scanner.table_deg))
         except (UnreachablePose, CollisionError) as exc:
             self.impossible.add(c.key)
             self.refused.append(f"{c.describe()}: {str(exc)[:160]}")
@@ -306,7 +307,7 @@ class NextBestView:
         self.catch_up(scanner)
         before = self.space.counts()["unknown"]
         expected = next_view.new_cells(self.space, self.probe, c.waypoints().probe2table)
-        profiles = yield from scanner.scan_path_steps(c.waypoints(), progress)
+        profiles = yield from scanner.scan_path_steps(waypoints_from_here(c.waypoints(), scanner.table_deg), progress)
         for p in profiles:
             self.learn(p.probe2table[:3, 3], p.points)
         self.frames_seen = max(self.frames_seen, profiles[-1].frame + 1) if profiles else self.frames_seen
@@ -316,6 +317,19 @@ class NextBestView:
         self.impossible.add(c.key)  # the same sweep again would see the same (the scan is deterministic)
         self.looked = True
         return profiles, before - self.space.counts()["unknown"]
+
+
+def waypoints_from_here(waypoints, table_deg_now: float):
+    """``waypoints`` with their table angles moved by whole turns to start nearest the table's
+    angle now: the same view (the table's frame repeats every turn), reached the short way
+    round, as ``next_view.seconds`` counts it. A view at 0° after a turn ending at 354° starts
+    at 360°, not 354° back."""
+    from .core.kinematics.path import Waypoints
+
+    if not len(waypoints):
+        return waypoints
+    turns = np.round((math.radians(float(table_deg_now)) - float(waypoints.table_rad[0])) / (2.0 * np.pi))
+    return Waypoints(waypoints.probe2table, waypoints.table_rad + 2.0 * np.pi * turns, waypoints.segment)
 
 
 def check_target_coverage(target) -> None:

@@ -248,6 +248,25 @@ def test_a_manual_sweep_between_two_views_reaches_the_planners_model():
     assert abs(sweep_first[0] - turn_first[0]) <= 0.01 * turn_first[0] and sweep_first[0] > turn_only[0]
 
 
+def test_a_view_is_reached_the_short_way_round_as_its_cost_counts_it():
+    """After a table turn ending near 360°, a view at 0° starts at 360° (the same view a turn
+    on): the table turns a few degrees, as next_view.seconds counts, not all the way back."""
+    from addon.adaptive import NextBestView, part_box
+
+    config, scanner, planner = _raycast_planner("demo")
+    turn = next(c for c in planner.live() if c.kind == "turn" and c.tilt_deg == 45)
+    planner.scan(scanner, turn)
+    end = scanner.table_deg
+    assert 340.0 < end < 360.0
+    sweep = next(c for c in planner.live() if c.kind == "sweep" and c.table_deg == 0.0 and planner.feasible(scanner, c))
+    profiles, _ = planner.scan(scanner, sweep)
+    assert profiles and abs(profiles[0].table_deg - 360.0) < 1e-6 and abs(profiles[0].table_deg - end) < 20.0
+    # the same view: its points where a fresh scanner at 0° puts them
+    _, fresh, fresh_planner = _raycast_planner("demo")
+    again, _ = fresh_planner.scan(fresh, sweep)
+    np.testing.assert_allclose(profiles[0].points, again[0].points, atol=1e-6)
+
+
 def test_a_stop_asked_for_during_a_sweep_takes_effect_before_the_next_one_renders():
     from addon import Scanner
 
