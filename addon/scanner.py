@@ -680,7 +680,7 @@ class Scanner:
             if finished or steps:
                 # Over every adaptive() call on this Scanner: the sweeps all of them took, within
                 # the budgets all of them were given.
-                earlier = self._extra.get("adaptive", {}).get("max_profiles", 0) if done else 0
+                earlier = self._extra.get("adaptive", {}).get("max_profiles", 0)
                 self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": earlier + budget,
                                            "target_coverage": target,
                                            "sweeps": done + [s.as_dict() for s in steps]}

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import shlex
 import tempfile
 import time
@@ -159,6 +160,16 @@ def cluster_client(workers: int, scheduler: str | None):
             cluster.close()
 
 
+def local_workers(n_frames: int, workers: int, shard_frames: int | None) -> int:
+    """The workers a local cluster starts for a scan of ``n_frames``: ``workers``, but no more
+    than it has shards (``_compute_shards`` starts none without one); what the memory check
+    before the scan counts."""
+    if n_frames < 1:
+        return 1
+    size = shard_frames or shards.default_shard_frames(n_frames, workers)
+    return max(1, min(int(workers), len(shards.split(n_frames, int(size)))))
+
+
 def check_scheduler(address: str) -> str:
     if not (isinstance(address, str) and address.startswith(("tcp://", "tls://")) and ":" in address[6:]):
         raise InputError(f"--scheduler {address!r}: expected an address like tcp://HOST:PORT")
@@ -281,20 +292,24 @@ def _compute_shards(config, plan, todo, folder: Path, fp: str, out_dir, workers:
                     render_threads: int | None, log, progress) -> tuple[str, list]:
     """Compute the shards ``todo`` ((shard, why) pairs) on the cluster, each writing its file
     into ``folder``; returns the scheduler's address and the workers'."""
-    workers = min(workers, len(todo))  # a local cluster starts no worker that would have no shard
+    workers = max(1, min(workers, len(todo)))  # a local cluster starts no worker that would have no shard
     threads = render_threads or (None if scheduler else max(1, (os.cpu_count() or 1) // workers))
     try:
         return _run_on_cluster(config, plan, todo, folder, fp, out_dir, workers, scheduler, threads, log, progress)
     except Exception as exc:  # Dask hands a worker's ImportError on wrapped in a plain Exception
         text = f"{type(exc).__name__}: {exc}"
-        if "No module named" not in text and "deserializ" not in text.lower():
-            raise
-        # An external cluster started where Python cannot import this tool's code: its scheduler
-        # cannot read the task graph, or its workers the tasks.
+        missing = re.search(r"No module named '([^'.]+)", text)
+        if scheduler is None or (missing is None and "deserializ" not in text.lower()):
+            raise  # a local cluster's workers import what this process does
+        if missing is not None and missing.group(1) not in ("addon", "headless"):
+            raise ScannerError(f"the cluster at {scheduler} lacks the package {missing.group(1)!r} ({text[:160]}): "
+                               f"run its scheduler and workers with this project's set-up (.venv of the same "
+                               f"commit, docs/farm.md)") from None
+        # Started where Python cannot import this tool's code: the scheduler cannot read the task
+        # graph, or the workers the tasks.
         repo = Path(__file__).resolve().parents[1]
-        raise ScannerError(f"the cluster at {scheduler or 'the local cluster'} cannot load the scanner's code "
-                           f"({text[:160]}): start its scheduler and its workers with PYTHONPATH={repo} "
-                           f"(docs/farm.md)") from None
+        raise ScannerError(f"the cluster at {scheduler} cannot load the scanner's code ({text[:160]}): start its "
+                           f"scheduler and its workers with PYTHONPATH={repo} (docs/farm.md)") from None
 
 
 def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers: int, scheduler: str | None,
@@ -304,7 +319,8 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
 
         address = client.scheduler.address
         worker_addresses = sorted(client.scheduler_info()["workers"])
-        log(f"farm: scheduler {address}, {len(worker_addresses)} workers")
+        log(f"farm: scheduler {address}, {len(worker_addresses)} workers"
+            + ("" if worker_addresses else " (none yet: the shards wait for workers to join it)"))
         # The config (with its meshes) and the plan go to every worker once, not with every task.
         shared = client.scatter([config, plan], broadcast=True, hash=False)
         tries = {s.index: 0 for s, _ in todo}

@@ -273,8 +273,12 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
 
     farm = (args.workers is not None or args.scheduler is not None or args.shard_frames is not None
             or args.merge)
-    local = (args.workers if args.workers is not None else 2) if farm and args.scheduler is None \
-        and args.shard is None and not args.merge else 1
+    local = 1
+    if farm and args.scheduler is None and args.shard is None and not args.merge:
+        from headless.farm import local_workers
+
+        local = local_workers(len(config.waypoints), args.workers if args.workers is not None else 2,
+                              args.shard_frames)
     preflight.check_scan(config, out, names=OUTPUT_FILES.values(), farm=farm, scheduler=args.scheduler,
                          force=args.force, local_workers=local)
     n = len(config.waypoints)

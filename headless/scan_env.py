@@ -177,6 +177,17 @@ class ScanPlanningEnv(gym.Env):
     def _surface_cells(self) -> int:
         return int((self.planner.space.state == SURFACE).sum())
 
+    def _feasible_now(self, c) -> bool:
+        """Whether the robot can do view ``c`` from where it stands. A refusal holds for this
+        step only (the mask leaves the view open), so the reference planner's choice
+        (reference_action) may still take it from another pose; a view already done stays done."""
+        done = c.key in self.planner.impossible
+        if self.planner.feasible(self.scanner, c):
+            return True
+        if not done:
+            self.planner.impossible.discard(c.key)
+        return False
+
     def step(self, action):
         if not hasattr(self, "_by_key"):
             raise RuntimeError("call reset() before step()")
@@ -199,12 +210,9 @@ class ScanPlanningEnv(gym.Env):
         elif c.frames > self.max_profiles - self.profiles:
             info = {"sweep": c.describe(), "refused": "over the profile budget"}
             reward, learnt, found = -self.refusal_cost, 0, 0
-        elif not self.planner.feasible(self.scanner, c):
+        elif not self._feasible_now(c):
             info = {"sweep": c.describe(), "refused": self.planner.refused[-1]}
             reward, learnt, found = -self.refusal_cost, 0, 0
-            # Refused from where the robot stands now, not for good (the mask leaves it open):
-            # the reference planner's choice (reference_action) may take it from another pose.
-            self.planner.impossible.discard(c.key)
         else:
             info = {"sweep": c.describe(), "refused": None}
             seconds = next_view.seconds(c, self.scanner.table_deg, self.scanner.pose("table")[:3, 3])

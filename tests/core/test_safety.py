@@ -479,3 +479,24 @@ def test_a_path_out_of_the_probes_range_is_told_which_way_to_move():
         with pytest.raises(ScannerError, match="2 of 2 waypoints put no surface inside the probe's range 70-250 mm") as err:
             plan_scan(replace(cfg, waypoints=wp))
         assert said in str(err.value), str(err.value)
+
+
+def test_merging_checks_keeps_every_count_and_collision_and_numbers_later_entries_on():
+    """A Scanner's report merges its checks (one, for a scan of a config's path): the first
+    keeps its path-entry numbers, later ones are numbered after them, and nothing else is lost."""
+    from addon.core.safety.clearance import Contact, PathClearance
+
+    def check(entries, samples, collide):
+        p = PathClearance(2.0, samples=samples, exact_queries=samples // 2, bound_queries=samples)
+        p.nearest = {k: Contact(10.0 + k, "probe", "table", float(k)) for k in entries}
+        if collide:
+            hit = Contact(0.0, "probe", "workpiece", 3.0)
+            p.collisions, p.deepest = [(hit, hit)], [hit]
+        return p
+
+    merged = PathClearance.merge([check([1, 2], 40, True), check([0], 7, False)])
+    assert sorted(merged.nearest) == [1, 2, 3] and merged.nearest[3].distance_mm == 10.0
+    assert (merged.samples, merged.exact_queries, merged.bound_queries) == (47, 23, 47)
+    assert len(merged.collisions) == len(merged.deepest) == 1 and not merged.ok
+    single = PathClearance.merge([check([1], 62, False)])
+    assert single.report()["samples_checked"] == 62 and list(single.report()["per_path"]) == ["1"]

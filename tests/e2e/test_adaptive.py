@@ -196,6 +196,8 @@ def test_a_second_adaptive_run_goes_on_from_what_the_first_learnt():
     numbers = [int(line.split("sweep ")[1].split(":")[0]) for line in lines if line.startswith("adaptive: sweep ")]
     assert numbers == list(range(len(first) + 1, len(first) + len(second) + 1)), lines
     assert scanner.report().to_dict()["adaptive"]["max_profiles"] == 400  # both runs' budgets
+    scanner.adaptive(max_profiles=100, min_gain=10**6)  # a call that takes no sweep counts too
+    assert scanner.report().to_dict()["adaptive"]["max_profiles"] == 500
     views = lambda steps: {(s.sweep.split(" at ")[0], s.table_deg, s.tilt_deg) for s in steps}
     assert first and second and not views(first) & views(second), (views(first), views(second))
     assert not any("set up" in line for line in lines)  # the same model, not a new one

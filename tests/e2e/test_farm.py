@@ -156,6 +156,32 @@ def test_a_local_cluster_starts_no_more_workers_than_shards(config, tmp_path):
     assert len(res.report["farm"]["worker_addresses"]) == 2 and any("2 workers" in line for line in lines)
 
 
+def test_the_workers_a_local_scan_starts_are_no_more_than_its_shards():
+    assert farm.local_workers(8, 8, None) == 2  # 4 frames a shard at least: 2 shards
+    assert farm.local_workers(180, 2, None) == 2 and farm.local_workers(180, 64, 24) == 8
+    assert farm.local_workers(180, 3, 1000) == 1
+
+
+def test_a_cluster_lacking_a_package_or_the_code_is_told_which_and_a_local_one_is_not(monkeypatch):
+    """Which import failed decides the line: the tool's own code (PYTHONPATH), another package
+    (the project's set-up); a local cluster's workers import what this process does, so its
+    failure is no set-up matter and is raised as it is."""
+    from addon.core.errors import ScannerError
+
+    def failing(name):
+        def run(*args, **kwargs):
+            raise Exception(f"ModuleNotFoundError(\"No module named '{name}'\")")
+        return run
+
+    for name, words in (("addon", "PYTHONPATH="), ("cv2.typing", "lacks the package 'cv2'")):
+        monkeypatch.setattr(farm, "_run_on_cluster", failing(name))
+        with pytest.raises(ScannerError, match=words):
+            farm._compute_shards(None, None, [], None, "", None, 1, "tcp://127.0.0.1:1", None, None, None)
+    monkeypatch.setattr(farm, "_run_on_cluster", failing("addon"))
+    with pytest.raises(Exception, match="No module named 'addon'"):
+        farm._compute_shards(None, None, [], None, "", None, 1, None, None, None, None)
+
+
 def test_the_memory_check_counts_a_frame_per_local_worker():
     from headless.preflight import RenderBudget, check_render_size
 

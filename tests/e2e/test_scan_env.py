@@ -69,6 +69,12 @@ def test_a_view_refused_from_one_pose_stays_open_to_the_reference_planner():
     assert np.array_equal(np.array(env.reference_action()), action)
     _, reward, _, _, info = env.step(action)
     assert info["refused"] is None and reward > 0
+    # Done, it stays done: the same view refused now (the mask rules it out, an agent may still
+    # send it) is not offered to the reference planner again.
+    env.scanner.plan_path = refuse
+    _, _, _, _, info = env.step(action)
+    env.scanner.plan_path = real
+    assert info["refused"] and not np.array_equal(np.array(env.reference_action()), action)
 
 
 def test_the_reference_planner_beats_random_sweeps_on_the_same_budget():

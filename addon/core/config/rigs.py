@@ -81,6 +81,7 @@ def _urdf_cached(path: Path, base_link, tool_link, package_dirs) -> Robot:
     key = (path, base_link, tool_link, package_dirs)
     held = _urdf_cache.get(key)
     if held is not None and all(_stamp(f) == stamp for f, stamp in held[0]):
+        _urdf_cache[key] = _urdf_cache.pop(key)  # the most recently used goes last (the oldest go first)
         return held[1]
     files: list = []
     stamp = _stamp(path)

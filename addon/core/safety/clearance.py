@@ -142,9 +142,9 @@ class PathClearance:
             out.labels.update(p.labels)
             if not out.nearest:
                 out.nearest.update(p.nearest)
-                continue
-            base = max(out.nearest) + 1
-            out.nearest.update({base + i: c for i, (_, c) in enumerate(sorted(p.nearest.items()))})
+            else:
+                base = max(out.nearest) + 1
+                out.nearest.update({base + i: c for i, (_, c) in enumerate(sorted(p.nearest.items()))})
             out.collisions += p.collisions
             out.deepest += p.deepest if len(p.deepest) == len(p.collisions) else [c[0] for c in p.collisions]
             out.samples += p.samples
