@@ -222,8 +222,9 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     folder = Path(out_dir) / "shards"
     todo = [(s, why) for s in parts if (why := _not_ready(folder, s, fp)) is not None]
     reused = len(parts) - len(todo)
-    log(f"farm: {n} frames in {len(parts)} shards of up to {size} frames; {reused} valid from an earlier run "
-        f"(skipped), {len(todo)} to compute")
+    if not (merge_only and todo):  # a merge that cannot be made says only why (one line)
+        log(f"farm: {n} frames in {len(parts)} shards of up to {size} frames; {reused} valid from an earlier run "
+            f"(skipped), {len(todo)} to compute")
     if merge_only and todo:
         listed = "; ".join(f"{s.describe()}: {why}" for s, why in todo[:8])
         expected = {s.file_name() for s in parts}

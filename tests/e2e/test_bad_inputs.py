@@ -688,7 +688,7 @@ def case_ctrl_c_farm(tmp):
     # on disk, which the next run keeps.
     out = tmp / "out"
     proc = _start(["demo", "--workers", "1", "--shard-frames", "30", "--out", str(out)], tmp, start_new_session=True)
-    _wait_for(proc, "done:", stream="stdout")
+    _wait_for(proc, "done:")  # the farm's log, with the progress on stderr
     os.killpg(proc.pid, signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=90)
     assert proc.returncode == 130, stderr[-3000:]
