@@ -191,7 +191,6 @@ class Scanner:
         without measuring them against the part as report() does: a planner's budget count."""
         return sum(len(q) for q, _ in self._poses)
 
-    _frames = frames_taken
 
     def _look_at_the_table(self) -> None:
         """Without a path, start with the probe looking straight down at the table's centre from
@@ -271,7 +270,7 @@ class Scanner:
         pose in the table frame (4, 4), its points (n, 3), table frame): what a planner that
         joins a scan under way learns from."""
         first = check_whole(first, "measurements(first): the frame to start from", 0, 2**62)
-        if first >= self._frames:
+        if first >= self.frames_taken:
             return
         q = np.concatenate([p[0] for p in self._poses])[first:]
         table_rad = np.concatenate([p[1] for p in self._poses])[first:]
@@ -279,7 +278,7 @@ class Scanner:
         cloud = self.cloud
         order = np.argsort(cloud.frame, kind="stable")
         frames, points = cloud.frame[order], cloud.points[order]
-        cuts = np.searchsorted(frames, np.arange(first, self._frames + 1))
+        cuts = np.searchsorted(frames, np.arange(first, self.frames_taken + 1))
         for i in range(len(q)):
             yield first + i, probe2table[i], points[cuts[i]:cuts[i + 1]]
 
@@ -574,7 +573,7 @@ class Scanner:
         if plan is None:
             plan = plan_frames(cfg, q, table_rad, allow_blind=True, surfaces=self._cell_surfaces())
             self._timing["plan"] += time.perf_counter() - t
-        first = self._frames
+        first = self.frames_taken
         n = len(q)
         probe2table = cfg.cell.probe2table(q, table_rad)
         if not plan.cameras:  # the laser meets nothing any camera sees: nothing to render
@@ -614,9 +613,9 @@ class Scanner:
     def _keep_frames(self, q, table_rad, plan, clearance, warnings) -> None:
         """Frames measured: their poses, the fixtures their laser met, the motion's clearance and
         the plan's warnings join the scan; the robot and the table stay at the last frame."""
-        self._note_fixtures(plan.fixture_frames, self._frames)
+        self._note_fixtures(plan.fixture_frames, self.frames_taken)
         # allowed step by step (a sweep may run past the part), never silent: see _range_warning
-        self._empty_frames += [self._frames + int(i) for i in getattr(plan, "empty_frames", ())]
+        self._empty_frames += [self.frames_taken + int(i) for i in getattr(plan, "empty_frames", ())]
         self._poses.append((np.array(q, dtype=np.float64), np.array(table_rad, dtype=np.float64)))
         if clearance is not None:
             self._clearances.append(clearance)
@@ -696,7 +695,7 @@ class Scanner:
 
         import json
 
-        key = (self._frames, json.dumps(self._extra, sort_keys=True))
+        key = (self.frames_taken, json.dumps(self._extra, sort_keys=True))
         # The path's frame numbers hold only while this Scanner has run nothing but its path.
         config = self.config if not self._off_path else replace(self.config, path_frames=None)
         # (A config set on the Scanner since is measured afresh: the cache holds the one it measured.)
@@ -728,7 +727,7 @@ class Scanner:
     def _part_check(self) -> list[str]:
         """What plan.part_warnings says of the part (an open mesh, table fixtures reaching into
         it; kept per config), once something has been measured."""
-        if not self._frames:
+        if not self.frames_taken:
             return []
         from .core.scan.plan import part_warnings
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 import tempfile
 from dataclasses import replace
 from pathlib import Path
@@ -181,22 +180,14 @@ def _name_of(entry) -> str:
 def _choices_key(s) -> tuple:
     """The panel's choices, and each chosen file's size and time of change: a file edited on
     disk under the same name is another choice, and so is a URDF robot whose mesh files were."""
-    from ..core.config.rigs import urdf_mesh_files
+    from ..core.config.rigs import file_stamp, urdf_mesh_files
 
     files = [(s.robot == FILE, s.robot_file), (s.probe == FILE, s.probe_file), (s.workpiece == FILE, s.workpiece_file)]
     meshes = urdf_mesh_files(bpy.path.abspath(s.robot_file)) if s.robot == FILE and s.robot_file else ()
     return (s.robot, s.robot_file, s.table_a_mm, s.table_d_mm, s.probe, s.probe_file, s.probe_a, s.probe_b,
             s.probe_phi, s.probe_gamma, s.workpiece, s.workpiece_file, s.workpiece_scale,
-            *(_stamp(path) if chosen and path else None for chosen, path in files),
-            *(_stamp(str(path)) for path in meshes))
-
-
-def _stamp(path: str):
-    try:
-        st = os.stat(bpy.path.abspath(path))
-    except OSError:
-        return None
-    return st.st_size, st.st_mtime_ns
+            *(file_stamp(bpy.path.abspath(path)) if chosen and path else None for chosen, path in files),
+            *(file_stamp(path) for path in meshes))
 
 
 def stale_cell_message(mismatch: str) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import math
 from pathlib import Path
 
@@ -54,10 +55,10 @@ URDF_CACHE_SIZE = 16
 _urdf_cache: dict = {}  # (path, base_link, tool_link, package_dirs) -> (file stamps, Robot)
 
 
-def _stamp(path: Path):
+def file_stamp(path: str | Path):
     """What tells a changed file: its time of change and size (None: it cannot be read)."""
     try:
-        st = path.stat()
+        st = os.stat(path)
     except OSError:
         return None
     return st.st_mtime_ns, st.st_size
@@ -80,16 +81,16 @@ def _urdf_cached(path: Path, base_link, tool_link, package_dirs) -> Robot:
 
     key = (path, base_link, tool_link, package_dirs)
     held = _urdf_cache.get(key)
-    if held is not None and all(_stamp(f) == stamp for f, stamp in held[0]):
+    if held is not None and all(file_stamp(f) == stamp for f, stamp in held[0]):
         _urdf_cache[key] = _urdf_cache.pop(key)  # the most recently used goes last (the oldest go first)
         return held[1]
     files: list = []
-    stamp = _stamp(path)
+    stamp = file_stamp(path)
     robot = load_urdf_robot(path, base_link, tool_link, package_dirs, files)
     _urdf_cache.pop(key, None)
     while len(_urdf_cache) >= URDF_CACHE_SIZE:
         _urdf_cache.pop(next(iter(_urdf_cache)))  # the oldest
-    _urdf_cache[key] = (((path, stamp), *((f, _stamp(f)) for f in dict.fromkeys(files))), robot)
+    _urdf_cache[key] = (((path, stamp), *((f, file_stamp(f)) for f in dict.fromkeys(files))), robot)
     return robot
 
 
