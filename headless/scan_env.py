@@ -123,6 +123,11 @@ class ScanPlanningEnv(gym.Env):
             # The share of the profile budget left: what ends the episode and masks the views
             # too large for it (an RL user's trial: a policy saw it only through the mask).
             "budget": spaces.Box(0.0, 1.0, (1,), dtype=np.float32),
+            # The views scanned this episode, shaped like the action space (1: that action's view
+            # is done; a table turn's eight actions together): with the model and the budget the
+            # observation then says all that decides what an action can still earn (an RL user's
+            # trial: only info's action mask told a policy which views it had done).
+            "scanned": spaces.MultiBinary([int(n) for n in self.action_space.nvec]),
         })
         self.scanner = None
         self.planner = None
@@ -168,6 +173,13 @@ class ScanPlanningEnv(gym.Env):
             mask[index] = (c is not None and c.key not in self._scanned
                            and self.planner.sized(c, frames).frames <= left)
         return mask
+
+    def _scanned_views(self) -> np.ndarray:
+        """int8 (table steps, views, 2): 1 where the action's view was scanned this episode."""
+        done = np.zeros(tuple(int(n) for n in self.action_space.nvec), np.int8)
+        for index in np.ndindex(done.shape):
+            done[index] = self._key(*index) in self._scanned
+        return done
 
     def sample_allowed(self, rng: np.random.Generator) -> np.ndarray | None:
         """An action drawn uniformly from those :meth:`action_mask` allows (None: none is)."""
@@ -253,7 +265,8 @@ class ScanPlanningEnv(gym.Env):
         probe = np.r_[np.clip(pose[:3, 3], -PROBE_REACH_MM, PROBE_REACH_MM), pose[:3, 2],
                       self.scanner.table_deg % 360.0 / 360.0].astype(np.float32)
         left = max(0.0, 1.0 - self.profiles / self.max_profiles)
-        return {"grid": grid, "probe": probe, "budget": np.array([left], dtype=np.float32)}
+        return {"grid": grid, "probe": probe, "budget": np.array([left], dtype=np.float32),
+                "scanned": self._scanned_views()}
 
     def _key(self, table_step: int, view: int, kind: int) -> tuple:
         table_deg = 0.0 if kind == 1 else 360.0 * table_step / next_view.TABLE_STEPS

@@ -202,9 +202,11 @@ def test_the_action_mask_rules_out_steep_sweeps_views_scanned_and_views_over_the
     assert mask[:, :, 1].all()  # every table turn fits 300 profiles (180 before the part's radius is known)
     _, reward, _, _, info = env.step(np.array([0, steep[0], 0]))
     assert info["refused"] and np.array_equal(info["action_mask"], mask)  # what was known already
-    _, _, _, _, info = env.step(np.array([2, 0, 0]))
+    obs, _, _, _, info = env.step(np.array([2, 0, 0]))
     assert info["refused"] is None and info["new_surface_cells"] > 0
     assert not info["action_mask"][2, 0, 0] and info["action_mask"][3, 0, 0]
+    # The observation says so too: that view alone is scanned (the refused steep sweep is not).
+    assert obs["scanned"][2, 0, 0] == 1 and obs["scanned"].sum() == 1
     _, _, _, _, again = env.step(np.array([2, 0, 0]))  # what the mask ruled out indeed finds nothing
     assert again["new_surface_cells"] == 0
     # A view refused from one pose (the planner then never proposes it again) stays allowed to
@@ -214,6 +216,10 @@ def test_the_action_mask_rules_out_steep_sweeps_views_scanned_and_views_over_the
     rng = np.random.default_rng(0)
     draws = [env.sample_allowed(rng) for _ in range(50)]
     assert all(env.action_space.contains(a) and env.action_mask()[tuple(a)] for a in draws)
+    # A table turn ignores the table angle: once done, all eight of its actions read scanned.
+    obs, _, _, _, info = env.step(np.array([0, 0, 1]))
+    assert info["refused"] is None and obs["scanned"][:, 0, 1].all() and obs["scanned"].sum() == 1 + 8
+    assert env.observation_space.contains(obs)
     # a budget too small for any table turn masks them all, and the sweeps that still fit stay
     env.max_profiles = env.profiles + next_view.turn_frames(env.planner.part_radius()) - 1
     small = env.action_mask()
