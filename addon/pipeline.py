@@ -23,6 +23,7 @@ from .core.config.scan import ScanConfig
 from .core.errors import InputError
 from .core.geometry.cloud import CloudAccumulator
 from .core.geometry.workpiece import drawn_mesh
+from .core.optics.triangulate import merged_counts
 from .core.scan.band import Band, line_extent, needs_full_frame
 from .core.scan.frames import add_counts, detect_all, frame_profile, merge_stats, new_stats
 from .core.scan.outputs import ScanResult, assemble
@@ -254,12 +255,8 @@ class ScanRun:
             self.t_tri += time.perf_counter() - t
             stats["valid"] += sum(int(ln.valid.sum()) for ln in lines[i] if ln is not None)
             stats["columns"] += sum(len(ln.col) for ln in lines[i] if ln is not None)
-            codes: dict[str, int] = {}
-            for ln in lines[i]:
-                if ln is not None:
-                    for name, count in ln.counts().items():
-                        stats["codes"][name] = stats["codes"].get(name, 0) + count
-                        codes[name] = codes.get(name, 0) + count
+            codes = merged_counts(*(ln.counts() for ln in lines[i] if ln is not None))
+            add_counts(stats["codes"], codes)
             self.frame_codes[index + i] = codes
             stats["band_rows"].append(probe.rows_px if rows[i] is None else rows[i][1] - rows[i][0])
             self.band.update(line_extent(lines[i]))

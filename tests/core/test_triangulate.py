@@ -164,3 +164,33 @@ def test_fusion_with_an_empty_side():
     empty = p1.take(np.zeros(len(p1), bool))
     out = fuse_profiles(p0, empty)
     assert len(out) == len(p0) and np.all(out.camera == 1)
+
+
+@pytest.mark.parametrize("fuse", [True, False])
+def test_a_frame_counts_both_cameras_dropped_columns_fused_or_not(fuse):
+    """With fusion off both cameras' points stand side by side; the columns either camera
+    dropped are counted all the same (camera 1's were lost unfused)."""
+    from dataclasses import replace
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.scan.frames import frame_profile
+
+    from addon.core.optics.profile_filter import ProfileFilter
+
+    # (The filter off: these sparse columns, 5 px apart, would read as a steep surface.)
+    config = replace(load_scan_config("demo"), fuse=fuse, profile_filter=ProfileFilter())
+    probe = config.probe
+    P = laser_plane_curve("plane", 60)
+    lines, seen = [], []
+    for camera, missing in ((0, 3), (1, 5)):
+        uv = probe.project(P, camera)
+        uv = uv[np.isfinite(uv).all(axis=1)]
+        seen.append(len(uv))
+        code = np.zeros(len(uv), np.uint8)
+        code[:missing] = LineCode.NO_LINE
+        lines.append(detection(probe, uv[:, 0], uv[:, 1], code))
+    prof = frame_profile(probe, lines, config)
+    assert prof.masked["no_detection"] == 3 + 5
+    if not fuse:
+        assert np.sum(prof.camera == 1) == seen[0] - 3 and np.sum(prof.camera == 2) == seen[1] - 5
+    np.testing.assert_allclose(prof.points[:, 2], 140 + 0.3 * prof.points[:, 1], atol=1e-6)

@@ -73,6 +73,22 @@ class Profile:
         return Profile(self.points[keep], self.col[keep], self.camera[keep], self.angle_rad[keep],
                        self.sigma_mm[keep], dict(self.masked))
 
+    @staticmethod
+    def joined(a: "Profile", b: "Profile") -> "Profile":
+        """``a``'s points then ``b``'s, and the columns both dropped, counted together."""
+        return Profile(*(np.concatenate([getattr(a, name), getattr(b, name)])
+                         for name in ("points", "col", "camera", "angle_rad", "sigma_mm")),
+                       merged_counts(a.masked, b.masked))
+
+
+def merged_counts(*counts: dict) -> dict:
+    """Counts by name (dropped columns, detection codes), added up."""
+    out: dict = {}
+    for each in counts:
+        for name, count in each.items():
+            out[name] = out.get(name, 0) + int(count)
+    return out
+
 
 def _laser_plane_hits(probe: Probe, u: np.ndarray, v: np.ndarray, camera: int, method: str):
     """Points (n, 3) and triangulation angles (n,) for pixels (u, v); NaN where the ray misses."""
@@ -173,7 +189,7 @@ def fuse_profiles(p0: Profile, p1: Profile, *, gate_sigmas: float = 5.0, gate_fl
     if len(p0) == 0 or len(p1) == 0:
         other = p1 if len(p0) == 0 else p0
         out = other.take(np.ones(len(other), bool))
-        out.masked = _merge_counts(p0.masked, p1.masked)
+        out.masked = merged_counts(p0.masked, p1.masked)
         out.masked["fused"] = 0
         return out
     o0 = np.argsort(p0.points[:, 1], kind="stable")
@@ -227,20 +243,10 @@ def fuse_profiles(p0: Profile, p1: Profile, *, gate_sigmas: float = 5.0, gate_fl
     fused = fused.take(~conflict0)
     extra = b.take(~drop1)
     extra.sigma_mm = np.hypot(extra.sigma_mm, spread)
-    out = Profile(
-        np.concatenate([fused.points, extra.points]),
-        np.concatenate([fused.col, extra.col]),
-        np.concatenate([fused.camera, extra.camera]),
-        np.concatenate([fused.angle_rad, extra.angle_rad]),
-        np.concatenate([fused.sigma_mm, extra.sigma_mm]),
-        _merge_counts(p0.masked, p1.masked),
-    )
+    out = Profile.joined(fused, extra)
+    out.masked = merged_counts(p0.masked, p1.masked)
     out.masked["fused"] = int(np.sum(agree))
     out.masked["camera_conflict"] = int(np.sum(conflict0) + np.sum(conflict1))
     order = np.argsort(out.points[:, 1], kind="stable")
     return out.take(order)
 
-
-def _merge_counts(a: dict, b: dict) -> dict:
-    keys = set(a) | set(b)
-    return {k: int(a.get(k, 0)) + int(b.get(k, 0)) for k in keys}

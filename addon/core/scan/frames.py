@@ -11,7 +11,7 @@ import numpy as np
 from ..config.scan import ScanConfig
 from ..optics.detect import detect_line
 from ..optics.profile_filter import drop_uncertain, filter_profile
-from ..optics.triangulate import fuse_profiles, triangulate_profile
+from ..optics.triangulate import Profile, fuse_profiles, merged_counts, triangulate_profile
 
 
 def new_stats() -> dict:
@@ -22,8 +22,8 @@ def new_stats() -> dict:
 
 
 def add_counts(into: dict, counts: dict) -> None:
-    for name, count in counts.items():
-        into[name] = into.get(name, 0) + int(count)
+    """``counts`` added into ``into`` (triangulate.merged_counts, in place)."""
+    into.update(merged_counts(into, counts))
 
 
 def merge_stats(parts: list[dict]) -> dict:
@@ -67,13 +67,8 @@ def frame_profile(probe, lines, config: ScanConfig):
              for cam, ln in enumerate(lines) if ln is not None]
     if len(profs) == 2 and config.fuse:
         return drop_uncertain(fuse_profiles(*profs), config.profile_filter)
-    if len(profs) == 2:
-        merged = profs[0].take(np.ones(len(profs[0]), bool))
-        other = profs[1]
-        merged.points = np.concatenate([merged.points, other.points])
-        for name in ("col", "camera", "angle_rad", "sigma_mm"):
-            setattr(merged, name, np.concatenate([getattr(merged, name), getattr(other, name)]))
-        return drop_uncertain(merged, config.profile_filter)
+    if len(profs) == 2:  # both cameras' points side by side, and both cameras' dropped columns counted
+        return drop_uncertain(Profile.joined(*profs), config.profile_filter)
     return drop_uncertain(profs[0], config.profile_filter)
 
 
