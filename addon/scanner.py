@@ -112,8 +112,6 @@ def _workpiece(value) -> tuple[Workpiece, str | None]:
     if value in BUILTINS:
         return builtin_workpiece(value), None
     part, lift = resting_on_table(load_workpiece(value))
-    check_over_table(part, "its x and y are the file's, with the table's axis at x = y = 0: centre the part in the "
-                           "file, or place it with a scan config's [workpiece.pose]")
     moved = lift_text(lift, decimals=2)
     return part, None if moved is None else f"the part from {value} was put on the table: {moved}"
 

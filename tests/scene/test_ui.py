@@ -1014,7 +1014,15 @@ def test_choosing_a_probe_loads_its_optics_and_a_mesh_in_metres_takes_the_scale_
     s.workpiece, s.workpiece_file = "FILE", str(tmp_path / "box_in_metres.stl")
     with pytest.raises(RuntimeError, match="0.05 mm across.*Scale field"):
         bpy.ops.scanner.build_cell()
-    s.workpiece_scale = 1000.0
+    # A part lying wholly beyond the table's rim is refused as Scanner(workpiece=path) refuses it
+    # (the panel built and scanned it: a review found the panel's own placement skipped the check).
+    far = box.copy()
+    far.apply_translation([5.0, 0.0, 0.0])
+    far.export(tmp_path / "far.stl")
+    s.workpiece_file, s.workpiece_scale = str(tmp_path / "far.stl"), 1000.0
+    with pytest.raises(RuntimeError, match="wholly beyond the table.*centre the part in the file"):
+        bpy.ops.scanner.build_cell()
+    s.workpiece_file = str(tmp_path / "box_in_metres.stl")
     assert bpy.ops.scanner.build_cell() == {"FINISHED"}
     part = next(o for o in bpy.data.objects if o.name.startswith("Workpiece ") and "twin" not in o.name)
     np.testing.assert_allclose(sorted(part.dimensions), sorted([0.05, 0.04, 0.03]), rtol=1e-6)  # metres in Blender

@@ -469,7 +469,10 @@ def depth_below_table(wp: Workpiece) -> float:
 def resting_on_table(wp: Workpiece) -> tuple[Workpiece, float]:
     """A mesh-file part given no pose (the panel's, ``Scanner(workpiece=path)``) moved straight
     up or down so that its lowest point lies on the table top, as a part is put on a table:
-    (the part, the lift in mm, negative where it came down). Its truth moves with it."""
+    (the part, the lift in mm, negative where it came down). Its truth moves with it. Its x and
+    y stay the file's, so one lying wholly beyond the table's rim is refused (check_over_table)."""
+    check_over_table(wp, "its x and y are the file's, with the table's axis at x = y = 0: centre the part in the "
+                         "file, or place it with a scan config's [workpiece.pose]")
     lift = -float(wp.mesh.bounds[0][2])
     if wp.is_analytic or lift == 0.0:
         return wp, 0.0
