@@ -70,7 +70,7 @@ def folder_argument(text: str) -> str:
 
 def render_budget(config) -> RenderBudget:
     probe, r = config.probe, config.render
-    w, h = r.resolution or (probe.cols_px, probe.rows_px)
+    w, h = probe.cols_px, probe.rows_px
     return RenderBudget(int(w), int(h), len(config.waypoints), 2, int(r.samples), config.leave_out.chunk_frames)
 
 

@@ -43,7 +43,7 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, cam
     given; Eevee's: the OpenGL device once it has rendered, see :func:`opengl_device`)."""
     r = scene.render
     r.engine = BLENDER_ENGINES[settings.engine]
-    W, H = settings.resolution or (probe.cols_px, probe.rows_px)
+    W, H = probe.cols_px, probe.rows_px
     r.resolution_x, r.resolution_y, r.resolution_percentage = W, H, 100
     r.pixel_aspect_x = r.pixel_aspect_y = 1.0
     r.use_border = False

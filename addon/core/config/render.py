@@ -43,8 +43,9 @@ class RenderOptions:
     diffuse scenes); ambient: world light strength (0 = dark); laser: gobo (Cycles' smooth
     Gaussian line), spot (the same line from squeezed spot lights, for Eevee) or slit (the
     paper's point light behind an aperture); laser_peak: the
-    line's peak as a fraction of full scale; resolution: (W, H) override of the probe's
-    sensor; persistent_data: keep Cycles' scene between frames; motion_blur_shutter:
+    line's peak as a fraction of full scale (the image's size is the probe's sensor:
+    ``Probe.with_resolution``, or a config's resolution override); persistent_data: keep
+    Cycles' scene between frames; motion_blur_shutter:
     fraction of a frame the shutter is open (0: none); threads: render threads (None: all)."""
 
     engine: str = "cycles"
@@ -56,7 +57,6 @@ class RenderOptions:
     ambient: float = 0.0
     laser: str = "gobo"
     laser_peak: float = 0.5
-    resolution: tuple[int, int] | None = None
     persistent_data: bool = True
     motion_blur_shutter: float = 0.0
     threads: int | None = None
@@ -78,10 +78,6 @@ class RenderOptions:
             raise InputError(f"motion blur shutter must be in [0, 1] frames, got {self.motion_blur_shutter}")
         if self.threads is not None:
             check_whole(self.threads, "render threads (or None: all cores)", 1, 1024)
-        if self.resolution is not None:
-            w, h = self.resolution
-            check_whole(w, "image width", 2, 100_000)
-            check_whole(h, "image height", 2, 100_000)
 
 
 def raycast_mismatch(settings: RenderOptions, material: str, hide_robot: bool = True) -> str | None:
