@@ -457,6 +457,11 @@ class Scanner:
         collision-checked from where the robot and the table are now; nothing moves."""
         from .core.kinematics.path import solve_path
 
+        if not isinstance(wp, Waypoints):
+            raise InputError(f"a path is Waypoints (addon.core.kinematics.path: sweep, turntable, concatenate), "
+                             f"got {type(wp).__name__}")
+        if len(wp) == 0:
+            raise InputError(f"the {what} has no waypoints: give at least one")
         sol = solve_path(self.config.cell, wp, self._q)
         if not sol.ok.all():
             from .pipeline import frame_ranges

@@ -16,6 +16,9 @@ pytest.importorskip("bpy", reason="scans render with bpy (installed by the READM
 
 from addon import Profile, Scanner, ScanReport, UnreachablePose, report_json  # noqa: E402
 from addon.core.errors import InputError  # noqa: E402
+from addon.core.config.scan import load_scan_config  # noqa: E402
+from addon.core.kinematics import path as scanpath  # noqa: E402
+from addon.core.kinematics.path import Waypoints  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 CENTRE, RADIUS = np.array([0.0, 0.0, 30.0]), 30.0  # the demo's sphere stands on the table
@@ -409,6 +412,10 @@ def test_a_move_can_be_checked_before_it_is_made_and_the_table_turned_to_an_angl
     assert s.turn_table_to(-3000.0) == pytest.approx(-3000.0)  # the limit is the angle's, not the turn's
 
 
+def _waypoints(n: int) -> "Waypoints":
+    return Waypoints(np.tile(np.eye(4), (n, 1, 1)), np.zeros(n), np.zeros(n, int))
+
+
 @pytest.mark.parametrize("call,words", [
     (lambda: Scanner(workpiece=42), "workpiece must be"),
     (lambda: Scanner(table="x"), "table must be a Turntable"),
@@ -424,6 +431,21 @@ def test_a_move_can_be_checked_before_it_is_made_and_the_table_turned_to_an_angl
     (lambda: Scanner.from_config("demo", engine="raycast").turn_table(1e20), "within ±3600"),
     (lambda: Scanner.from_config("demo", engine="raycast").turn_table_to(-1e300), "within ±3600"),
     (lambda: list(Scanner.from_config("demo", engine="raycast").measurements(first=-5)), "measurements(first)"),
+    # Paths built by hand (a review: a broadcast ValueError, an IndexError, an AttributeError,
+    # a TypeError, or a NaN blamed on the joints)
+    (lambda: Scanner.from_config("demo", engine="raycast").plan_path([1, 2, 3]), "a path is Waypoints"),
+    (lambda: Scanner.from_config("demo", engine="raycast").plan_path(_waypoints(0)), "has no waypoints"),
+    (lambda: Waypoints(np.tile(np.eye(4), (3, 1, 1)), np.zeros(2), np.zeros(3, int)), "one of each per frame"),
+    (lambda: Waypoints(np.full((2, 4, 4), np.nan), np.zeros(2), np.zeros(2, int)), "waypoint 0 is not finite"),
+    (lambda: Waypoints(np.tile(2 * np.eye(4), (2, 1, 1)), np.zeros(2), np.zeros(2, int)), "not a rigid transform"),
+    (lambda: scanpath.sweep(2.5, [0, 0, 200], [10, 0, 200]), "a sweep's frames"),
+    (lambda: scanpath.sweep(3, [np.nan, 0, 200], [10, 0, 200]), "from_mm must be three finite"),
+    (lambda: scanpath.sweep(3, [0, 0, 200], "abc"), "to_mm must be three numbers"),
+    (lambda: scanpath.sweep(3, [0, 0, 200], [10, 0, 200], line="x"), "line must be three numbers"),
+    (lambda: scanpath.turntable("5", [0, 0, 200], table=load_scan_config("demo").table), "turntable path's frames"),
+    (lambda: scanpath.turntable(5, "abc", table=load_scan_config("demo").table), "probe_mm must be three"),
+    (lambda: scanpath.turntable(5, [0, 0, 200], turn_rad=float("inf"), table=load_scan_config("demo").table),
+     "its turn must be a finite number"),
 ])
 def test_a_wrong_argument_to_the_api_is_named_in_the_projects_own_error(call, words):
     """A script's mistakes (a QA trial: a TypeError, an AttributeError, an IndexError, numpy's

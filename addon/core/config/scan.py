@@ -81,7 +81,7 @@ from ..safety import FIXTURE_CARRIERS, Fixture, Safety
 
 PATH_KINDS = ("sweep", "turntable")
 MATERIALS = ("grey", "dark", "glossy", "mirror")
-MAX_FRAMES = 1_000_000
+MAX_FRAMES = scanpath.MAX_FRAMES
 
 
 @dataclass(frozen=True)

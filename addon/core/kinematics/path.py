@@ -29,11 +29,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .cell import Cell
-from ..errors import InputError
+from ..errors import InputError, check_whole
 from .ik import ROT_TOL_RAD, all_branches, closed_form_arm, default_pos_tol, default_seed, wrap_to_limits
 from .transforms import make_pose
 
 DOWN = (0.0, 0.0, -1.0)
+MAX_FRAMES = 1_000_000  # the most frames one path entry takes
 JUMP_LIMIT_RAD = np.radians(30.0)  # a joint moving more than this between neighbours is a flip
 
 
@@ -45,6 +46,31 @@ class Waypoints:
     table_rad: np.ndarray
     segment: np.ndarray
 
+    def __post_init__(self) -> None:
+        """Refuse what no path can be, in one line: poses that are not (n, 4, 4) rigid
+        transforms of finite numbers, angles or entry numbers not one per pose (none at all is
+        a selection that picked nothing; the Scanner refuses to move along it)."""
+        poses, angles, segment = (np.asarray(getattr(self, name)) for name in ("probe2table", "table_rad", "segment"))
+        n = len(angles) if angles.ndim == 1 else -1
+        if poses.ndim != 3 or poses.shape[1:] != (4, 4) or poses.dtype.kind not in "fiu" \
+                or angles.ndim != 1 or angles.dtype.kind not in "fiu" or segment.shape != (n,) \
+                or segment.dtype.kind not in "iu" or len(poses) != n:
+            raise InputError(f"waypoints need poses (n, 4, 4), table angles (n,) and entry numbers (n,) as numbers, "
+                             f"one of each per frame; got {poses.shape}, {angles.shape} and {segment.shape}")
+        bad = ~(np.isfinite(poses).all(axis=(1, 2)) & np.isfinite(angles))
+        if bad.any():
+            raise InputError(f"waypoint {int(np.argmax(bad))} is not finite (its pose or its table angle); every "
+                             f"pose and angle must be a finite number")
+        R = poses[:, :3, :3]
+        off = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2)) > 1e-6
+        off |= np.abs(np.linalg.det(R) - 1.0) > 1e-6
+        off |= np.abs(poses[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) > 1e-9
+        if off.any():
+            raise InputError(f"waypoint {int(np.argmax(off))}'s pose is not a rigid transform (a rotation and a "
+                             f"translation, last row 0 0 0 1)")
+        object.__setattr__(self, "probe2table", poses.astype(np.float64, copy=False))
+        object.__setattr__(self, "table_rad", angles.astype(np.float64, copy=False))
+
     def __len__(self) -> int:
         return len(self.table_rad)
 
@@ -52,12 +78,36 @@ class Waypoints:
         return Waypoints(self.probe2table[index], self.table_rad[index], self.segment[index])
 
 
+def _vector(v, name: str) -> np.ndarray:
+    """``v`` as three float64s, or an InputError naming ``name`` (a string or a list of strings included)."""
+    try:
+        out = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        out = None
+    if out is None or out.shape != (3,):
+        raise InputError(f"{name} must be three numbers [x, y, z], got {v!r}")
+    return out
+
+
+def _point(v, name: str) -> np.ndarray:
+    p = _vector(v, name)
+    if not np.isfinite(p).all():
+        raise InputError(f"{name} must be three finite numbers [x, y, z] (mm, table frame), got {p.tolist()}")
+    return p
+
+
 def _unit(v, name: str) -> np.ndarray:
-    v = np.asarray(v, dtype=np.float64)
+    v = _vector(v, name)
     n = np.linalg.norm(v)
-    if v.shape != (3,) or not np.isfinite(n) or n < 1e-9:
-        raise InputError(f"{name} must be a non-zero direction [x, y, z], got {np.asarray(v).tolist()}")
+    if not np.isfinite(n) or n < 1e-9:
+        raise InputError(f"{name} must be a non-zero direction [x, y, z], got {v.tolist()}")
     return v / n
+
+
+def _angle(value, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value):
+        raise InputError(f"{name} must be a finite number (radians), got {value!r}")
+    return float(value)
 
 
 DECIMALS = 12  # a path entry's mm and degrees: the views scan again as they were, to rounding
@@ -67,7 +117,8 @@ ALONG_LINE_DEG = 1.0  # a sweep moving within this angle of its laser line measu
 def probe_orientation(beam, line) -> np.ndarray:
     """(3, 3) rotation with +Z along ``beam`` and +Y along ``line`` (made perpendicular to the beam)."""
     z = _unit(beam, "beam")
-    y = np.asarray(line, dtype=np.float64) - np.dot(line, z) * z
+    line = _unit(line, "line")
+    y = line - np.dot(line, z) * z
     if np.linalg.norm(y) < 1e-9:
         raise InputError(f"the laser line direction {np.asarray(line).tolist()} is parallel to the beam "
                          f"{z.tolist()}; it must have a component across it")
@@ -77,9 +128,9 @@ def probe_orientation(beam, line) -> np.ndarray:
 
 def sweep(frames: int, from_mm, to_mm, beam=DOWN, line=None, table_rad: float = 0.0, segment: int = 0) -> Waypoints:
     """Probe origin from ``from_mm`` to ``to_mm`` (table frame) in ``frames`` steps, laser plane across the motion."""
-    if frames < 1:
-        raise InputError(f"a sweep needs at least 1 frame, got {frames}")
-    a, b = np.asarray(from_mm, dtype=np.float64), np.asarray(to_mm, dtype=np.float64)
+    frames = check_whole(frames, "a sweep's frames", 1, MAX_FRAMES)
+    a, b = _point(from_mm, "from_mm"), _point(to_mm, "to_mm")
+    table_rad = _angle(table_rad, "a sweep's table angle")
     z = _unit(beam, "beam")
     motion = b - a - np.dot(b - a, z) * z  # the probe's travel across the beam
     moves = np.linalg.norm(motion) >= 1e-9
@@ -103,14 +154,14 @@ def turntable(frames: int, probe_mm, beam=DOWN, line=None, start_rad: float = 0.
               turn_rad: float = 2 * np.pi, table=None, segment: int = 0) -> Waypoints:
     """Probe fixed in the world (placed at ``probe_mm`` in the table frame at the start angle);
     the table turns by ``turn_rad`` in ``frames`` equal steps (end excluded for a full turn)."""
-    if frames < 1:
-        raise InputError(f"a turntable path needs at least 1 frame, got {frames}")
+    frames = check_whole(frames, "a turntable path's frames", 1, MAX_FRAMES)
+    start_rad, turn_rad = _angle(start_rad, "a turntable path's start angle"), _angle(turn_rad, "its turn")
     if table is None:
         raise InputError("a turntable path needs the table placement")
     if frames > 1 and turn_rad == 0.0:
         raise InputError(f"a turntable path of {frames} frames with turn_deg 0 takes one profile {frames} times; give "
                          f"the turn (turn_deg, 360 for a whole turn, the default) or 1 frame")
-    p = np.asarray(probe_mm, dtype=np.float64)
+    p = _point(probe_mm, "probe_mm")
     z = _unit(beam, "beam")
     if line is None:
         radial = p - np.dot(p, z) * z
