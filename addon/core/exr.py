@@ -49,6 +49,15 @@ def read_exr(path: str | Path, channels: tuple[str, ...] = ("R", "G", "B")) -> n
     channels : the channel names to return, in this order (each must be in the file).
     """
     buf = Path(path).read_bytes()
+    try:
+        return _parsed(buf, path, channels)
+    except InputError:  # (a ValueError too) already says what is wrong
+        raise
+    except (struct.error, ValueError, IndexError, OverflowError):  # a field or table running past the end
+        raise InputError(f"{path}: not a readable OpenEXR file (damaged or cut short)") from None
+
+
+def _parsed(buf: bytes, path, channels: tuple[str, ...]) -> np.ndarray:
     if len(buf) < 8 or struct.unpack_from("<i", buf, 0)[0] != MAGIC:
         raise InputError(f"{path}: not an OpenEXR file")
     flags = struct.unpack_from("<i", buf, 4)[0]

@@ -74,6 +74,17 @@ def test_damaged_files_are_named(tmp_path, rgb, damage, message):
         read_exr(path)
 
 
+def test_a_file_cut_short_anywhere_is_named_never_a_raw_error(tmp_path, rgb):
+    """A render cut short (a full disk, a killed writer) at any byte: one InputError (a review:
+    cut inside a header field or the offset table, struct's and numpy's own errors came out)."""
+    whole = exr_bytes(rgb)
+    path = tmp_path / "cut.exr"
+    for size in range(len(whole)):
+        path.write_bytes(whole[:size])
+        with pytest.raises(InputError, match="OpenEXR"):
+            read_exr(path)
+
+
 def test_compressed_and_tiled_files_are_refused_by_name(tmp_path, rgb):
     path = tmp_path / "z.exr"
     path.write_bytes(exr_bytes(rgb, compression=3))
