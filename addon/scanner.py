@@ -149,11 +149,10 @@ class Scanner:
         if config is None:
             base = load_scan_config("demo")  # the detection, filter and leave-out defaults of a scan
             part, moved = _workpiece(workpiece)
-            config = replace(base, name="Scanner", source="", robot=_robot(robot), probe=_probe(probe),
-                             table=table or Turntable(), workpiece=part,
-                             waypoints=Waypoints(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0, int)),
-                             q_start=base.q_start if robot == "adept_viper_s650" else None,
-                             render=render or base.render)
+            robot, table = _robot(robot), table or Turntable()
+            config = replace(base, name="Scanner", source="", robot=robot, probe=_probe(probe), table=table,
+                             workpiece=part, waypoints=Waypoints(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0, int)),
+                             q_start=base.start_joints_for(robot, table), render=render or base.render)
             config = config.with_overrides(detect=detect)
         self.config = config
         self._scene = scene

@@ -256,7 +256,7 @@ def _cell_config(s):
     return frames_in_range(replace(
         base, name=f"The cell built here, {wp.name}", source="", robot=robot, table=table, probe=probe, workpiece=wp,
         material=s.material, roughness=s.roughness, fixtures=(), render=render,
-        q_start=base.q_start if robot.name == base.robot.name and table == base.table else None,
+        q_start=base.start_joints_for(robot, table),
         waypoints=around_part(wp.mesh, table, standoff_mm=0.5 * sum(probe.z_range_mm))))
 
 

@@ -526,3 +526,16 @@ def test_a_scanner_runs_its_path_with_the_paths_own_noise_whatever_it_measured_b
     for k in range(3):
         mine, theirs = b.points[b.frame == k + 1], a.points[a.frame == k]
         assert len(mine) and len(mine) == len(theirs) and np.array_equal(mine, theirs), k
+
+
+def test_the_demo_arm_given_as_an_object_starts_where_it_does_by_name():
+    """The demo's start posture holds for its robot and table however they are given (a review:
+    a loaded Robot lost it, compared with the rig's name as text); another arm seeds itself."""
+    from addon.core.config.rigs import load_robot
+    from addon.core.kinematics.turntable import Turntable
+
+    by_name, by_object = Scanner(), Scanner(robot=load_robot("adept_viper_s650"))
+    np.testing.assert_array_equal(by_object.q, by_name.q)
+    assert by_object.config.q_start is not None
+    assert Scanner(robot="puma560").config.q_start is None
+    assert Scanner(table=Turntable(a_mm=-450.0, d_mm=-200.0)).config.q_start is None

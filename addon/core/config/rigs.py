@@ -48,7 +48,7 @@ def load_robot(name_or_path: str | Path, *, base_link: str | None = None, tool_l
     if base_link or tool_link or package_dirs:
         raise ConfigError(f"{name_or_path}: base_link, tool_link and package_dirs apply to URDF robots only")
     path = resolve_rig("robots", name_or_path)
-    return _robot_cached(path, path.stat().st_mtime_ns)
+    return _robot_cached(path, file_stamp(path))
 
 
 URDF_CACHE_SIZE = 16
@@ -97,16 +97,16 @@ def _urdf_cached(path: Path, base_link, tool_link, package_dirs) -> Robot:
 def load_probe(name_or_path: str | Path) -> Probe:
     """Probe from ``rigs/probes/<name>.toml`` or a path to such a file (cached while the file is unchanged)."""
     path = resolve_rig("probes", name_or_path)
-    return _probe_cached(path, path.stat().st_mtime_ns)
+    return _probe_cached(path, file_stamp(path))
 
 
 @functools.lru_cache(maxsize=64)
-def _robot_cached(path: Path, mtime_ns: int) -> Robot:
+def _robot_cached(path: Path, stamp) -> Robot:  # stamp: file_stamp(path), what tells an edited file
     return _read_robot(path)
 
 
 @functools.lru_cache(maxsize=64)
-def _probe_cached(path: Path, mtime_ns: int) -> Probe:
+def _probe_cached(path: Path, stamp) -> Probe:
     return _read_probe(path)
 
 

@@ -224,6 +224,12 @@ class ScanConfig:
             return None
         return raycast_mismatch(with_sensor(self.render, self.sensor), self.material, self.leave_out.hide_robot)
 
+    def start_joints_for(self, robot: Robot, table: Turntable):
+        """This config's start joints for a cell built from it with ``robot`` and ``table``:
+        its own where both are its own (by the robot's name, the table's placement), else None
+        (the IK seeds itself): another arm or table would start from a meaningless posture."""
+        return self.q_start if robot.name == self.robot.name and table == self.table else None
+
     def with_overrides(self, *, engine=None, samples=None, resolution=None, detect=None, frames=None,
                        device=None) -> "ScanConfig":
         """A copy with command-line overrides applied; ``frames`` is a slice of the path."""
