@@ -211,6 +211,10 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     if scheduler is not None:
         check_scheduler(scheduler)
     progress = progress or (lambda stage, done, total: None)
+    # The workers write the shards: a relative folder would be read from each worker's own
+    # working folder (a trial: a cluster's shards went there, none came back, and the merge
+    # failed). Made absolute here, it names the same folder on a shared disk.
+    out_dir = Path(out_dir).absolute()
     t_all = time.perf_counter()
     t = time.perf_counter()
     plan = plan_scan(config)  # every refusal before any worker starts
@@ -352,6 +356,12 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
                 pending.add(again)
                 continue
             info = fut.result()  # a shard that raised raises here, with the worker's message
+            if not info["written"] and lock_holder(Path(out_dir)) == owner:
+                # The scan still holds its folder, yet the worker found no lock there: it sees
+                # another folder at that path (its own disk), where nothing would come back.
+                raise ScannerError(f"shard {info['shard']} was computed by a worker (pid {info['pid']}) that "
+                                   f"cannot see the output folder {out_dir}: give --out a folder on a disk every "
+                                   f"worker shares, at the same path (docs/farm.md); nothing merged")
             done += 1
             progress("shards", done, len(todo))
             log(f"  shard {info['shard']} done: {info['points']} points in {info['seconds']:.1f} s "

@@ -148,6 +148,48 @@ def test_a_cluster_that_cannot_import_the_scanner_is_named_in_one_line(tmp_path)
     assert not (tmp_path / "out" / "cloud.ply").exists()
 
 
+def test_a_relative_out_folder_names_the_same_folder_for_workers_started_elsewhere(tmp_path):
+    """A scheduler's workers run in folders of their own (a docs trial: given --out out/cluster,
+    they wrote the shards under their own folder, none came back, and the merge failed with a
+    traceback): the folder is made absolute before the shards go out."""
+    import os
+    import socket
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    here, there = tmp_path / "here", tmp_path / "there"
+    here.mkdir()
+    there.mkdir()
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    env = {**os.environ, "PYTHONPATH": str(repo)}
+    dask = str(Path(sys.executable).with_name("dask"))
+    address = f"tcp://127.0.0.1:{port}"
+    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+                              cwd=there, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        time.sleep(3)
+        procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard"], cwd=there,
+                                      env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        time.sleep(4)
+        out = subprocess.run([sys.executable, "-m", "headless", "scan", "demo", "--engine", "raycast", "--frames",
+                              "0:8", "--shard-frames", "4", "--scheduler", address, "--out", "out/cluster"],
+                             cwd=here, env=env, capture_output=True, text=True, timeout=300)
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.wait(timeout=30)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert (here / "out" / "cluster" / "cloud.ply").exists() and len(list((here / "out" / "cluster" / "shards")
+                                                                          .iterdir())) == 2
+    assert not (there / "out").exists()
+
+
 def test_a_local_cluster_starts_no_more_workers_than_shards(config, tmp_path):
     lines = []
     res = farm.run_farm(config.with_overrides(engine="raycast"), tmp_path / "out", workers=6, shard_frames=10,
@@ -286,6 +328,35 @@ def test_a_worker_killed_mid_shard_loses_nothing(config, single, tmp_path):
     assert marker.exists(), "the fault was not injected"
     same_cloud(res.cloud, single.cloud)  # nothing lost, nothing twice
     assert res.report["farm"]["computed"] == 4
+
+
+def blind_to_the_folder():
+    """A Dask worker plugin: the workers see no lock in the output folder, as a worker on
+    another machine without the shared disk would see its own empty folder at that path."""
+    from dask.distributed import WorkerPlugin
+
+    class Blind(WorkerPlugin):
+        def setup(self, worker):
+            from headless import farm as worker_farm
+
+            worker_farm.lock_holder = lambda folder: None
+
+    return Blind()
+
+
+def test_workers_that_cannot_see_the_output_folder_are_named_in_one_line(config, tmp_path):
+    from dask.distributed import Client, LocalCluster
+
+    from addon.core.errors import ScannerError
+    from addon.core.files import OutputLock
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, host="127.0.0.1", dashboard_address=None) as cluster, \
+            Client(cluster) as client, OutputLock(tmp_path / "out"):  # held as the command holds it
+        client.register_plugin(blind_to_the_folder(), name="blind")
+        with pytest.raises(ScannerError, match="cannot see the output folder .*a disk every worker shares"):
+            farm.run_farm(config.with_overrides(engine="raycast"), tmp_path / "out", scheduler=cluster.scheduler_address,
+                          shard_frames=10, log=lambda m: None, render_threads=1)
+    assert not (tmp_path / "out" / "cloud.ply").exists()
 
 
 def test_damaged_shards_are_found_and_recomputed(config, single, tmp_path):
