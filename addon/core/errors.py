@@ -60,3 +60,11 @@ def check_whole(value, what: str, lo: int, hi: int) -> int:
     if not is_whole(value) or not lo <= value <= hi:
         raise InputError(f"{what} must be a whole number in [{lo}, {hi}], got {value!r}")
     return int(value)
+
+
+def check_number(value, what: str, lo: float, hi: float) -> float:
+    """``value`` as a float when it is a real number (Python's or numpy's, not a bool or a
+    string) in [lo, hi] (NaN never is); otherwise an InputError that names ``what`` and the range."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not lo <= value <= hi:
+        raise InputError(f"{what} must be a number in [{lo:g}, {hi:g}], got {value!r}")
+    return float(value)

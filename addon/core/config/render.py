@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from ..errors import InputError, check_whole
+from ..errors import InputError, check_number, check_whole
 
 ENGINES = ("cycles", "eevee", "raycast")
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
@@ -67,15 +67,14 @@ class RenderOptions:
             if value not in allowed:
                 raise InputError(f"{name} {value!r} is not one of: {', '.join(allowed)}")
         check_whole(self.samples, "samples", 1, 65536)
-        if not 0.01 <= self.filter_width_px <= 10:
-            raise InputError(f"filter width must be in [0.01, 10] px, got {self.filter_width_px}")
+        check_number(self.filter_width_px, "filter width (px)", 0.01, 10)
         check_whole(self.bounces, "bounces", 0, 64)
-        if not 0 <= self.ambient <= 100:
-            raise InputError(f"ambient must be in [0, 100], got {self.ambient}")
-        if not 0 < self.laser_peak <= 1e3:
+        check_number(self.ambient, "ambient", 0, 100)
+        if check_number(self.laser_peak, "laser peak (fractions of full scale)", 0, 1e3) == 0:
             raise InputError(f"laser peak must be in (0, 1000] (fractions of full scale), got {self.laser_peak}")
-        if not 0 <= self.motion_blur_shutter <= 1:
-            raise InputError(f"motion blur shutter must be in [0, 1] frames, got {self.motion_blur_shutter}")
+        check_number(self.motion_blur_shutter, "motion blur shutter (frames)", 0, 1)
+        if not isinstance(self.persistent_data, bool):
+            raise InputError(f"persistent data must be True or False, got {self.persistent_data!r}")
         if self.threads is not None:
             check_whole(self.threads, "render threads (or None: all cores)", 1, 1024)
 

@@ -63,7 +63,7 @@ from ..kinematics.ik_remote import DEFAULT_PORT, Controller, ControllerIK
 from .toml import Table, load_toml, resolve_rig
 from ..optics.detect import METHODS as DETECT_METHODS
 from ..optics.detect import DetectParams
-from ..errors import ConfigError, InputError, check_whole, is_whole
+from ..errors import ConfigError, InputError, check_number, check_whole, is_whole
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
 from ..optics.probe import Probe
@@ -201,12 +201,10 @@ class ScanConfig:
         A sensor that clips makes the detector flag lines that reach full scale."""
         if material is not None and material not in MATERIALS:
             raise InputError(f"material {material!r} is not one of: {', '.join(MATERIALS)}")
-        if roughness is not None and not 0.0 <= roughness <= 1.0:
-            raise InputError(f"roughness must be in [0, 1], got {roughness}")
-        if ambient is not None and not 0.0 <= ambient <= 100.0:  # RenderOptions' range, as a config's
-            raise InputError(f"ambient must be in [0, 100], got {ambient}")
+        if roughness is not None:
+            check_number(roughness, "roughness", 0.0, 1.0)
         detect = replace(self.detect, saturation=1.0) if sensor.clips else self.detect
-        render = self.render if ambient is None else replace(self.render, ambient=float(ambient))
+        render = self.render if ambient is None else replace(self.render, ambient=check_number(ambient, "ambient", 0, 100))
         return replace(self, sensor=sensor, detect=detect, render=render,
                        material=self.material if material is None else material,
                        roughness=self.roughness if roughness is None else float(roughness))
