@@ -127,10 +127,6 @@ def _digest(lock: Path, python_version: str) -> str:
     return h.hexdigest()
 
 
-def lock_digest() -> str:
-    return _digest(LOCK, sys.version)
-
-
 def ensure_venv() -> None:
     _ensure_env(VENV, LOCK, STAMP, sys.executable, sys.version,
                 "the first time downloads about 600 MB, mostly bpy")

@@ -4,7 +4,7 @@ The coordinator (this process) plans the whole path once (so every refusal comes
 before anything starts), cuts it into shards by frame range and sends each shard
 to a worker. A worker process imports bpy once, builds the cell once per scan and
 reuses it for every shard it gets; each shard renders, detects and triangulates
-its frames and writes one checksummed shard file (addon.core.shards) atomically.
+its frames and writes one checksummed shard file (addon.core.scan.shards) atomically.
 When all shards are there, the coordinator checks and merges them into the
 cloud, the report and the preview, exactly as a single process would.
 

@@ -34,7 +34,7 @@ from .ownership import built_role, mark, own_objects, recorded_objects, register
 from ..core.config.render import RenderOptions, laser_engine_mismatch
 from .render import EXPOSURE_KEY_FRAMES, configure, opengl_device, render_animation
 from .turntable import add_fixture, add_turntable, add_workpiece, set_table_angle
-from .units import from_blender
+from .units import from_blender, points_to_blender
 
 
 RESULTS = "Scan results"
@@ -288,7 +288,7 @@ class SceneCell:
             quats = np.array([Matrix(T[:3, :3].tolist()).to_quaternion()[:] for T in poses])
         saved_mode = moving.rotation_mode
         moving.rotation_mode = "QUATERNION"
-        values = np.column_stack([poses[:, :3, 3] * 1e-3, quats])
+        values = np.column_stack([points_to_blender(poses[:, :3, 3]), quats])
         keys = frames.astype(np.float64)
         if move_table:  # motion blur: the motion during each frame's exposure, none across a jump
             keys, values = exposure_keys(keys, values, segments, path_frames)

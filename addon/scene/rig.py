@@ -29,7 +29,7 @@ from ..core.kinematics.transforms import rigid_inverse, rot_x
 from ..core.geometry.workpiece import check_mesh
 from .materials import diffuse
 from .meshes import mesh_object
-from .units import from_blender, to_blender
+from .units import M_PER_MM, from_blender, to_blender
 
 BONE_TO_DH = rot_x(-math.pi / 2)  # R_X(90°)⁻¹: bone frame -> DH frame k−1 (rotation part)
 
@@ -63,7 +63,7 @@ def build_robot(collection: bpy.types.Collection, robot: Robot, name: str = "Rob
     for k in range(N_JOINTS):
         eb = arm.edit_bones.new(bone_name(k + 1))
         eb.head = (0.0, 0.0, 0.0)
-        eb.tail = (0.0, size * 1e-3, 0.0)
+        eb.tail = (0.0, size * M_PER_MM, 0.0)
         eb.matrix = to_blender(base_inv @ frames0[k] @ rot_x(math.pi / 2))
         if parent is not None:
             eb.parent = parent
@@ -86,11 +86,11 @@ def build_robot(collection: bpy.types.Collection, robot: Robot, name: str = "Rob
             limit = pb.constraints.new("LIMIT_LOCATION")
             limit.owner_space = "LOCAL"
             limit.use_min_y, limit.use_max_y = True, True
-            limit.min_y, limit.max_y = lo * 1e-3, hi * 1e-3
+            limit.min_y, limit.max_y = lo * M_PER_MM, hi * M_PER_MM
             obj.id_properties_ui(prop).update(min=lo, max=hi, description=f"Joint {k + 1} travel (DH q{k + 1}, mm)")
             driver = pb.driver_add("location", 1).driver
             driver.type = "SCRIPTED"  # mm to metres by Blender's own expression evaluator (no script runs)
-            driver.expression = "q * 0.001"
+            driver.expression = f"q * {M_PER_MM!r}"
         else:
             limit = pb.constraints.new("LIMIT_ROTATION")
             limit.owner_space = "LOCAL"

@@ -25,4 +25,5 @@ def from_blender(M) -> np.ndarray:
 
 
 def points_to_blender(P_mm: np.ndarray) -> np.ndarray:
+    """Points (n, 3) mm -> metres, Blender's unit (locations, keyframed translations)."""
     return np.asarray(P_mm, dtype=np.float64) * M_PER_MM

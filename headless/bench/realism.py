@@ -6,7 +6,7 @@ all of them, side by side in one process. Error is against the exact shape:
 RMS and p95 of the points on the part, and the share of sensor columns where no
 line was accepted (rejected: no line, saturated, ambiguous, too wide).
 
-Realistic settings used (addon.core.sensor defaults unless said): 12-bit
+Realistic settings used (addon.core.optics.sensor defaults unless said): 12-bit
 sensor, 10 000 e⁻ full well, 5 e⁻ read noise, 1 % fixed-pattern gain, a chip
 6.4 mm wide (40 µm pixels at 160 columns: a 13 mm lens), f/8 focused where the
 blur is equal at both ends of the range, 650 nm laser, auto-exposure to 70 % of

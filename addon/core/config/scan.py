@@ -34,7 +34,7 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
                  exposure_ms, auto_exposure, target_peak, gain, bit_depth, full_well_e,
                  electrons_per_unit, read_noise_e, dark_offset_dn, prnu, sensor_width_mm,
                  pixel_pitch_um, f_number, focus_mm, wavelength_nm, frame_rate_hz, seed
-                 (see addon.core.sensor)
+                 (see addon.core.optics.sensor)
     [adaptive]   what the adaptive planner is told: box_min_mm, box_max_mm (the part's bounding box,
                  table frame) or radius_mm, height_mm (a cylinder on the table's axis), max_profiles
                  (600), min_gain (30 cells), target_coverage (a share, 0..1: stop once the planner's

@@ -1,7 +1,7 @@
 """Point clouds in the workpiece (table) frame, built frame by frame (paper Eq. 8).
 
 Each frame's profile is measured in the probe frame; ``probe2table`` =
-``base2table(θ_R) @ probe2base(q)`` (see :mod:`addon.core.cell`) takes it into the
+``base2table(θ_R) @ probe2base(q)`` (see :mod:`addon.core.kinematics.cell`) takes it into the
 table frame, where clouds from every frame, table angle and camera accumulate.
 Every point keeps the frame it came from, which camera(s) saw it and its
 quality (its depth uncertainty σ in mm: see optics.triangulate).

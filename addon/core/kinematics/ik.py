@@ -3,7 +3,7 @@
 ``solve(robot, T_target, q0)`` uses the closed form for spherical-wrist arms
 (:mod:`addon.core.kinematics.ik_analytic`) and for UR-type arms with three parallel
 axes (:mod:`addon.core.kinematics.ik_parallel`), and damped least squares otherwise
-(:mod:`addon.core.ik_numeric`). Whatever the method, a result claims success only
+(:mod:`addon.core.kinematics.ik_numeric`). Whatever the method, a result claims success only
 after forward kinematics of the returned joint vector lands on the target within
 the tolerances *and* every joint is inside its limits. An unreachable target can
 therefore never come back as a success; the result then carries the best attempt,

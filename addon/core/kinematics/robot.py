@@ -18,7 +18,7 @@ Public API (kept stable)::
     T = robot.fk(q)                        # (6,) rad -> (4, 4) mm, world frame, tool included
     Ts = robot.fk(qs)                      # (n, 6) -> (n, 4, 4)
     frames = robot.link_frames(q)          # (7, 4, 4): DH frames 0..6 in world
-    res = robot.ik(T_target, q0=None)      # IKResult (see addon.core.ik)
+    res = robot.ik(T_target, q0=None)      # IKResult (see addon.core.kinematics.ik)
     robot = robot.with_tool(T_L6)          # new Robot with tool pose T_L^6 in the flange frame
 """
 
@@ -437,7 +437,7 @@ class Robot:
 
     # -- inverse kinematics -------------------------------------------------------
     def ik(self, T_target, q0=None, **options):
-        """Joint vector reaching tool pose ``T_target`` (4, 4, world frame); see :func:`addon.core.ik.solve`,
+        """Joint vector reaching tool pose ``T_target`` (4, 4, world frame); see :func:`addon.core.kinematics.ik.solve`,
         or from the robot controller where ``ik_via`` names one (``options`` are the local solver's)."""
         from .ik import default_seed, solve
 
@@ -446,13 +446,13 @@ class Robot:
         return solve(self, T_target, q0, **options)
 
     def ik_batch(self, T_targets, q0=None, **options):
-        """IK for (n, 4, 4) targets at once; see :func:`addon.core.ik.solve_batch`."""
+        """IK for (n, 4, 4) targets at once; see :func:`addon.core.kinematics.ik.solve_batch`."""
         from .ik import solve_batch
 
         return solve_batch(self, T_targets, q0, **options)
 
     def ik_all(self, T_target, **options) -> np.ndarray:
-        """Every distinct closed-form solution (k, 6), k ≤ 8, within limits; see :func:`addon.core.ik.solve_all`."""
+        """Every distinct closed-form solution (k, 6), k ≤ 8, within limits; see :func:`addon.core.kinematics.ik.solve_all`."""
         from .ik import solve_all
 
         return solve_all(self, T_target, **options)

@@ -6,7 +6,7 @@ pose, not only the paper's symmetric one. A calibrated probe
 (:mod:`addon.core.optics.calibrated`) uses its calibrated cameras and laser plane.
 
 ``method="paper"`` is Eq. 6 verbatim, with the paper's pixel coordinates
-p_x = ±(u − c_x), p_y = c_y − v (see :mod:`addon.core.probe`)::
+p_x = ±(u − c_x), p_y = c_y − v (see :mod:`addon.core.optics.probe`)::
 
     P_X = 0,  P_Y = a·p_x / (f·sin(φ − atan(p_y/f))),  P_Z = a / tan(φ − atan(p_y/f)) + b
 

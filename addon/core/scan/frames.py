@@ -50,7 +50,7 @@ def detect_all(images, rows, config: ScanConfig):
         if rows is not None:  # the image holds rows r0..r1−1 of the sensor; its rows are the sensor's
             line.shape = (config.probe.rows_px, config.probe.cols_px)
             # (A peak on the band's first or last row is coded EDGE; the caller re-renders
-            # such frames at full height: see _needs_full_frame.)
+            # such frames at full height: see band.needs_full_frame.)
         out.append(line)
     return out
 
