@@ -18,6 +18,7 @@ from dataclasses import replace
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from addon.core.config.render import ENGINES
     from headless.preflight import folder_argument
 
     parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
@@ -27,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--target-coverage", type=float, metavar="F",
                         help="stop once the planner's own coverage estimate reaches this share, 0..1 "
                              "(default: the config's, else none)")
-    parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"),
+    parser.add_argument("--engine", choices=ENGINES,
                         help="render engine, as for scan (default: the config's); raycast needs no Blender")
     parser.add_argument("--force", action="store_true", help="as for scan: skip the memory and time limits")
     parser.add_argument("--quiet", action="store_true", help="no progress and no log of the sweeps")

@@ -31,15 +31,18 @@ def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
         parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
     parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>, with -<engine> added where --engine changes it)")
     parser.add_argument("--frames", help="part of the path, as A:B (Python slice, e.g. 0:40 or ::2)")
-    parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"),
+    from addon.core.config.render import DEVICES, ENGINES
+    from addon.core.optics.detect import METHODS as DETECT_METHODS
+
+    parser.add_argument("--engine", choices=ENGINES,
                         help="render engine: cycles; eevee (renders the spot laser unless the config chooses the "
                              "slit); raycast (what Cycles renders under ideal conditions, by Embree ray casting, "
                              "without Blender)")
     parser.add_argument("--samples", type=int, help="samples per pixel")
-    parser.add_argument("--device", type=str.upper, choices=("CPU", "GPU", "OPTIX", "CUDA", "HIP", "ONEAPI", "METAL"),
+    parser.add_argument("--device", type=str.upper, choices=DEVICES,
                         help="Cycles render device: CPU, GPU (the first backend found) or a backend by name")
     parser.add_argument("--resolution", help="sensor size WxH (columns x rows), the probe's optics kept")
-    parser.add_argument("--detect", choices=("threshold", "cog", "gauss", "steger"), help="line detection method")
+    parser.add_argument("--detect", choices=DETECT_METHODS, help="line detection method")
     parser.add_argument("--max-rms-um", type=float, help="exit with code 3 when the part's RMS error is larger")
     parser.add_argument("--min-coverage", type=float, metavar="PERCENT",
                         help="exit with code 3 when the scan covers less of the surface its path can measure")
@@ -66,8 +69,10 @@ def parse_resolution(text: str | None):
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise InputError(f"--resolution {text!r}: expected WxH, e.g. 320x320") from None
-    if not (2 <= w <= 100000 and 2 <= h <= 100000):
-        raise InputError(f"--resolution {text!r}: both sizes must be in [2, 100000] pixels")
+    from addon.core.optics.probe import MAX_PIXELS
+
+    if not (2 <= w <= MAX_PIXELS and 2 <= h <= MAX_PIXELS):
+        raise InputError(f"--resolution {text!r}: both sizes must be in [2, {MAX_PIXELS}] pixels")
     return w, h
 
 

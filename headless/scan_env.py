@@ -365,6 +365,8 @@ POLICIES = (("reference planner", reference_policy), ("random sweeps", random_po
 
 
 def add_arguments(parser) -> None:
+    from addon.core.config.render import ENGINES
+
     parser.add_argument("--config", default="demo", help="scan config whose cell and part to use (default demo)")
     parser.add_argument("--max-profiles", type=int, default=300, help="profile budget per episode (default 300)")
     parser.add_argument("--seed", type=int, default=0,
@@ -372,7 +374,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seeds", type=int, default=1,
                         help="run the random baselines with this many seeds from --seed on and give their "
                              "median (default 1: one curve each)")
-    parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"), default=None,
+    parser.add_argument("--engine", choices=ENGINES, default=None,
                         help="render engine (default: the config's; raycast is the fast one)")
     parser.set_defaults(run=run)
 

@@ -13,6 +13,7 @@ import numpy as np
 from bpy.props import FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
+from ..core.config.scan import MAX_PROFILES
 from ..core.errors import InputError, ScannerError
 from ..core.geometry.workpiece import lift_text
 from ..scene import rig
@@ -671,7 +672,7 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
 
     config: StringProperty(name="Config", default="", options={"SKIP_SAVE"},
                            description="Scan config (its [[path]] is ignored; empty: the panel's choice)")
-    max_profiles: IntProperty(name="Profile Budget", default=0, min=0, max=100_000, options={"SKIP_SAVE"},
+    max_profiles: IntProperty(name="Profile Budget", default=0, min=0, max=MAX_PROFILES, options={"SKIP_SAVE"},
                               description="Profiles the planner may take (0: the panel's, else the config's "
                                           "[adaptive] budget)")
     target_coverage: FloatProperty(name="Target Coverage", default=0.0, min=0.0, max=1.0, subtype="FACTOR",

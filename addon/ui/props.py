@@ -15,6 +15,9 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
 
 from ..core.config.toml import available_rigs
 from ..core.config.scan import MATERIALS
+from ..core.config.rigs import load_probe
+from ..core.config.scan import MAX_PROFILES
+from ..core.optics.probe import MAX_PIXELS
 from ..core.optics.sensor import BIT_DEPTHS, SensorModel
 from ..core.geometry.workpiece import BUILTINS
 from ..core.kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM
@@ -28,6 +31,7 @@ def _rig_items(kind: str, label: str):
 
 
 _SENSOR = SensorModel()  # the panel's defaults are the core's
+_PROBE = load_probe("default")  # (rigs/probes/default.toml)
 
 
 # Enum items are built once: Blender keeps pointers to these strings.
@@ -120,17 +124,17 @@ class ScannerSettings(bpy.types.PropertyGroup):
     tool_rotation: FloatVectorProperty(name="Tool angles", size=3, subtype="EULER", default=(0.0, 0.0, 0.0),
                                        description="Tool orientation in the probe frame (YZZ')")
     # -- probe optics ----------------------------------------------------------------
-    probe_a: FloatProperty(name="Baseline a (mm)", default=60.0, min=0.001, soft_max=500.0,
+    probe_a: FloatProperty(name="Baseline a (mm)", default=_PROBE.a_mm, min=0.001, soft_max=500.0,
                            description="Each camera's distance from the laser plane")
-    probe_b: FloatProperty(name="Offset b (mm)", default=0.0, soft_min=-200.0, soft_max=200.0,
+    probe_b: FloatProperty(name="Offset b (mm)", default=_PROBE.b_mm, soft_min=-200.0, soft_max=200.0,
                            description="Camera offset along the beam")
-    probe_phi: FloatProperty(name="Camera angle φ", subtype="ANGLE", default=math.radians(27.0485), min=0.0,
+    probe_phi: FloatProperty(name="Camera angle φ", subtype="ANGLE", default=_PROBE.phi_rad, min=0.0,
                              max=math.pi / 2, description="Angle between the beam and each camera's axis")
-    probe_gamma: FloatProperty(name="Half view γ", subtype="ANGLE", default=math.radians(13.5528), min=0.0,
+    probe_gamma: FloatProperty(name="Half view γ", subtype="ANGLE", default=_PROBE.gamma_rad, min=0.0,
                                max=math.pi / 2, description="Half field of view along the triangulation direction")
-    probe_rows: IntProperty(name="Rows", default=160, min=2, max=100000,
+    probe_rows: IntProperty(name="Rows", default=_PROBE.rows_px, min=2, max=MAX_PIXELS,
                             description="Sensor rows (H), along the triangulation direction")
-    probe_cols: IntProperty(name="Columns", default=160, min=2, max=100000,
+    probe_cols: IntProperty(name="Columns", default=_PROBE.cols_px, min=2, max=MAX_PIXELS,
                             description="Sensor columns (W), along the laser line")
     # -- sensor realism (off: the ideal sensor of the paper) --------------------------
     sensor_realistic: BoolProperty(name="Realistic sensor", default=False,
@@ -194,7 +198,7 @@ class ScannerSettings(bpy.types.PropertyGroup):
     scan_frames: StringProperty(name="Frames", default="",
                                 description="Part of the config's path for Scan, as A:B or A:B:STEP "
                                             "(frames from 0; empty: the whole path)")
-    adaptive_budget: IntProperty(name="Profile Budget", default=0, min=0, max=100_000,
+    adaptive_budget: IntProperty(name="Profile Budget", default=0, min=0, max=MAX_PROFILES,
                                  description="Profiles Adaptive Scan may take (0: the config's [adaptive] budget)")
 
 

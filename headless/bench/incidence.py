@@ -19,8 +19,10 @@ BAND_DEG = 10.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from addon.core.config.render import ENGINES
+
     parser.add_argument("--config", default="demo", help="scan config: a bundled name or a .toml file (default demo)")
-    parser.add_argument("--engine", choices=("cycles", "eevee", "raycast"), default=None,
+    parser.add_argument("--engine", choices=ENGINES, default=None,
                         help="render engine (default: the config's)")
     parser.add_argument("--readme", action="store_true", help="write the table into README.md")
     parser.set_defaults(run=run)

@@ -66,7 +66,7 @@ from ..optics.detect import DetectParams
 from ..errors import ConfigError, InputError, check_number, check_whole, is_whole
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
-from ..optics.probe import Probe
+from ..optics.probe import MAX_PIXELS, Probe
 from .render import (DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions, laser_engine_mismatch,
                      raycast_mismatch, with_sensor)
 from .rigs import load_probe
@@ -257,10 +257,9 @@ class ScanConfig:
         cfg = replace(cfg, render=render)
         if resolution is not None:
             size = resolution if isinstance(resolution, (tuple, list)) else ()
-            if len(size) != 2 or not all(is_whole(v) and 2 <= v <= 100_000
-                                         for v in size):
+            if len(size) != 2 or not all(is_whole(v) and 2 <= v <= MAX_PIXELS for v in size):
                 raise InputError(f"--resolution (resolution) must be two whole numbers (width, height) of 2 to "
-                                 f"100000 pixels, got {resolution!r}")
+                                 f"{MAX_PIXELS} pixels, got {resolution!r}")
             W, H = (int(v) for v in size)
             cfg = replace(cfg, probe=cfg.probe.with_resolution(H, W))
         if detect is not None:
@@ -573,7 +572,7 @@ def _render(t: Table) -> tuple[RenderOptions, tuple[int, int] | None]:
     )
     resolution = None
     if t.has("resolution"):  # the same optics on another sensor: [W, H] = [columns, rows]
-        w, h = t.numbers("resolution", 2, lo=2, hi=100000)
+        w, h = t.numbers("resolution", 2, lo=2, hi=MAX_PIXELS)
         if w != int(w) or h != int(h):
             raise t.error("resolution", f"[{w:g}, {h:g}]: pixel counts must be whole numbers")
         resolution = (int(w), int(h))
