@@ -43,6 +43,22 @@ def test_the_bridge_answers_as_the_local_solver_and_fk_confirms(server):
         np.testing.assert_allclose(robot.fk(rem.q), T[i], atol=1e-6)
 
 
+def test_a_batch_goes_to_the_controller_too(server):
+    """ik_batch asks the controller where the robot names one, as ik does (a review: it always
+    solved locally); an unreachable target among them fails alone."""
+    robot = load_robot("adept_viper_s650")
+    remote = replace(robot, ik_via=_client(server.port))
+    rng = np.random.default_rng(5)
+    q = robot.random_q(6, rng)
+    T = robot.fk(q)
+    T[3][:3, 3] += 1e5  # far out of reach
+    batch = remote.ik_batch(T, robot.random_q(6, rng))
+    assert batch.method == "controller" and len(batch) == 6
+    assert batch.success.tolist() == [True, True, True, False, True, True]
+    ok = batch.success
+    np.testing.assert_allclose(robot.fk(batch.q[ok]), T[ok], atol=1e-6)
+
+
 def test_an_unreachable_target_is_a_failed_solve_with_the_controllers_reason(server):
     robot = load_robot("adept_viper_s650")
     far = np.eye(4)

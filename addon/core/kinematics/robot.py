@@ -446,10 +446,21 @@ class Robot:
         return solve(self, T_target, q0, **options)
 
     def ik_batch(self, T_targets, q0=None, **options):
-        """IK for (n, 4, 4) targets at once; see :func:`addon.core.kinematics.ik.solve_batch`."""
-        from .ik import solve_batch
+        """IK for (n, 4, 4) targets at once; see :func:`addon.core.kinematics.ik.solve_batch`, or
+        target by target from the robot controller where ``ik_via`` names one, as :meth:`ik`."""
+        from .ik import IKBatch, _check_seeds, solve_batch
 
-        return solve_batch(self, T_targets, q0, **options)
+        if self.ik_via is None:
+            return solve_batch(self, T_targets, q0, **options)
+        T = check_transform(T_targets, "IK target poses")
+        if T.ndim != 3:
+            raise InputError(f"IK target poses must have shape (n, 4, 4), got {T.shape}")
+        seeds = _check_seeds(self, q0, len(T))
+        out = [self.ik_via.solve(self, t, s) for t, s in zip(T, seeds)]
+        return IKBatch(np.array([r.q for r in out]).reshape(len(out), 6), np.array([r.success for r in out], bool),
+                       np.array([r.pos_err_mm for r in out]), np.array([r.rot_err_rad for r in out]),
+                       np.array([r.iterations for r in out], int), [r.message for r in out],
+                       [r.reason for r in out], out[0].method if out else "controller")
 
     def ik_all(self, T_target, **options) -> np.ndarray:
         """Every distinct closed-form solution (k, 6), k ≤ 8, within limits; see :func:`addon.core.kinematics.ik.solve_all`."""
