@@ -272,7 +272,6 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
         from addon.core.errors import InputError
 
         raise InputError("--shard and --merge need --shard-frames (the same for every task of the job)")
-    from addon.core.files import OutputLock
     from addon.core.scan.outputs import OUTPUT_FILES
     from headless import preflight
 
@@ -297,11 +296,9 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
     stops = getattr(args, "stops", None)
     if args.shard is not None:  # one task of a farm job: many write into the same --out at once
         return _run_shard(args, config, out)
-    lock = OutputLock(out).acquire()
-    if stops is not None:
-        stops.cleanups.append(lock.release)
+    progress, lock = progress_and_lock(args, out)
     try:
-        return _scan_and_summarise(args, config, out, farm, stops)
+        return _scan_and_summarise(args, config, out, farm, stops, progress)
     except KeyboardInterrupt as exc:
         from headless.lifecycle import Interrupted
 
@@ -324,21 +321,15 @@ def _run_shard(args: argparse.Namespace, config, out: str) -> int:
     return 0
 
 
-def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, stops) -> int:
+def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, stops, progress) -> int:
+    """The scan (on a farm or here) with ``progress`` (progress_and_lock's), its summary and the quality gates."""
     t = time.perf_counter()
-    bar = ProgressBar(args.quiet)
-
-    def progress(stage: str, done: int, total: int) -> None:
-        bar(stage, done, total)
-        if stops is not None:
-            stops.progress(stage, done, total)
-
     if farm:
         from headless.farm import run_farm
 
         result = run_farm(config, out, workers=args.workers if args.workers is not None else 2,
                           scheduler=args.scheduler, shard_frames=args.shard_frames,
-                          log=(lambda m: None) if args.quiet else bar.note,
+                          log=(lambda m: None) if args.quiet else progress.bar.note,
                           progress=progress, merge_only=args.merge,
                           measured=None if stops is None else stops.finish)
     else:
