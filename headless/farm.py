@@ -211,10 +211,6 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     if scheduler is not None:
         check_scheduler(scheduler)
     progress = progress or (lambda stage, done, total: None)
-    # The workers write the shards: a relative folder would be read from each worker's own
-    # working folder (a trial: a cluster's shards went there, none came back, and the merge
-    # failed). Made absolute here, it names the same folder on a shared disk.
-    out_dir = Path(out_dir).absolute()
     t_all = time.perf_counter()
     t = time.perf_counter()
     plan = plan_scan(config)  # every refusal before any worker starts
@@ -223,7 +219,10 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     n = len(plan.q)
     size = shard_frames or shards.default_shard_frames(n, workers)
     parts = shards.split(n, size)
-    folder = Path(out_dir) / "shards"
+    # The workers write the shards: a relative folder would be read from each worker's own
+    # working folder (a trial: a cluster's shards went there, none came back, and the merge
+    # failed). Made absolute, it names the same folder on a shared disk.
+    folder = Path(out_dir).absolute() / "shards"
     todo = [(s, why) for s in parts if (why := _not_ready(folder, s, fp)) is not None]
     reused = len(parts) - len(todo)
     if not (merge_only and todo):  # a merge that cannot be made says only why (one line)

@@ -18,11 +18,12 @@ Scanner over a part that only its bounding box reveals.
   draws uniformly from the allowed actions; flatten the mask for a ``Discrete`` wrapper or
   a maskable agent.
 - **observation** ``Dict(grid=Box(0, 2, (G, G, G), uint8), probe=Box((7,), float32),
-  budget=Box(0, 1, (1,), float32))``: the known-space model (0 unknown, 1 free, 2 surface)
+  budget=Box(0, 1, (1,), float32), scanned=MultiBinary(nvec))``: the known-space model (0 unknown, 1 free, 2 surface)
   pooled to G³ cells over the part's box (a cell of the grid is surface where any model cell
   in it is, else unknown where any is, else free: no surface found is lost to the pooling),
-  the probe's position (mm, table frame), beam direction and the table angle / 360, and the
-  share of the profile budget left.
+  the probe's position (mm, table frame), beam direction and the table angle / 360, the
+  share of the profile budget left, and the views scanned this episode (shaped like the
+  action space, 1 where that action's view is done; a table turn's eight actions together).
 - **reward**: the new coverage, the model's surface cells the sweep found, in hundreds, minus
   its time in seconds times ``time_cost``; a sweep the robot cannot do (unreachable, colliding)
   scans nothing and costs ``refusal_cost``. A view already scanned (masked) is scanned again:

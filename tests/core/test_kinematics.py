@@ -192,3 +192,20 @@ def test_robot_constructor_validates():
         Robot(**{**good, "q_min_rad": [-1, 2, -1, -1, -1, -1]})
     with pytest.raises(InputError, match="tool"):
         Robot(**good, tool=np.diag([1, 1, 2, 1.0]))
+
+
+def test_waypoints_take_what_check_transform_takes_and_refuse_what_it_refuses():
+    """One rule for a rigid pose (a review: the waypoints' own, stricter test refused scans whose
+    probe mount check_transform had taken, 9e-7 off orthonormal)."""
+    from addon.core.kinematics.path import Waypoints
+    from addon.core.kinematics.transforms import check_transform
+
+    near = np.eye(4)
+    near[:3, :3] *= 1.0 + 4.5e-7  # RᵀR − I ≈ 9e-7, det − 1 ≈ 1.35e-6
+    check_transform(near)
+    assert len(Waypoints(near[None], np.zeros(1), np.zeros(1, int))) == 1
+    for bad in (np.diag([1.0, 1.0, 1.0 + 1e-5, 1.0]), np.diag([1.0, 1.0, -1.0, 1.0])):
+        with pytest.raises(InputError):
+            check_transform(bad)
+        with pytest.raises(InputError, match="waypoint 0's pose is not a rigid transform"):
+            Waypoints(bad[None], np.zeros(1), np.zeros(1, int))

@@ -437,6 +437,7 @@ def _waypoints(n: int) -> "Waypoints":
     (lambda: Scanner.from_config("demo", engine="raycast").plan_path(_waypoints(0)), "has no waypoints"),
     (lambda: Waypoints(np.tile(np.eye(4), (3, 1, 1)), np.zeros(2), np.zeros(3, int)), "one of each per frame"),
     (lambda: Waypoints(np.full((2, 4, 4), np.nan), np.zeros(2), np.zeros(2, int)), "waypoint 0 is not finite"),
+    (lambda: Waypoints(np.tile(np.eye(4), (2, 1, 1)), np.zeros(2), np.zeros(2)), "entry numbers (segment) must be whole"),
     (lambda: Waypoints(np.tile(2 * np.eye(4), (2, 1, 1)), np.zeros(2), np.zeros(2, int)), "not a rigid transform"),
     (lambda: scanpath.sweep(2.5, [0, 0, 200], [10, 0, 200]), "a sweep's frames"),
     (lambda: scanpath.sweep(3, [np.nan, 0, 200], [10, 0, 200]), "from_mm must be three finite"),
@@ -539,3 +540,6 @@ def test_the_demo_arm_given_as_an_object_starts_where_it_does_by_name():
     assert by_object.config.q_start is not None
     assert Scanner(robot="puma560").config.q_start is None
     assert Scanner(table=Turntable(a_mm=-450.0, d_mm=-200.0)).config.q_start is None
+    base = np.eye(4)
+    base[2, 3] = 400.0
+    assert Scanner(robot=load_robot("adept_viper_s650").with_base(base)).config.q_start is None

@@ -7,6 +7,7 @@ Blender's settings and adds nothing of its own.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, replace
 
 from ..errors import InputError, check_number, check_whole
@@ -70,8 +71,10 @@ class RenderOptions:
         check_number(self.filter_width_px, "filter width (px)", 0.01, 10)
         check_whole(self.bounces, "bounces", 0, 64)
         check_number(self.ambient, "ambient", 0, 100)
-        if check_number(self.laser_peak, "laser peak (fractions of full scale)", 0, 1e3) == 0:
-            raise InputError(f"laser peak must be in (0, 1000] (fractions of full scale), got {self.laser_peak}")
+        if isinstance(self.laser_peak, bool) or not isinstance(self.laser_peak, numbers.Real) \
+                or not 0 < self.laser_peak <= 1e3:
+            raise InputError(f"laser peak must be a number in (0, 1000] (fractions of full scale), got "
+                             f"{self.laser_peak!r}")
         check_number(self.motion_blur_shutter, "motion blur shutter (frames)", 0, 1)
         if not isinstance(self.persistent_data, bool):
             raise InputError(f"persistent data must be True or False, got {self.persistent_data!r}")

@@ -224,9 +224,14 @@ class ScanConfig:
 
     def start_joints_for(self, robot: Robot, table: Turntable):
         """This config's start joints for a cell built from it with ``robot`` and ``table``:
-        its own where both are its own (by the robot's name, the table's placement), else None
-        (the IK seeds itself): another arm or table would start from a meaningless posture."""
-        return self.q_start if robot.name == self.robot.name and table == self.table else None
+        its own where both are its own (the robot's name, DH table, limits, base and tool; the
+        table's placement), else None (the IK seeds itself): another arm or table would start
+        from a meaningless posture, or one outside its limits."""
+        mine = self.robot
+        same = robot.name == mine.name and all(
+            np.array_equal(getattr(robot, k), getattr(mine, k))
+            for k in ("a_mm", "d_mm", "alpha_rad", "theta_offset_rad", "q_min_rad", "q_max_rad", "base", "tool"))
+        return self.q_start if same and table == self.table else None
 
     def with_overrides(self, *, engine=None, samples=None, resolution=None, detect=None, frames=None,
                        device=None) -> "ScanConfig":

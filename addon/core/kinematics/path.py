@@ -31,7 +31,7 @@ import numpy as np
 from .cell import Cell
 from ..errors import InputError, check_whole
 from .ik import ROT_TOL_RAD, all_branches, closed_form_arm, default_pos_tol, default_seed, wrap_to_limits
-from .transforms import make_pose
+from .transforms import RIGID_TOL, make_pose, orthonormality_error
 
 DOWN = (0.0, 0.0, -1.0)
 MAX_FRAMES = 1_000_000  # the most frames one path entry takes
@@ -52,24 +52,27 @@ class Waypoints:
         a selection that picked nothing; the Scanner refuses to move along it)."""
         poses, angles, segment = (np.asarray(getattr(self, name)) for name in ("probe2table", "table_rad", "segment"))
         n = len(angles) if angles.ndim == 1 else -1
-        if poses.ndim != 3 or poses.shape[1:] != (4, 4) or poses.dtype.kind not in "fiu" \
-                or angles.ndim != 1 or angles.dtype.kind not in "fiu" or segment.shape != (n,) \
-                or segment.dtype.kind not in "iu" or len(poses) != n:
-            raise InputError(f"waypoints need poses (n, 4, 4), table angles (n,) and entry numbers (n,) as numbers, "
-                             f"one of each per frame; got {poses.shape}, {angles.shape} and {segment.shape}")
+        if poses.ndim != 3 or poses.shape[1:] != (4, 4) or angles.ndim != 1 or segment.shape != (n,) \
+                or len(poses) != n:
+            raise InputError(f"waypoints need poses (n, 4, 4), table angles (n,) and entry numbers (n,), one of each "
+                             f"per frame; got {poses.shape}, {angles.shape} and {segment.shape}")
+        if poses.dtype.kind not in "fiu" or angles.dtype.kind not in "fiu":
+            raise InputError(f"waypoints' poses and table angles must be numbers, got {poses.dtype} and {angles.dtype}")
+        if segment.dtype.kind not in "iu" and segment.size:
+            raise InputError(f"waypoints' entry numbers (segment) must be whole numbers (int), got {segment.dtype}")
         bad = ~(np.isfinite(poses).all(axis=(1, 2)) & np.isfinite(angles))
         if bad.any():
             raise InputError(f"waypoint {int(np.argmax(bad))} is not finite (its pose or its table angle); every "
                              f"pose and angle must be a finite number")
-        R = poses[:, :3, :3]
-        off = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2)) > 1e-6
-        off |= np.abs(np.linalg.det(R) - 1.0) > 1e-6
-        off |= np.abs(poses[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) > 1e-9
+        # The rule of transforms.check_transform, pose by pose (to name the first that breaks it).
+        off = (orthonormality_error(poses) > RIGID_TOL) | (np.linalg.det(poses[:, :3, :3]) < 0)
+        off |= np.abs(poses[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) > RIGID_TOL
         if off.any():
             raise InputError(f"waypoint {int(np.argmax(off))}'s pose is not a rigid transform (a rotation and a "
                              f"translation, last row 0 0 0 1)")
         object.__setattr__(self, "probe2table", poses.astype(np.float64, copy=False))
         object.__setattr__(self, "table_rad", angles.astype(np.float64, copy=False))
+        object.__setattr__(self, "segment", segment.astype(np.int64, copy=False))
 
     def __len__(self) -> int:
         return len(self.table_rad)
