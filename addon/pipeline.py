@@ -299,9 +299,13 @@ class ScanRun:
         return [None if img is None else sensor.apply(img, self.config.probe, camera, frame, row0)
                 for camera, img in enumerate(pair)]
 
+    def stage_times(self) -> dict[str, float]:
+        """Seconds spent so far rendering, detecting and triangulating (the report's stages)."""
+        return {"render": self.t_render, "detect": self.t_detect, "triangulate": self.t_tri}
+
     def finish(self, out_dir: str | Path | None) -> ScanResult:
         """Measure against the truth, build the report and (with ``out_dir``) write the files."""
-        self.timing.update(render=self.t_render, detect=self.t_detect, triangulate=self.t_tri)
+        self.timing.update(self.stage_times())
         return assemble(self.config, self.plan, self.acc.cloud(), self.stats, self.timing, out_dir, self.t_all,
                         {"render_device": self.render_device})
 

@@ -596,8 +596,8 @@ class Scanner:
         while not run.step():
             yield run.done, run.n
         yield run.done, run.n
-        for stage in ("render", "detect", "triangulate"):
-            self._timing[stage] += getattr(run, f"t_{stage}" if stage != "triangulate" else "t_tri")
+        for stage, seconds in run.stage_times().items():
+            self._timing[stage] += seconds
         cloud = run.acc.cloud()
         parts, out = [], []
         for i in range(n):

@@ -76,7 +76,7 @@ def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, th
     _WORKER_CELL[fingerprint] = (run.scene_cell, run.raycaster)
     while not run.step():
         pass
-    run.timing.update(render=run.t_render, detect=run.t_detect, triangulate=run.t_tri)
+    run.timing.update(run.stage_times())
     cloud = run.acc.cloud()
     written = owner is None or lock_holder(Path(path).parent.parent) == owner
     if written:
