@@ -1,6 +1,8 @@
 """Sharded scans on a local Dask cluster: the same cloud as one process, whatever happens."""
 
 import json
+from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -112,36 +114,44 @@ def test_a_scheduler_port_that_accepts_and_stays_silent_is_refused_not_waited_on
     server.close()
 
 
-def test_a_cluster_that_cannot_import_the_scanner_is_named_in_one_line(tmp_path):
-    """A scheduler and a worker started away from the repository without it on PYTHONPATH (as
-    docs/farm.md warns): one line naming PYTHONPATH, exit 2, nothing written."""
-    import os
+@contextmanager
+def scheduler_and_worker(cwd, env):
+    """A Dask scheduler and one worker started as separate processes in ``cwd`` with ``env``
+    (as on a cluster), stopped on leaving; yields the scheduler's address."""
     import socket
     import subprocess
     import sys
     import time
-    from pathlib import Path
 
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     dask = str(Path(sys.executable).with_name("dask"))
     address = f"tcp://127.0.0.1:{port}"
+    quiet = dict(cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-                              cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+                              **quiet)]
     try:
         time.sleep(3)
-        procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard"], cwd=tmp_path,
-                                      env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard"], **quiet))
         time.sleep(4)
-        out = _cli("scan", "demo", "--engine", "raycast", "--frames", "0:4", "--scheduler", address,
-                   "--out", str(tmp_path / "out"))
+        yield address
     finally:
         for p in procs:
             p.terminate()
         for p in procs:
             p.wait(timeout=30)
+
+
+def test_a_cluster_that_cannot_import_the_scanner_is_named_in_one_line(tmp_path):
+    """A scheduler and a worker started away from the repository without it on PYTHONPATH (as
+    docs/farm.md warns): one line naming PYTHONPATH, exit 2, nothing written."""
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    with scheduler_and_worker(tmp_path, env) as address:
+        out = _cli("scan", "demo", "--engine", "raycast", "--frames", "0:4", "--scheduler", address,
+                   "--out", str(tmp_path / "out"))
     assert out.returncode == 2 and "Traceback" not in out.stderr, out.stderr[-2000:]
     last = out.stderr.strip().splitlines()[-1]
     assert "cannot load the scanner's code" in last and "PYTHONPATH=" in last, last
@@ -151,39 +161,20 @@ def test_a_cluster_that_cannot_import_the_scanner_is_named_in_one_line(tmp_path)
 def test_a_relative_out_folder_names_the_same_folder_for_workers_started_elsewhere(tmp_path):
     """A scheduler's workers run in folders of their own (a docs trial: given --out out/cluster,
     they wrote the shards under their own folder, none came back, and the merge failed with a
-    traceback): the folder is made absolute before the shards go out."""
+    traceback): the shards' folder is made absolute before the shards go out."""
     import os
-    import socket
     import subprocess
     import sys
-    import time
-    from pathlib import Path
 
     repo = Path(__file__).resolve().parents[2]
     here, there = tmp_path / "here", tmp_path / "there"
     here.mkdir()
     there.mkdir()
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
     env = {**os.environ, "PYTHONPATH": str(repo)}
-    dask = str(Path(sys.executable).with_name("dask"))
-    address = f"tcp://127.0.0.1:{port}"
-    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-                              cwd=there, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        time.sleep(3)
-        procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard"], cwd=there,
-                                      env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        time.sleep(4)
+    with scheduler_and_worker(there, env) as address:
         out = subprocess.run([sys.executable, "-m", "headless", "scan", "demo", "--engine", "raycast", "--frames",
                               "0:8", "--shard-frames", "4", "--scheduler", address, "--out", "out/cluster"],
                              cwd=here, env=env, capture_output=True, text=True, timeout=300)
-    finally:
-        for p in procs:
-            p.terminate()
-        for p in procs:
-            p.wait(timeout=30)
     assert out.returncode == 0, out.stderr[-2000:]
     assert (here / "out" / "cluster" / "cloud.ply").exists() and len(list((here / "out" / "cluster" / "shards")
                                                                           .iterdir())) == 2
