@@ -7,7 +7,7 @@ Scanner over a part that only its bounding box reveals.
   the candidates the reference planner chooses among. Sweeps go no steeper than
   ``next_view.MAX_SWEEP_TILT_DEG``; a steeper one is refused like a sweep the robot cannot do.
   A table turn covers every angle, so its table step is ignored (each turn has 8 actions), and
-  sweeps tilted beyond ``MAX_SWEEP_TILT_DEG`` (the ±70° views) are always refused.
+  sweeps tilted beyond ``MAX_SWEEP_TILT_DEG`` (the ±75° views) are always refused.
 - **action mask** ``env.action_mask()`` and ``info["action_mask"]``: a bool array shaped like
   the action space's ``nvec`` (table step, view, kind), False for the actions known to earn
   nothing: sweeps steeper than ``MAX_SWEEP_TILT_DEG``, views over the profile budget left,

@@ -96,9 +96,9 @@ def test_a_table_turn_lays_its_profiles_the_spacing_apart_at_the_radius_asked():
         n = next_view.turn_frames(radius)
         assert 8 <= n <= next_view.MAX_TURN_FRAMES
         step = 2 * np.pi * radius / n  # arc between neighbouring profiles at that radius
-        assert step <= next_view.SPACING_MM + 1e-9 or n == next_view.MAX_TURN_FRAMES
-        assert n == 8 or 2 * np.pi * radius / (n - 1) > next_view.SPACING_MM  # no more than needed
-    assert next_view.turn_frames(20.0, spacing_mm=2.0) < next_view.turn_frames(20.0)
+        assert step <= next_view.TURN_SPACING_MM + 1e-9 or n == next_view.MAX_TURN_FRAMES
+        assert n == 8 or 2 * np.pi * radius / (n - 1) > next_view.TURN_SPACING_MM  # no more than needed
+    assert next_view.turn_frames(20.0, spacing_mm=1.0) > next_view.turn_frames(20.0)  # denser asked, more profiles
 
 
 def test_a_resampled_turn_keeps_the_probe_where_it_stands_in_the_world():

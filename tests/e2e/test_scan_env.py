@@ -199,7 +199,7 @@ def test_the_action_mask_rules_out_steep_sweeps_views_scanned_and_views_over_the
     assert mask.shape == tuple(env.action_space.nvec) and mask.dtype == bool
     steep = [v for v, t in enumerate(env.tilts) if abs(t) > next_view.MAX_SWEEP_TILT_DEG]
     assert not mask[:, steep, 0].any() and mask[:, [v for v in range(len(env.tilts)) if v not in steep], 0].all()
-    assert mask[:, :, 1].all()  # every table turn fits 300 profiles (180 before the part's radius is known)
+    assert mask[:, :, 1].all()  # every table turn fits 300 profiles (160 before the part's radius is known)
     _, reward, _, _, info = env.step(np.array([0, steep[0], 0]))
     assert info["refused"] and np.array_equal(info["action_mask"], mask)  # what was known already
     obs, _, _, _, info = env.step(np.array([2, 0, 0]))
