@@ -11,6 +11,9 @@ booleans and real meshes). Methods, each with ``--budget`` profiles:
 - **sides** (only when ``--methods`` names it): the turns' two passes from the side (45° and
   70°) alone, 30 % of the budget each: the baseline's own best views within 60 % of its
   profiles, a yardstick for the ≤ 60 % goal (docs/adaptive.md, *Not yet*);
+- **low** (only when ``--methods`` names it): other blind views within the same 60 % of the
+  budget: a 45° turn and a 75° turn aimed at a fifth of the part's height (as the planner's
+  steepest), 120/270 of it each, and a sweep straight down across the top with the rest;
 - **yours** (with ``--planner FILE.py:NAME``): a planner of your own, run as the reference is
   (``NAME(scanner, lo, hi)`` told the same box, then ``choose(scanner, profiles left)`` and
   ``scan(scanner, view)`` until it chooses None or the budget is spent).
@@ -35,7 +38,7 @@ from headless.bench import whole
 
 GROWTH_PNG = Path(__file__).resolve().parents[1] / "gallery" / "adaptive_growth.png"
 GROWTH_PANELS = 5   # at most; the views between are left out, the last one always in
-METHODS = ("planner", "turns", "raster", "sides", "yours")
+METHODS = ("planner", "turns", "raster", "sides", "low", "yours")
 DEFAULT_METHODS = ("planner", "turns", "raster")  # without --methods (and yours with --planner)
 ADAPTIVE = ("planner", "yours")  # the methods that choose their views (the others are fixed paths)
 
@@ -249,6 +252,32 @@ def turns(config, budget: int, from_above: bool = True, share: float = 1.0 / 3.0
 
 
 SIDES_SHARE = 0.3  # of the budget, for each of the sides method's two turns: 60 % together
+LOW_TURNS = ((45.0, 0.5), (75.0, 0.2))  # the low method's turns: (tilt from vertical, aim's share of the height)
+
+
+def low_views(config, budget: int):
+    """The ``low`` yardstick: 60 % of ``budget``, 4/9 of it for each of the LOW_TURNS and the
+    rest for a sweep straight down across the part's top (the line across the part's x)."""
+    from addon.core.kinematics import path as scanpath
+
+    from headless.bench.parts import STANDOFF_MM
+
+    lo, hi = config.workpiece.mesh.bounds
+    radius = float(np.linalg.norm(np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
+    top = float(hi[2])
+    total = int(0.6 * budget + 1e-9)
+    n_turn = max(1, total * 4 // 9)
+    out = []
+    for tilt_deg, height in LOW_TURNS:
+        a = math.radians(tilt_deg)
+        beam = np.array([0.0, -math.sin(a), -math.cos(a)])
+        aim = np.array([0.0, 0.5 * radius, height * top])
+        out.append(scanpath.turntable(n_turn, aim - STANDOFF_MM * beam, beam, (0.0, 0.0, 1.0), table=config.table,
+                                      segment=len(out)))
+    half = max(abs(float(lo[0])), abs(float(hi[0]))) + 2.0
+    z = top + STANDOFF_MM
+    out.append(scanpath.sweep(max(2, total - 2 * n_turn), [-half, 0.0, z], [half, 0.0, z], segment=len(out)))
+    return out
 
 
 def raster(config, budget: int):
@@ -382,6 +411,7 @@ def run(args: argparse.Namespace) -> int:
                 "turns": lambda: run_fixed(config, turns(config, args.budget)),
                 "raster": lambda: run_fixed(config, raster(config, args.budget)),
                 "sides": lambda: run_fixed(config, turns(config, args.budget, from_above=False, share=SIDES_SHARE)),
+                "low": lambda: run_fixed(config, low_views(config, args.budget)),
                 "yours": lambda: run_planner(config, args.budget, factory)}
         methods = {m: runs[m]() for m in methods_run}
         results[name] = methods

@@ -540,3 +540,23 @@ def test_the_sides_yardstick_is_the_turns_own_side_passes_with_60_percent_of_the
     assert [len(p.table_rad) for p in turns(config, 450, from_above=False, share=SIDES_SHARE)] == [135, 135]
     assert chosen_methods("", "") == ["planner", "turns", "raster"]
     assert chosen_methods("sides,turns", "") == ["turns", "sides"]
+
+
+def test_the_low_yardstick_spends_60_percent_of_the_budget_on_two_side_turns_and_a_sweep_from_above():
+    """``--methods low``: a 45° and a 75° turn aimed lower, 4/9 of 60 % each, and a sweep
+    straight down across the part's top with the rest."""
+    from headless.bench.adaptive import chosen_methods, config_for, low_views, parts
+
+    config = config_for("sphere (demo)", parts()["sphere (demo)"], "raycast")
+    passes = low_views(config, 450)
+    assert [len(p.table_rad) for p in passes] == [120, 120, 30] and sum(map(len, passes)) == 270
+    beams = [p.probe2table[0, :3, 2] for p in passes]
+    tilts = [np.degrees(np.arccos(-b[2])) for b in beams]
+    np.testing.assert_allclose(tilts, [45.0, 75.0, 0.0], atol=1e-9)
+    assert np.ptp(passes[2].table_rad) == 0.0 and np.ptp(passes[0].table_rad) > 6.0  # a sweep; turns
+    # The 75° turn's beam passes its aim: a fifth of the sphere's height (its top at 60 mm),
+    # half the bounding box's corner radius (30√2 mm) out from the axis.
+    origin, beam = passes[1].probe2table[0, :3, 3], beams[1]
+    t = (0.2 * 60.0 - origin[2]) / beam[2]
+    assert 0 < t and abs(np.hypot(*(origin + t * beam)[:2]) - 0.5 * np.hypot(30.0, 30.0)) < 1e-6
+    assert chosen_methods("low,turns", "") == ["turns", "low"]
