@@ -234,20 +234,33 @@ def turns(config, budget: int, from_above: bool = True, share: float = 1.0 / 3.0
 
     from headless.bench.parts import STANDOFF_MM
 
-    lo, hi = config.workpiece.mesh.bounds
-    radius = float(np.linalg.norm(np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
-    top = float(hi[2])
+    top = float(config.workpiece.mesh.bounds[1][2])
     n = max(1, int(budget * share + 1e-9))
     out = [scanpath.turntable(n, [12.0, 0.0, top + STANDOFF_MM], table=config.table, segment=0)] if from_above else []
     # Two more heights, not the mirror of one: a turn 45° from one side sees, over its full
     # circle, what the same turn from the other side sees (a first version spent its third
     # pass so and added nothing).
-    for tilt_deg, height in TURN_HEIGHTS:
+    return out + side_turns(config, n, TURN_HEIGHTS, first_segment=len(out))
+
+
+def side_turns(config, frames: int, heights, first_segment: int = 0) -> list:
+    """A full table turn of ``frames`` profiles for each (tilt from vertical, aim's share of
+    the part's height) in ``heights``: the probe on the +y side, aimed half the part's corner
+    radius out from the axis, the laser plane holding the axis."""
+    from addon.core.kinematics import path as scanpath
+
+    from headless.bench.parts import STANDOFF_MM
+
+    lo, hi = config.workpiece.mesh.bounds
+    radius = float(np.linalg.norm(np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
+    top = float(hi[2])
+    out = []
+    for k, (tilt_deg, height) in enumerate(heights):
         a = math.radians(tilt_deg)
         beam = np.array([0.0, -math.sin(a), -math.cos(a)])
         aim = np.array([0.0, 0.5 * radius, height * top])
-        out.append(scanpath.turntable(n, aim - STANDOFF_MM * beam, beam, (0.0, 0.0, 1.0), table=config.table,
-                                      segment=len(out)))
+        out.append(scanpath.turntable(frames, aim - STANDOFF_MM * beam, beam, (0.0, 0.0, 1.0), table=config.table,
+                                      segment=first_segment + k))
     return out
 
 
@@ -263,17 +276,10 @@ def low_views(config, budget: int):
     from headless.bench.parts import STANDOFF_MM
 
     lo, hi = config.workpiece.mesh.bounds
-    radius = float(np.linalg.norm(np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
-    top = float(hi[2])
     total = int(0.6 * budget + 1e-9)
     n_turn = max(1, total * 4 // 9)
-    out = []
-    for tilt_deg, height in LOW_TURNS:
-        a = math.radians(tilt_deg)
-        beam = np.array([0.0, -math.sin(a), -math.cos(a)])
-        aim = np.array([0.0, 0.5 * radius, height * top])
-        out.append(scanpath.turntable(n_turn, aim - STANDOFF_MM * beam, beam, (0.0, 0.0, 1.0), table=config.table,
-                                      segment=len(out)))
+    out = side_turns(config, n_turn, LOW_TURNS)
+    top = float(hi[2])
     half = max(abs(float(lo[0])), abs(float(hi[0]))) + 2.0
     z = top + STANDOFF_MM
     out.append(scanpath.sweep(max(2, total - 2 * n_turn), [-half, 0.0, z], [half, 0.0, z], segment=len(out)))
