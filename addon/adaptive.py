@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .core.config.scan import MAX_PROFILES
+from .core.config.scan import MAX_PROFILES, AdaptiveSettings
 from .core.errors import CollisionError, InputError, UnreachablePose
 from .core.geometry.known_space import UNKNOWN, KnownSpace
 from .core.geometry.metrics import NearMesh
@@ -28,7 +28,8 @@ from .core.kinematics.turntable import box_beyond_table
 from .core.scan import next_view
 from .core.scan.plan import table_fixtures
 
-VOXEL_MM = 2.0
+VOXEL_MM = AdaptiveSettings.voxel_mm
+MIN_GAIN = AdaptiveSettings.min_gain  # new surface cells a view must promise
 OVERVIEW_MAX_TILT_DEG = 45.0  # steeper turns look at the sides and miss the top: not an overview
 MARGIN_MM = 6.0   # the model's box around the part's
 TRIES = 12        # candidates asked for reachability per decision, best first
@@ -120,7 +121,7 @@ class NextBestView:
     ones done or impossible. ``choose(scanner)`` picks the next view (None: nothing left worth
     it); ``scan(scanner, view)`` scans it and adds what it measured to the model."""
 
-    def __init__(self, scanner, lo, hi, *, min_gain: int = 30, voxel_mm: float = VOXEL_MM):
+    def __init__(self, scanner, lo, hi, *, min_gain: int = MIN_GAIN, voxel_mm: float = VOXEL_MM):
         lo, hi = checked_box(lo, hi)
         check_min_gain(min_gain)
         self.probe = scanner.config.probe
@@ -314,7 +315,11 @@ class NextBestView:
         if len(expected):
             i, j, k = expected.T
             self.missed[i, j, k] |= self.space.state[i, j, k] == UNKNOWN
-        self.impossible.add(c.key)  # the same sweep again would see the same (the scan is deterministic)
+        # The same view again would see the same (the scan is deterministic), and so would a
+        # table turn's twin from the other side (Candidate.twin_key): on the stepped shaft the
+        # twin of the 75° turn promised 17 cells, the profiles between the turn's own, and
+        # asking whether the robot could reach over for it took 0.9 s of a decision.
+        self.impossible.update((c.key, c.twin_key))
         self.looked = True
         return profiles, before - self.space.counts()["unknown"]
 
@@ -347,7 +352,7 @@ def check_min_gain(min_gain) -> None:
                          f"got {min_gain!r}")
 
 
-def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 30,
+def adaptive_scan(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_profiles, min_gain: int = MIN_GAIN,
                   target_coverage: float | None = None, voxel_mm: float = VOXEL_MM, progress=None,
                   log=None, planner: NextBestView | None = None, setup_s: float = 0.0) -> list[AdaptiveStep]:
     """Scan the part inside the box [lo, hi] (table frame, mm) adaptively with ``scanner``;
@@ -363,7 +368,7 @@ def adaptive_scan(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 3
                                 planner=planner, setup_s=setup_s))
 
 
-def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 30,
+def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_profiles, min_gain: int = MIN_GAIN,
                    target_coverage: float | None = None, voxel_mm: float = VOXEL_MM, progress=None,
                    log=None, planner: NextBestView | None = None, setup_s: float = 0.0,
                    steps: list | None = None, numbered_from: int = 0):
@@ -439,10 +444,6 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = 600, min_gain: int = 
             if log:
                 log(f"adaptive: stopping after {sweeps(len(steps))}: the coverage estimate {estimate * 100:.1f} % "
                     f"reached the target {target_coverage * 100:.1f} %")
-            break
-        if len(steps) >= 2 and all(s.new_cells < min_gain for s in steps[-2:]):
-            if log:
-                log(f"adaptive: stopping after {sweeps(len(steps))}: the last two taught fewer than {min_gain} cells")
             break
     new = planner.points_seen - seen
     outside = (planner.points_outside - outside) / new if new else 0.0

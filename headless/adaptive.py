@@ -19,12 +19,15 @@ from dataclasses import replace
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from addon.core.config.render import ENGINES
+    from addon.core.config.scan import AdaptiveSettings
     from headless.preflight import folder_argument
 
     parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
     parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>-adaptive, with -<engine> added where --engine changes it)")
-    parser.add_argument("--max-profiles", type=int, help="profile budget (default: the config's, else 600)")
-    parser.add_argument("--min-gain", type=int, help="new cells a sweep must promise (default 30)")
+    parser.add_argument("--max-profiles", type=int,
+                        help=f"profile budget (default: the config's, else {AdaptiveSettings.max_profiles})")
+    parser.add_argument("--min-gain", type=int,
+                        help=f"new cells a view must promise (default: the config's, else {AdaptiveSettings.min_gain})")
     parser.add_argument("--target-coverage", type=float, metavar="F",
                         help="stop once the planner's own coverage estimate reaches this share, 0..1 "
                              "(default: the config's, else none)")

@@ -130,3 +130,23 @@ def test_rank_takes_the_probes_position_and_says_so_when_given_a_pose():
     for wrong, said in ((start, "a 4x4 pose's position is pose[:3, 3]"), ([0.0, np.nan, 1.0], "must be finite")):
         with pytest.raises(InputError, match=said.replace("[", r"\[").replace("]", r"\]")):
             next_view.rank(space, cfg.probe, [top], 0.0, wrong)
+
+
+def test_a_table_turns_twin_is_the_same_turn_half_a_circle_on():
+    """Every table turn's twin (Candidate.twin_key: the turn from the other side of the part),
+    both laid out with the same even number of profiles: each of the twin's probe poses is one
+    of the turn's own turned half a circle about the table's axis (the table frame's z), so it
+    meets the part as the turn did. A sweep is its own twin."""
+    cfg, lo, hi, _ = setup()
+    cands = next_view.candidates(cfg.cell, cfg.probe, lo, hi)
+    turns = {c.key: c for c in cands if c.kind == "turn"}
+    half_turn = np.diag([-1.0, -1.0, 1.0, 1.0])
+    assert any(c.twin_key != c.key for c in turns.values())
+    for c in turns.values():
+        twin = turns[c.twin_key]
+        assert twin.twin_key == c.key
+        own = half_turn @ next_view.resampled_turn(c, 40, cfg.cell.table).waypoints().probe2table
+        other = next_view.resampled_turn(twin, 40, cfg.cell.table).waypoints().probe2table
+        nearest = np.abs(own[:, None] - other[None]).max(axis=(2, 3)).min(axis=1)
+        assert nearest.max() < 1e-9
+    assert all(c.twin_key == c.key for c in cands if c.kind == "sweep")

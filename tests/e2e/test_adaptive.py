@@ -135,6 +135,35 @@ def test_after_a_view_every_cell_it_promised_is_known_or_marked_missed():
         next_view.gain(planner.space, planner.probe, view.waypoints().probe2table, planner.missed)
 
 
+def test_the_planner_goes_on_to_a_grooves_floor_and_never_scans_a_turns_twin():
+    """The stepped shaft's groove (3 mm deep) is a ring the 2 mm model sees mostly as surface
+    already, so the steep turn that finds its floor promises few cells: the planner still takes
+    it (at min_gain 30 it stopped with 258 of 450 profiles left and none of the floor). Scored
+    against the mesh afterwards: the floor's faces (upright, inside the shaft's lower radius,
+    below its step) are covered. A table turn's twin from the other side is never scanned."""
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    from addon import Scanner
+    from headless.bench.adaptive import config_for, parts
+
+    mesh = parts()["stepped shaft with groove"]
+    scanner = Scanner(config=config_for("stepped shaft with groove", mesh, engine="raycast"))
+    steps = scanner.adaptive(max_profiles=450)
+    keys = [(s.kind, round(s.table_deg, 6), round(s.tilt_deg, 6)) for s in steps]
+    turns = [k for k in keys if k[0] == "turn"]
+    assert turns and not any((k[0], k[1], -k[2]) in keys for k in turns if k[2] != 0), keys
+    # The groove's floor, from the mesh: upright faces nearer the axis than the lower shaft's
+    # rim (18 mm) and below the step up to the upper shaft (11 mm).
+    surface, face = trimesh.sample.sample_surface(mesh, 40000, seed=1)
+    r = np.hypot(surface[:, 0], surface[:, 1])
+    upright = np.abs(mesh.face_normals[face][:, 2]) < 0.1
+    floor = surface[upright & (r > 13.0) & (r < 17.0)]
+    assert len(floor) > 200
+    d, _ = cKDTree(scanner.result().cloud.points).query(floor)
+    assert np.mean(d < 1.0) > 0.8, np.mean(d < 1.0)
+
+
 def _raycast_planner(name: str):
     """(config, scanner, planner) for scene ``name`` rendered by the raycast engine, the planner
     told the part's box as a cell would be."""

@@ -71,6 +71,16 @@ class Candidate:
         return (self.kind, round(self.table_deg, 6), round(self.tilt_deg, 6))
 
     @property
+    def twin_key(self) -> tuple:
+        """The key of the view that sees what this one sees: for a table turn, the same turn
+        from the other side of the part (its poses are this one's turned half a circle about
+        the table's axis, so over its full circle it meets the part as this one does: the same
+        profiles, or with an odd number of them, profiles between them); a sweep's own key."""
+        if self.kind != "turn":
+            return self.key
+        return (self.kind, round(self.table_deg, 6), round(-self.tilt_deg, 6))
+
+    @property
     def utility(self) -> float:
         return self.gain / max(self.seconds, 1e-9)
 
