@@ -28,6 +28,7 @@ from ..core.config.render import RenderOptions
 from ..core.errors import InputError
 from ..core.exr import read_exr
 from ..core.optics.probe import Probe
+from ..core.optics.sensor import MAX_SHUTTER_FRAMES
 from .cameras import CLIP_START_M, EEVEE_CLIP_START_M, probe_cameras
 from .compat import ensure_node_tree, new_world
 from .compat import BLENDER_ENGINES
@@ -35,7 +36,7 @@ from .session import use_device
 
 VIEWS = (("left", "_L"), ("right", "_R"))
 
-EXPOSURE_KEY_FRAMES = 0.49  # a frame's motion-blur keys sit this far either side of it (Blender frames)
+EXPOSURE_KEY_FRAMES = MAX_SHUTTER_FRAMES / 2  # a frame's motion-blur keys sit this far either side of it (Blender frames)
 
 
 def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, camera_left: bpy.types.Object) -> str:
@@ -57,7 +58,7 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, cam
     if r.use_motion_blur:
         # Within the motion keys either side of each frame (cell.exposure_keys): a whole frame's
         # shutter would reach the next frame's keys, across a jump between path entries.
-        r.motion_blur_shutter = min(settings.motion_blur_shutter, 2.0 * EXPOSURE_KEY_FRAMES)
+        r.motion_blur_shutter = settings.motion_blur_shutter  # at most MAX_SHUTTER_FRAMES (RenderOptions)
         r.motion_blur_position = "CENTER"
     device = "CPU"
     if settings.engine == "eevee":

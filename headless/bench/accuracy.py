@@ -13,7 +13,7 @@ the cloud's error on the part against the exact shape.
 
 Outputs (``--out``, default out/accuracy): accuracy.csv, accuracy.md and
 accuracy.png (error against time per scene, the Pareto front drawn, the baseline
-ringed). ``--readme`` puts the table and plot into the README.
+ringed). ``--readme`` puts the table and plot into docs/accuracy.md.
 """
 
 from __future__ import annotations

@@ -44,7 +44,7 @@ def test_sensor_keys_reach_the_model(tmp_path):
     ("[sensor]\nnosie = true\n", "", "distortion"),  # listed among the allowed keys
     ("[sensor]\ndistortion = [0.1]\n", "", "sensor.distortion"),
     ("[sensor]\nexposure_ms = 0\n", "", "sensor.exposure_ms"),
-    ("[sensor]\nmotion_blur = true\nexposure_ms = 20.0\n", "", "longer than a frame"),
+    ("[sensor]\nmotion_blur = true\nexposure_ms = 20.0\n", "", "longer than 0.98 of a frame"),
     ("[sensor]\nnoise = 1\n", "", "sensor.noise"),
     ("", 'material = "chrome"\n', "grey, dark, glossy, mirror"),
     ("", "roughness = 2.0\n", "workpiece.roughness"),

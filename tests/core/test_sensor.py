@@ -206,8 +206,19 @@ def test_band_renders_get_the_same_noise_as_full_frames():
 
 @pytest.mark.parametrize("kwargs,fragment", [
     (dict(bit_depth=7), "bit_depth"), (dict(exposure_ms=0.0), "exposure_ms"), (dict(prnu=-1.0), "prnu"),
-    (dict(distortion=(0.1,)), "distortion"), (dict(motion_blur=True, exposure_ms=20.0), "longer than a frame"),
+    (dict(distortion=(0.1,)), "distortion"), (dict(motion_blur=True, exposure_ms=20.0), "longer than 0.98 of a frame"),
+    # 0.99 of a frame: Blender's shutter would be cut to the cell's motion keys (0.98), not refused
+    (dict(motion_blur=True, exposure_ms=9.9), "at most 0.98 of a frame \\(9.8 ms"),
     (dict(target_peak=1.5), "target_peak")])
 def test_bad_sensor_settings(kwargs, fragment):
     with pytest.raises(InputError, match=fragment):
         SensorModel(**kwargs)
+
+
+def test_the_longest_shutter_motion_blur_takes_is_the_one_the_scene_keys():
+    from addon.core.config.render import RenderOptions, with_sensor
+
+    s = SensorModel(motion_blur=True, exposure_ms=9.8)  # 0.98 of a frame at 100 Hz
+    assert with_sensor(RenderOptions(), s).motion_blur_shutter == pytest.approx(0.98)
+    with pytest.raises(InputError, match="motion blur shutter"):
+        RenderOptions(motion_blur_shutter=0.99)

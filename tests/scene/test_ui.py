@@ -211,7 +211,7 @@ def test_bad_sensor_settings_are_refused_with_the_reason(panel):
     s = panel.scanner
     s.sensor_realistic = s.sensor_motion_blur = True
     s.sensor_exposure_ms = 20.0  # longer than a frame at 100 frames/s
-    with pytest.raises(RuntimeError, match="longer than a frame"):
+    with pytest.raises(RuntimeError, match="longer than 0.98 of a frame"):
         bpy.ops.scanner.render_views()
 
 

@@ -11,6 +11,7 @@ import numbers
 from dataclasses import dataclass, replace
 
 from ..errors import InputError, check_number, check_whole
+from ..optics.sensor import MAX_SHUTTER_FRAMES
 
 ENGINES = ("cycles", "eevee", "raycast")
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
@@ -75,7 +76,7 @@ class RenderOptions:
                 or not 0 < self.laser_peak <= 1e3:
             raise InputError(f"laser peak must be a number in (0, 1000] (fractions of full scale), got "
                              f"{self.laser_peak!r}")
-        check_number(self.motion_blur_shutter, "motion blur shutter (frames)", 0, 1)
+        check_number(self.motion_blur_shutter, "motion blur shutter (frames)", 0, MAX_SHUTTER_FRAMES)
         if not isinstance(self.persistent_data, bool):
             raise InputError(f"persistent data must be True or False, got {self.persistent_data!r}")
         if self.threads is not None:

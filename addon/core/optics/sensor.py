@@ -48,6 +48,11 @@ from ..errors import InputError
 from .probe import Probe
 
 BIT_DEPTHS = (8, 10, 12, 16)
+# With motion blur the shutter stays open for exposure x frame rate of a frame, at most this
+# share: the cell keys each frame's motion half of it either side of the frame
+# (scene.render.EXPOSURE_KEY_FRAMES), short of the next frame's keys across a jump between
+# path entries.
+MAX_SHUTTER_FRAMES = 0.98
 
 
 @dataclass(frozen=True)
@@ -100,8 +105,11 @@ class SensorModel:
         if len(self.distortion) not in (0, 4, 5) or not all(math.isfinite(float(c)) for c in self.distortion):
             raise InputError(f"distortion must be 4 or 5 finite coefficients (k1, k2, p1, p2[, k3]), "
                              f"got {list(self.distortion)}")
-        if self.motion_blur and self.exposure_ms * self.frame_rate_hz / 1000.0 > 1.0:
-            raise InputError(f"exposure {self.exposure_ms:g} ms is longer than a frame at {self.frame_rate_hz:g} Hz")
+        if self.motion_blur and self.shutter_fraction > MAX_SHUTTER_FRAMES:
+            raise InputError(f"exposure {self.exposure_ms:g} ms is longer than {MAX_SHUTTER_FRAMES:g} of a frame at "
+                             f"{self.frame_rate_hz:g} Hz: with motion blur the shutter stays open for at most "
+                             f"{MAX_SHUTTER_FRAMES:g} of a frame ({MAX_SHUTTER_FRAMES * 1000.0 / self.frame_rate_hz:.4g} "
+                             f"ms at this rate)")
 
     # -- switches -------------------------------------------------------------------------
     @property
@@ -120,7 +128,8 @@ class SensorModel:
 
     @property
     def shutter_fraction(self) -> float:
-        return self.exposure_ms * self.frame_rate_hz / 1000.0
+        """The share of a frame the shutter is open (rounded to 12 decimals: 9.8 ms at 100 Hz is 0.98)."""
+        return round(self.exposure_ms * self.frame_rate_hz / 1000.0, 12)
 
     def dist_coeffs(self) -> np.ndarray:
         d = list(self.distortion) + [0.0] * (5 - len(self.distortion))
