@@ -28,7 +28,7 @@ import numpy as np
 
 from .core.config.render import RenderOptions
 from .core.config.rigs import load_probe, load_robot
-from .core.config.scan import MAX_FRAMES, ScanConfig, load_scan_config
+from .core.config.scan import ScanConfig, load_scan_config
 from .core.errors import CollisionError, InputError, UnreachablePose, check_whole
 from .core.geometry.cloud import Cloud
 from .core.geometry.workpiece import (BUILTINS, Workpiece, builtin_workpiece, check_on_table, check_over_table,
@@ -437,18 +437,10 @@ class Scanner:
         return np.asarray(foot.empty_frames, dtype=int)
 
     def _sweep_waypoints(self, from_mm, to_mm, frames, beam, line, table_deg) -> Waypoints:
-        """The checked arguments of a sweep as its waypoints (table frame)."""
-        check_whole(frames, "sweep frames", 1, MAX_FRAMES)
+        """A sweep's waypoints (table frame); path.sweep checks the frames, ends, beam and line."""
         if table_deg is not None:
             _check_table_deg(table_deg, "sweep table_deg")  # as turn_table_to's angle
         table_rad = self._table_rad if table_deg is None else math.radians(float(table_deg))
-        for name, value in (("from_mm", from_mm), ("to_mm", to_mm), ("beam", beam)):
-            try:
-                v = np.asarray(value, dtype=np.float64)
-            except (TypeError, ValueError):
-                v = np.full(0, np.nan)
-            if v.shape != (3,) or not np.isfinite(v).all():
-                raise InputError(f"sweep {name} must be three finite numbers [x, y, z] (mm), got {value!r}")
         return sweep_waypoints(frames, from_mm, to_mm, beam, line, table_rad=table_rad)
 
     def _plan_waypoints(self, wp: Waypoints, record: bool = False, what: str = "path"):

@@ -43,6 +43,30 @@ def test_the_bridge_answers_as_the_local_solver_and_fk_confirms(server):
         np.testing.assert_allclose(robot.fk(rem.q), T[i], atol=1e-6)
 
 
+def test_a_urdf_arm_with_a_tool_gets_its_own_joints_through_the_bridge():
+    """A URDF arm's flange (ROS's tool0) is not DH frame 6: the controller is sent the tool in
+    the flange's frame (T_L^6), as it mounts it, and answers the local solver's joints (the
+    flange's pose was sent in the tool as well, and every target missed)."""
+    from addon.core.kinematics.transforms import make_pose, rot_x
+
+    arm = load_robot("rigs/robots/urdf/ur5.urdf")
+    assert not np.allclose(arm.flange, np.eye(4))
+    robot = arm.with_tool(make_pose(rot_x(0.3)[:3, :3], [0.0, 20.0, 100.0]))
+    srv = IKServer(arm, "127.0.0.1", 0).start()
+    try:
+        remote = replace(robot, ik_via=_client(srv.port))
+        rng = np.random.default_rng(11)
+        q = robot.random_q(8, rng)
+        T = robot.fk(q)
+        for i in range(8):
+            loc, rem = robot.ik(T[i], q[i]), remote.ik(T[i], q[i])
+            assert loc.success and rem.success, rem.message
+            np.testing.assert_allclose(robot.fk(rem.q), T[i], atol=1e-6)
+    finally:
+        srv.shutdown()
+        srv.server_close()
+
+
 def test_a_batch_goes_to_the_controller_too(server):
     """ik_batch asks the controller where the robot names one, as ik does (a review: it always
     solved locally); an unreachable target among them fails alone."""
@@ -65,6 +89,11 @@ def test_an_unreachable_target_is_a_failed_solve_with_the_controllers_reason(ser
     far[:3, 3] = [5000.0, 0.0, 0.0]
     res = replace(robot, ik_via=_client(server.port)).ik(far, np.zeros(6))
     assert not res.success and "found no solution" in res.message and f":{server.port}" in res.message
+    # raise_on_failure holds through the controller as for the local solver (it was ignored)
+    from addon.core.errors import UnreachablePose
+
+    with pytest.raises(UnreachablePose, match="found no solution"):
+        replace(robot, ik_via=_client(server.port)).ik(far, np.zeros(6), raise_on_failure=True)
 
 
 def test_a_controller_serving_another_robot_is_named_when_its_joints_miss(server):

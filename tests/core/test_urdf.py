@@ -498,6 +498,32 @@ def test_a_non_finite_joint_origin_or_axis_is_named_where_it_was_written(joint, 
     assert "a_mm" not in message and "NaN or inf" not in message
 
 
+def test_a_link_without_collision_geometry_is_checked_with_its_visual_one(tmp_path):
+    """Where some links of a URDF have collision geometry and another only a visual mesh, that
+    link is checked as its visual mesh, not as the cylinders of a link with no geometry (the
+    fallback went by the whole robot: one link's collision geometry turned every other link's
+    visual mesh into cylinders for the checks)."""
+    import trimesh
+
+    from addon.core.kinematics.link_shapes import link_mesh
+
+    for name, size in (("link2.stl", 20.0), ("link3.stl", 30.0)):
+        (tmp_path / name).write_bytes(trimesh.creation.box((size, 10.0, 10.0)).export(file_type="stl"))
+    origins = [("0 0 0.1", "0 0 0")] * 6
+    path = write_chain(tmp_path / "robot.urdf", origins, ["0 0 1", "0 1 0", "0 1 0", "1 0 0", "0 1 0", "1 0 0"])
+    path.write_text(path.read_text().replace(
+        '<link name="l2"/>', '<link name="l2"><collision><geometry><mesh filename="link2.stl" scale="0.001 0.001 0.001"/>'
+        '</geometry></collision></link>').replace(
+        '<link name="l3"/>', '<link name="l3"><visual><geometry><mesh filename="link3.stl" scale="0.001 0.001 0.001"/>'
+        '</geometry></visual></link>'))
+    robot = load_robot(path)
+    extent = lambda mesh: float(np.ptp(mesh.vertices, axis=0).max())
+    assert extent(link_mesh(robot, 1, collision=True)) == pytest.approx(20.0, abs=1e-6)  # its own collision box
+    assert extent(link_mesh(robot, 2, collision=True)) == pytest.approx(30.0, abs=1e-6)  # its visual box
+    assert link_mesh(robot, 0, collision=True) is None  # neither: cylinders
+    assert link_mesh(robot, 1) is None  # drawn: no visual geometry of its own
+
+
 def test_a_mesh_file_edited_after_loading_is_read_again(tmp_path):
     """The loaded robot is cached; the cache must not outlive an edit of a mesh the URDF names
     (the collision checks would run on the old shape)."""

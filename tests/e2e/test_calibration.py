@@ -18,6 +18,7 @@ from addon import Scanner
 from addon.calibrate import calibrate
 from addon.core.config.rigs import load_probe
 from addon.core.config.scan import load_scan_config
+from addon.core.errors import ConfigError
 from headless.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -64,6 +65,11 @@ def test_a_scan_with_the_calibrated_probe_shows_what_the_calibration_costs(calib
     cfg_path.write_text(text.replace('rig = "default"', f'rig = "default"\ncalibration = "{out / "probe.toml"}"', 1))
     cfg = load_scan_config(cfg_path)
     assert cfg.probe.calibration is not None
+    # Eq. 6 assumes the nominal probe: with a calibration it is refused as the config loads
+    paper = tmp_path / "tilted_calibrated_paper.toml"
+    paper.write_text(cfg_path.read_text() + '\n[triangulate]\nmethod = "paper"\n')
+    with pytest.raises(ConfigError, match='method "paper".*probe.calibration.*"exact"'):
+        load_scan_config(paper)
     frames = slice(0, 30, 3)
     truth = Scanner.from_config("tilted_plane", frames=frames).run()
     measured = Scanner.from_config(cfg_path, frames=frames).run()

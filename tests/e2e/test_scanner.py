@@ -211,6 +211,9 @@ def test_save_writes_every_time_and_bad_arguments_are_named(scanner, tmp_path):
     assert all(p.is_file() for p in files.values())
     for call, message in ((lambda: scanner.turn_table("30"), "finite number of degrees"),
                           (lambda: scanner.sweep([0, 0], [10, 0, 210], 5), "from_mm must be three"),
+                          (lambda: scanner.sweep([0, 0, 210], [10, float("nan"), 210], 5), "to_mm must be three finite"),
+                          (lambda: scanner.plan_sweep([0, 0, 210], [10, 0, 210], 5, beam=[0, 0, 0]),
+                           "beam must be a non-zero direction"),
                           # ten turns at most, also as a sweep's table angle and as the turn to an angle
                           (lambda: scanner.sweep([0, 0, 210], [10, 0, 210], 5, table_deg=1e9), "within ±3600"),
                           (lambda: scanner.plan_sweep([0, 0, 210], [10, 0, 210], 5, table_deg=float("nan")),

@@ -396,6 +396,9 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     detect_method, detect = _detect(top.table("detect", default={}))
     tri = top.table("triangulate", default={})
     tri_method = tri.string("method", default="exact", choices=TRIANGULATION_METHODS)
+    if tri_method == "paper" and probe.calibration is not None:  # refused here, not at the first frame
+        raise ConfigError(f"{path}: triangulate.method \"paper\" (Eq. 6) assumes the nominal symmetric probe, and "
+                          f"probe.calibration gives a calibrated one: use method \"exact\" or leave the calibration out")
     fuse = tri.boolean("fuse", default=True)
     profile_filter = ProfileFilter(
         max_incidence_deg=tri.number("max_incidence_deg", default=DEFAULT_FILTER.max_incidence_deg, lo=0.0, hi=90.0,

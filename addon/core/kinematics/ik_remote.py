@@ -174,7 +174,9 @@ class ControllerIK:
         T = np.asarray(T_target, dtype=np.float64)
         seed = np.asarray(q0, dtype=np.float64).reshape(6)
         answer = self.call({"op": "ik", "target_mm": T.tolist(), "seed_rad": seed.tolist(),
-                            "tool_mm": np.asarray(robot.tool).tolist()})
+                            # T_L^6, in the flange's frame, as the controller's with_tool takes it (robot.tool
+                            # holds the flange's own pose too: a URDF arm's got it twice before)
+                            "tool_mm": robot.tool2flange.tolist()})
         where = self.controller.where
         success, reason = answer.get("success"), answer.get("reason", "")
         if not isinstance(success, bool) or not isinstance(reason, str):

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, UnreachablePose
 from ..tolerances import TOL
 from .transforms import _cos_sin, check_transform, rigid_inverse
 
@@ -156,6 +156,12 @@ class Robot:
         """A copy with tool pose ``tool2flange`` (4, 4): the paper's T_L^6, tool frame in the
         mounting flange's frame (:attr:`flange`)."""
         return replace(self, tool=self.flange @ check_transform(tool2flange, "tool transform T_L^6"))
+
+    @property
+    def tool2flange(self) -> np.ndarray:
+        """The tool pose in the flange's frame (the paper's T_L^6), as :meth:`with_tool` takes
+        it: :attr:`tool` is that pose in DH frame 6, the flange's own pose included."""
+        return rigid_inverse(self.flange) @ self.tool
 
     def with_base(self, base2world) -> "Robot":
         """A copy mounted with DH frame 0 at pose ``base2world`` (4, 4) in the world."""
@@ -438,11 +444,15 @@ class Robot:
     # -- inverse kinematics -------------------------------------------------------
     def ik(self, T_target, q0=None, **options):
         """Joint vector reaching tool pose ``T_target`` (4, 4, world frame); see :func:`addon.core.kinematics.ik.solve`,
-        or from the robot controller where ``ik_via`` names one (``options`` are the local solver's)."""
+        or from the robot controller where ``ik_via`` names one (``options`` are the local solver's; of
+        them the controller's answer heeds ``raise_on_failure`` alone)."""
         from .ik import default_seed, solve
 
         if self.ik_via is not None:
-            return self.ik_via.solve(self, T_target, default_seed(self) if q0 is None else q0)
+            result = self.ik_via.solve(self, T_target, default_seed(self) if q0 is None else q0)
+            if options.get("raise_on_failure") and not result.success:
+                raise UnreachablePose(f"{self.name}: {result.message}", result)
+            return result
         return solve(self, T_target, q0, **options)
 
     def ik_batch(self, T_targets, q0=None, **options):

@@ -431,7 +431,8 @@ def _geometry_mesh(geometry, urdf_path: Path, package_dirs, files_read: list | N
 def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs, files_read: list | None = None) -> tuple[tuple, tuple]:
     """((visuals per DH link 1..6, the base's visuals), (the same for the collision geometry)),
     each merged into one mesh in the DH frame of its link (the base: frame 0), mm; per link
-    ("", identity) where it has none, () where no link has any. The base is the base link and
+    ("", identity) where it has none, () where no link has any. A link without collision
+    geometry of its own is checked with its visual one, where it has that. The base is the base link and
     what hangs on it by fixed joints (a pedestal, a gantry's frame): it never moves, and the
     probe and the links must not run into it. Links off the chain are left out."""
     import trimesh
@@ -439,6 +440,7 @@ def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs, files_read: list
     frames0 = robot.link_frames(np.zeros(N_JOINTS))
     scale = np.diag([M_TO_MM, M_TO_MM, M_TO_MM, 1.0])
     out = []
+    visual_pieces: list[list] = []
     for kind in ("visuals", "collisions"):
         pieces: list[list] = [[] for _ in range(N_JOINTS + 1)]  # the base first, then links 1..6
         for link in urdf.robot.links:
@@ -452,6 +454,10 @@ def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs, files_read: list
                 origin = np.eye(4) if item.origin is None else _in_mm(item.origin)
                 mesh.apply_transform(rigid_inverse(frames0[k]) @ chain.link_pose[link.name] @ origin @ scale)
                 pieces[k].append(mesh)
+        if kind == "visuals":
+            visual_pieces = pieces
+        elif any(pieces[1:]):  # per link, not per robot: one without collision geometry keeps its visual
+            pieces[1:] = [p or [m.copy() for m in v] for p, v in zip(pieces[1:], visual_pieces[1:])]
         links = pieces[1:]
         out.append((tuple((trimesh.util.concatenate(p), np.eye(4)) if p else ("", np.eye(4)) for p in links)
                     if any(links) else (),

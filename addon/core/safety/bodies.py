@@ -21,7 +21,7 @@ rest pose (q = 0) are part of its design and are not checked.
 
 A mesh in FCL is a surface: a body wholly inside a closed part would be reported
 as near its surface, not inside it. So where a robot body comes near a closed
-mesh, the centres of its shapes are also tested for being inside (winding number),
+mesh, the centres of its shapes are also tested for being inside (trimesh's ray test),
 and a body inside counts as touching.
 """
 
