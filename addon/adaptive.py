@@ -15,6 +15,7 @@ the profile budget is spent. The ground truth is used only afterwards, to score.
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from dataclasses import dataclass, field
 
@@ -32,7 +33,6 @@ VOXEL_MM = AdaptiveSettings.voxel_mm
 MIN_GAIN = AdaptiveSettings.min_gain  # new surface cells a view must promise
 OVERVIEW_MAX_TILT_DEG = 45.0  # steeper turns look at the sides and miss the top: not an overview
 MARGIN_MM = 6.0   # the model's box around the part's
-TRIES = 12        # candidates asked for reachability per decision, best first
 TABLE_CLEARANCE_MM = 0.2  # a point this far above the table top is the part's (see part_radius)
 OUTSIDE_WARNING = 0.05  # a share of the points outside the part's box that says the box is too small
 FIXTURE_NEAR_MM = 0.5  # a point this near one of the table's fixtures is the fixture's
@@ -152,9 +152,10 @@ class NextBestView:
 
     def choose(self, scanner, budget: int | None = None):
         """The next view: first the overview (:meth:`overview`), then the best candidate the
-        robot can do from where it is now (checked without moving), trying at most TRIES, each
-        promising at least ``min_gain`` cells and fitting ``budget`` profiles; None where there
-        is none."""
+        robot can do from where it is now (checked without moving), best first down the whole
+        ranking, each promising at least ``min_gain`` cells and fitting ``budget`` profiles;
+        None where there is none. (It asked the best 12 only, and where the robot could do none
+        of them stopped the scan as if no view were left.)"""
         probe_now = scanner.pose("table")[:3, 3]
         live = self.live()
         self.refused, self.ranked = [], []
@@ -166,7 +167,7 @@ class NextBestView:
         ranked = [c for c in next_view.rank(self.space, self.probe, live, scanner.table_deg, probe_now, self.missed)
                   if c.gain >= self.min_gain and (budget is None or c.frames <= budget)]
         self.ranked = ranked
-        for c in ranked[:TRIES]:
+        for c in ranked:
             if self.feasible(scanner, c):
                 return c
         return None
@@ -287,8 +288,11 @@ class NextBestView:
         return True
 
     def coverage_estimate(self) -> float:
-        """How much of the part's surface the model says is seen (0..1), from its box alone."""
-        return self.space.coverage_estimate(self.lo, self.hi)
+        """How much of the part's surface the model says is seen (0..1), from its box alone
+        (from the table top up, where the box reaches below it: the table is not the part)."""
+        lo = self.lo.copy()
+        lo[2] = max(lo[2], 0.0)  # the table top is z = 0 in the table frame
+        return self.space.coverage_estimate(lo, self.hi)
 
     def scan(self, scanner, c, progress=None) -> tuple[list, int]:
         """Scan candidate ``c`` and learn from it: (its profiles, the cells it taught). The
@@ -341,7 +345,7 @@ def check_target_coverage(target) -> None:
     """A coverage target is None or a number in (0, 1]."""
     if target is None:
         return
-    if isinstance(target, bool) or not isinstance(target, (int, float)) or not 0.0 < target <= 1.0:
+    if isinstance(target, bool) or not isinstance(target, numbers.Real) or not 0.0 < target <= 1.0:
         raise InputError(f"the target coverage must be a share in (0, 1] (0.9 for 90 %), got {target!r}")
 
 

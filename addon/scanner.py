@@ -174,6 +174,7 @@ class Scanner:
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # (q (n, 6), table_rad (n,)) of every measurement
         self._clearances: list = []  # the collision check of every move and path (PathClearance)
         self._planner = None  # the adaptive planner of the last adaptive() call, to go on from
+        self._planner_config = None  # the config that planner was made for
         # False: sweeps and paths are still refused where they would collide, but their nearest
         # clearance is not measured for the report (two thirds of a raycast sweep's time; a
         # training loop's choice, see headless/scan_env.py).
@@ -654,12 +655,17 @@ class Scanner:
         # Checked in adaptive_steps; numpy's integers (a training loop's) become Python's for the report.
         budget = int(budget) if isinstance(budget, np.integer) else budget
         gain = int(gain) if isinstance(gain, np.integer) else gain
+        target = float(target) if isinstance(target, np.floating) else target
         # A second call goes on from what the first learnt (and from anything measured since),
         # instead of planning the same views again; a different box or cell size starts afresh.
         setup = 0.0
-        if self._planner is None or not self._planner.fits(lo, hi, settings.voxel_mm):
+        # The planner's candidates, probe and table are the config's: a config replaced since
+        # (another probe, table or fixtures) gets a new planner, which learns what was measured.
+        if self._planner is None or not self._planner.fits(lo, hi, settings.voxel_mm) \
+                or self._planner_config is not self.config:
             t = time.perf_counter()
             self._planner = NextBestView(self, lo, hi, voxel_mm=settings.voxel_mm)
+            self._planner_config = self.config
             setup = time.perf_counter() - t
         done = self._extra.get("adaptive", {}).get("sweeps", [])
         steps: list = []

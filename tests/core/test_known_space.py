@@ -88,6 +88,12 @@ def test_bad_boxes_and_non_finite_points():
         KnownSpace([0, 0, 0], [1, 1, 1], np.nan)
     with pytest.raises(InputError, match="too many"):
         KnownSpace([0, 0, 0], [1e4, 1e4, 1e4], 0.1)
+    # a box so large that its cell count would wrap an integer, and cells that are no number
+    with pytest.raises(InputError, match="too many"):
+        KnownSpace([0, 0, 0], [1e20, 1e20, 1e20], 2.0)
+    for cell in ("2", None, True):
+        with pytest.raises(InputError, match="positive number of mm"):
+            KnownSpace([0, 0, 0], [1, 1, 1], cell)
     space = KnownSpace([0, 0, 0], [10, 10, 10], 1.0)
     assert space.add_points([5, 5, 50], [[np.nan, 5, 5]]) == 0
     assert space.counts()["unknown"] == 1000
@@ -123,3 +129,16 @@ def test_the_coverage_estimate_grows_as_the_views_close_in_around_the_part():
     assert one < six < all_round and all_round >= 0.95
     # Only the box counts: outside it the unknown space around the scan is not the part's.
     assert sphere_seen_from([[0, 0, 1]], 0.3).coverage_estimate([-30.0] * 3, [30.0] * 3) < one
+
+
+def test_a_plate_thinner_than_a_cell_and_a_half_still_has_a_coverage_estimate():
+    """The estimate leaves out the box's bottom layer (the table top the part stands on); a
+    part thinner than that layer and a half kept no layer at all and read 0 whatever was seen.
+    A 2.5 mm plate on the table seen from above: its top layer counts."""
+    space = KnownSpace([-26.0, -26.0, -6.0], [26.0, 26.0, 8.5], 2.0)
+    g = np.arange(-19.75, 19.76, 0.5)
+    x, y = np.meshgrid(g, g)
+    top = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, 2.5)])
+    space.add_points([0.0, 0.0, 150.0], top)
+    estimate = space.coverage_estimate([-20.0, -20.0, 0.0], [20.0, 20.0, 2.5])
+    assert estimate > 0.5, estimate

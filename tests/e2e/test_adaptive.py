@@ -164,6 +164,47 @@ def test_the_planner_goes_on_to_a_grooves_floor_and_never_scans_a_turns_twin():
     assert np.mean(d < 1.0) > 0.8, np.mean(d < 1.0)
 
 
+def test_a_decision_goes_down_the_whole_ranking_until_the_robot_can_do_a_view():
+    """Where the robot can do none of the best-ranked views (here: the first 13 it is asked
+    about are refused), the planner still finds the next one it can do, instead of stopping
+    the scan as if no view were left (it asked the best 12 only)."""
+    _, scanner, planner = _raycast_planner("step_block")
+    planner.scan(scanner, planner.choose(scanner, 450))  # the overview
+    asked = []
+    real = planner.feasible
+
+    def feasible(s, c):
+        asked.append(c.key)
+        if len(asked) <= 13:
+            planner.impossible.add(c.key)
+            return False
+        return real(s, c)
+
+    planner.feasible = feasible
+    chosen = planner.choose(scanner, 280)
+    ranked_keys = [c.key for c in planner.ranked]
+    assert len(ranked_keys) > 14
+    assert chosen is not None and chosen.key == ranked_keys[13] and asked[:14] == ranked_keys[:14]
+
+
+def test_the_table_top_is_not_the_part_where_the_box_reaches_below_it():
+    """A box told with some room under the table (z from -5 mm): the table top's cells lie
+    above the box's bottom layer then, and counted as the part's surface in the coverage
+    estimate (which the target coverage stops at). Only the table seen: the estimate is 0."""
+    from addon.adaptive import NextBestView
+
+    _, scanner, planner = _raycast_planner("demo")
+    lo, hi = planner.lo.copy(), planner.hi.copy()
+    lo[2] = -5.0
+    below = NextBestView(scanner, lo, hi)
+    g = np.arange(-60.0, 60.01, 0.5)
+    x, y = np.meshgrid(g, g)
+    table_top = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, 0.0)])
+    below.learn(np.array([0.0, 0.0, 250.0]), table_top)
+    assert below.space.counts()["surface"] > 100
+    assert below.coverage_estimate() == 0.0
+
+
 def _raycast_planner(name: str):
     """(config, scanner, planner) for scene ``name`` rendered by the raycast engine, the planner
     told the part's box as a cell would be."""
@@ -333,8 +374,29 @@ def test_numpy_whole_numbers_are_taken_as_budget_and_gain():
     with pytest.raises(InputError, match=r"scan: expected a view .*got None: choose\(\) gives None when no view"):
         planner.scan(scanner, None)
     s = Scanner(config=config)
-    steps = s.adaptive(max_profiles=np.int64(200), min_gain=np.int32(30))
+    steps = s.adaptive(max_profiles=np.int64(200), min_gain=np.int32(30), target_coverage=np.float32(0.99))
     assert steps and s.report().to_dict()["adaptive"]["max_profiles"] == 200
+    json.dumps(s.report().to_dict())  # numpy's numbers do not reach the report
+
+
+def test_a_config_replaced_between_two_adaptive_runs_gets_a_planner_of_its_own():
+    """The planner's candidates and probe are its config's: after the Scanner's config is
+    replaced, the next adaptive() builds a new planner (which learns what was measured)
+    instead of planning with the old cell's views."""
+    from dataclasses import replace
+
+    from addon import Scanner
+
+    config, _, _ = _raycast_planner("demo")
+    s = Scanner(config=config)
+    s.adaptive(max_profiles=170)
+    first = s.planner
+    s.adaptive(max_profiles=100)
+    assert s.planner is first  # the same config: it goes on
+    s.config = replace(s.config, name="demo, again")
+    s.adaptive(max_profiles=100)
+    assert s.planner is not first
+    assert s.planner.frames_seen == s.frames_taken  # it learnt the first planner's profiles too
 
 
 def test_a_box_told_too_small_for_the_part_is_warned_about(capsys):

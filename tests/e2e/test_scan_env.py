@@ -275,3 +275,16 @@ def test_rgb_array_renders_the_cloud_so_far_and_a_step_after_the_end_is_refused(
         ScanPlanningEnv("demo", render_mode="human")
     with pytest.raises(InputError, match="floats are not taken"):
         env.step(np.array([1.0, 2.0, 0.0]))
+
+
+def test_the_environment_plans_with_the_configs_cell_size_and_gain(tmp_path):
+    """[adaptive] voxel_mm and min_gain reach the environment's planner as they reach the
+    command's (the environment used the defaults whatever the config said)."""
+    from pathlib import Path
+
+    demo = (Path(__file__).resolve().parents[2] / "rigs" / "scenes" / "demo.toml").read_text()
+    config = tmp_path / "demo_coarse.toml"
+    config.write_text(demo + "\n[adaptive]\nvoxel_mm = 3.0\nmin_gain = 40\n")
+    env = ScanPlanningEnv(str(config), max_profiles=300, engine="raycast")
+    env.reset(seed=0)
+    assert env.planner.space.voxel == 3.0 and env.planner.min_gain == 40

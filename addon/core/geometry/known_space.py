@@ -21,6 +21,9 @@ corner by a ray can be missed, which the next profile's rays fill in).
 
 from __future__ import annotations
 
+import math
+import numbers
+
 import numpy as np
 
 from ..errors import InputError
@@ -28,6 +31,7 @@ from ..errors import InputError
 UNKNOWN, FREE, SURFACE = 0, 1, 2
 STEP_SHARE = 0.5   # ray samples per cell size
 CHUNK_SAMPLES = 4_000_000  # ray samples handled at once (memory)
+MAX_CELLS = 200_000_000    # the model's cells at most (a byte each)
 
 
 class KnownSpace:
@@ -37,13 +41,16 @@ class KnownSpace:
         lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
         if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()):
             raise InputError(f"the known-space box needs two finite 3-vectors, got {lo!r} and {hi!r}")
-        if not (np.isfinite(voxel_mm) and voxel_mm > 0) or not (hi > lo).all():
-            raise InputError(f"the known-space box must have positive size and cells, got lo {lo.tolist()}, "
-                             f"hi {hi.tolist()}, cell {voxel_mm} mm")
-        shape = np.ceil((hi - lo) / voxel_mm).astype(int)
-        if int(np.prod(shape)) > 200_000_000:
-            raise InputError(f"{'x'.join(map(str, shape))} cells of {voxel_mm} mm is too many for the model of what "
-                             f"is known: use larger cells ([adaptive] voxel_mm) or a smaller box")
+        if isinstance(voxel_mm, bool) or not isinstance(voxel_mm, numbers.Real) or not (
+                math.isfinite(voxel_mm) and voxel_mm > 0) or not (hi > lo).all():
+            raise InputError(f"the known-space box must have positive size and cells (a positive number of mm), "
+                             f"got lo {lo.tolist()}, hi {hi.tolist()}, cell {voxel_mm!r} mm")
+        counts = np.ceil((hi - lo) / float(voxel_mm))  # floats: a huge box must not wrap an integer
+        if float(np.prod(counts)) > MAX_CELLS:
+            raise InputError(f"{' x '.join(f'{c:.3g}' for c in counts)} cells of {voxel_mm} mm is too many for the "
+                             f"model of what is known (at most {MAX_CELLS:,}): use larger cells ([adaptive] voxel_mm) "
+                             f"or a smaller box")
+        shape = counts.astype(int)
         self.lo, self.voxel = lo, float(voxel_mm)
         self.hi = lo + shape * self.voxel
         self.state = np.zeros(tuple(shape), dtype=np.uint8)
@@ -176,7 +183,11 @@ class KnownSpace:
         lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
         bottom = lo.copy()
         bottom[2] += self.voxel
-        keep = tuple(slice(*_cell_range(self.lo[a], self.voxel, self.shape[a], bottom[a], hi[a])) for a in range(3))
+        ranges = [_cell_range(self.lo[a], self.voxel, self.shape[a], bottom[a], hi[a]) for a in range(3)]
+        if ranges[2][0] >= ranges[2][1]:  # a part thinner than a cell and a half: the layer holding its top
+            top = min(max(int(np.floor((hi[2] - self.lo[2]) / self.voxel)), 0), self.shape[2] - 1)
+            ranges[2] = (top, top + 1)
+        keep = tuple(slice(*r) for r in ranges)
         surface = int(np.count_nonzero(self.state[keep] == SURFACE))
         frontier = int(np.count_nonzero(self._frontier_mask()[keep]))
         return surface / (surface + frontier) if surface else 0.0
