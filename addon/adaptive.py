@@ -140,6 +140,7 @@ class NextBestView:
         self.fixtures = [NearMesh(f.mesh) for f in table_fixtures(scanner.config)]
         self.points_seen = 0  # points above the table top learnt from ...
         self.points_outside = 0  # ... and of them, farther than a cell outside the part's box
+        self.warnings: list[str] = []  # what a run noticed about the box (adaptive_steps), for the report
         # Cells a view scanned was expected to see (its fan met the cell first, unknown, in
         # range) that stayed unknown: no camera saw the spot, or every point there was dropped.
         # They no longer count as gain: they drew view after view to the same spot for nothing
@@ -451,11 +452,20 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_
             break
     new = planner.points_seen - seen
     outside = (planner.points_outside - outside) / new if new else 0.0
-    if log and outside > OUTSIDE_WARNING:
-        log(f"adaptive: warning: {outside * 100:.0f} % of the points measured above the table lie outside the part's "
-            f"box {planner.lo.round(1).tolist()} .. {planner.hi.round(1).tolist()} mm: the part (or something else "
-            f"on the table) reaches beyond the box the planner was told ([adaptive] box_min_mm/box_max_mm or "
-            f"radius_mm/height_mm), which plans and estimates coverage inside it only")
+    box = f"{planner.lo.round(1).tolist()} .. {planner.hi.round(1).tolist()} mm"
+    told = "([adaptive] box_min_mm/box_max_mm or radius_mm/height_mm)"
+    warnings = []
+    if outside > OUTSIDE_WARNING:
+        warnings.append(f"{outside * 100:.0f} % of the points measured above the table lie outside the part's box "
+                        f"{box}: the part (or something else on the table) reaches beyond the box the planner was "
+                        f"told {told}, which plans and estimates coverage inside it only")
+    elif steps and not new:
+        warnings.append(f"no point was measured above the table in this run: the part's box {box} the planner was told "
+                        f"{told} may not hold the part")
+    for w in warnings:
+        if log:
+            log(f"adaptive: warning: {w}")
+    planner.warnings += [w for w in warnings if w not in planner.warnings]  # the Scanner's report takes them
     return steps
 
 

@@ -675,6 +675,8 @@ class Scanner:
                                       voxel_mm=settings.voxel_mm, progress=progress, log=log,
                                       planner=self._planner, setup_s=setup, steps=steps, numbered_from=len(done))
             finished = True
+            # What the run noticed about the box joins the report's warnings (printed under --quiet too).
+            self._warnings += [w for w in self._planner.warnings if w not in self._warnings]
         finally:  # a run dropped or stopped after some sweeps still lists them beside their frames
             if finished or steps:
                 # Over every adaptive() call on this Scanner: the sweeps all of them took, within
@@ -695,7 +697,7 @@ class Scanner:
 
         import json
 
-        key = (self.frames_taken, json.dumps(self._extra, sort_keys=True))
+        key = (self.frames_taken, json.dumps(self._extra, sort_keys=True), len(self._warnings))
         # The path's frame numbers hold only while this Scanner has run nothing but its path.
         config = self.config if not self._off_path else replace(self.config, path_frames=None)
         # (A config set on the Scanner since is measured afresh: the cache holds the one it measured.)

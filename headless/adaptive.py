@@ -41,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from addon import Scanner
     from addon.adaptive import BudgetBelowView, check_target_coverage, part_box
-    from addon.core.config.scan import MAX_PROFILES, load_scan_config
+    from addon.core.config.scan import MAX_MIN_GAIN, MAX_PROFILES, load_scan_config
     from addon.core.errors import InputError
     from addon.core.scan.outputs import OUTPUT_FILES
     from headless import preflight
@@ -55,11 +55,14 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--max-profiles must be from 1 to {MAX_PROFILES}, got {args.max_profiles}")
         settings = replace(settings, max_profiles=args.max_profiles)
     if args.min_gain is not None:
-        if args.min_gain < 1:
-            raise InputError(f"--min-gain must be at least 1, got {args.min_gain}")
+        if not 1 <= args.min_gain <= MAX_MIN_GAIN:
+            raise InputError(f"--min-gain must be from 1 to {MAX_MIN_GAIN:.0e}, got {args.min_gain}")
         settings = replace(settings, min_gain=args.min_gain)
     if args.target_coverage is not None:
-        check_target_coverage(args.target_coverage)
+        try:
+            check_target_coverage(args.target_coverage)
+        except InputError as exc:
+            raise InputError(f"--target-coverage: {exc}") from None
         settings = replace(settings, target_coverage=args.target_coverage)
     out = args.out or default_out(given, args.engine, "adaptive")
     preflight.check_scan(config, out, names=OUTPUT_FILES.values(), force=args.force)
@@ -76,8 +79,9 @@ def run(args: argparse.Namespace) -> int:
         try:
             steps = scanner.adaptive((lo, hi), progress=progress, log=None if args.quiet else progress.bar.say)
         except BudgetBelowView as exc:
+            where = "--max-profiles" if args.max_profiles is not None else "--max-profiles, or [adaptive] max_profiles,"
             raise InputError(f"no view was scanned: the budget of {exc.budget} profiles is below the smallest view's "
-                             f"{exc.smallest} (raise --max-profiles to at least {exc.smallest}); nothing "
+                             f"{exc.smallest} (raise {where} to at least {exc.smallest}); nothing "
                              f"written") from None
         finally:
             progress.bar.finish()

@@ -404,9 +404,16 @@ def test_a_box_told_too_small_for_the_part_is_warned_about(capsys):
 
     config, _, _ = _raycast_planner("demo")
     lines = []
-    Scanner(config=config).adaptive(([-12.0, -12.0, 0.0], [12.0, 12.0, 20.0]), max_profiles=150,
-                                    log=lines.append)
+    small = Scanner(config=config)
+    small.adaptive(([-12.0, -12.0, 0.0], [12.0, 12.0, 20.0]), max_profiles=150, log=lines.append)
     assert any("warning" in line and "outside the part's box" in line for line in lines), lines[-3:]
+    # ... and joins the report, so a run without a log (--quiet) still says so
+    assert any("outside the part's box" in w for w in small.report().to_dict()["warnings"])
+    # A box beside the part, on the table: nothing above the table is measured in it
+    beside = Scanner(config=config)
+    beside.adaptive(([100.0, 100.0, 0.0], [140.0, 140.0, 50.0]), max_profiles=200)
+    assert beside.report().to_dict()["points_on_part"] == 0
+    assert any("no point was measured above the table" in w for w in beside.report().to_dict()["warnings"])
     # A block on the table beside the sphere (a fixture of the cell, known as the table is)
     # lies outside the box: its points are the fixture's, not a part too big for its box.
     from dataclasses import replace

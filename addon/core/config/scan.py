@@ -119,6 +119,7 @@ NARROW_RATIO = 0.8
 # The most profiles an adaptive scan may be given (config, command line, Gymnasium env): hours
 # of rendering, far beyond any part here (a table turn takes 120-450).
 MAX_PROFILES = 100_000
+MAX_MIN_GAIN = 10**9  # [adaptive] min_gain at most (more cells than any model holds)
 
 
 @dataclass(frozen=True)
@@ -471,7 +472,7 @@ def _adaptive(t: Table) -> AdaptiveSettings:
     t.allow("box_min_mm", "box_max_mm", "radius_mm", "height_mm")
     target = t.number("target_coverage", default=None, lo=0.0, hi=1.0, lo_open=True)
     out = AdaptiveSettings(box, t.integer("max_profiles", default=AdaptiveSettings.max_profiles, lo=1, hi=MAX_PROFILES),
-                           t.integer("min_gain", default=AdaptiveSettings.min_gain, lo=1, hi=10**9),
+                           t.integer("min_gain", default=AdaptiveSettings.min_gain, lo=1, hi=MAX_MIN_GAIN),
                            t.number("voxel_mm", default=AdaptiveSettings.voxel_mm, lo=0.1, hi=100.0), target)
     t.finish()
     return out
