@@ -80,8 +80,8 @@ MAX_TABLE_TURN_DEG = 3600.0  # the most a table turns (or is turned to) in one m
 
 
 def _check_table_deg(deg, what: str) -> None:
-    if isinstance(deg, bool) or not isinstance(deg, (int, float, np.number)) or not math.isfinite(deg) \
-            or abs(deg) > MAX_TABLE_TURN_DEG:
+    if isinstance(deg, (bool, complex, np.complexfloating)) or not isinstance(deg, (int, float, np.number)) \
+            or not math.isfinite(deg) or abs(deg) > MAX_TABLE_TURN_DEG:
         raise InputError(f"{what} must be a finite number of degrees within ±{MAX_TABLE_TURN_DEG:g} (ten turns), "
                          f"got {deg!r}")
 
@@ -154,11 +154,8 @@ class Scanner:
                              workpiece=part, waypoints=Waypoints(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0, int)),
                              q_start=base.start_joints_for(robot, table), render=render or base.render)
             config = config.with_overrides(detect=detect)
-        self.config = config
+        self.config = config  # (and the renderers, built at the first measurement: see config)
         self._scene = scene
-        self._sc = None  # the Blender cell, built at the first measurement
-        self._raycaster = None  # with engine raycast: its renderer, built at the first measurement
-        self._surfaces = None  # the part and table for ray casts, built at the first measurement
         self._q = self._start_joints()
         self._table_rad = float(config.waypoints.table_rad[0]) if len(config.waypoints) else 0.0
         self._parts: list[Cloud] = []
@@ -224,8 +221,25 @@ class Scanner:
 
     @property
     def table_deg(self) -> float:
-        """The table's angle now, in degrees."""
-        return math.degrees(self._table_rad)
+        """The table's angle now, in degrees (to 1e-9°: turned to 30°, it reads 30.0, not the
+        29.999999999999996 that radians and back make of it)."""
+        return round(math.degrees(self._table_rad), 9)
+
+    @property
+    def config(self) -> ScanConfig:
+        """The scan config: the cell, the part, the probe, the render settings. Replaced by
+        assignment, it takes effect from the next measurement on: what renders and what is ray
+        cast are built again for it (they scanned the old part before)."""
+        return self._config
+
+    @config.setter
+    def config(self, value) -> None:
+        if not isinstance(value, ScanConfig):
+            raise InputError(f"config must be a ScanConfig (load_scan_config(name or path)), got {value!r}")
+        self._config = value
+        self._sc = None  # the Blender cell, built at the first measurement
+        self._raycaster = None  # with engine raycast: its renderer, built at the first measurement
+        self._surfaces = None  # the part and table for ray casts, built at the first measurement
 
     def pose(self, relative_to: str = "table") -> np.ndarray:
         """(4, 4) mm: the probe frame's pose (laser at the origin, beam along +Z) now."""
@@ -334,15 +348,18 @@ class Scanner:
         return self._turn_table_by(math.radians(deg))
 
     def _turn_table_by(self, rad: float) -> float:
-        self._check_move(self._q, self._table_rad + rad)
-        self._table_rad += rad
+        return self._turn_table_to_rad(self._table_rad + rad)
+
+    def _turn_table_to_rad(self, rad: float) -> float:
+        self._check_move(self._q, rad)
+        self._table_rad = rad
         return self.table_deg
 
     def turn_table_to(self, deg: float) -> float:
         """Turn the table to the angle ``deg`` (degrees; :meth:`turn_table` turns it by an angle);
         returns the new angle. Raises CollisionError (and turns nothing) as turn_table does."""
         _check_table_deg(deg, "table angle")
-        return self._turn_table_by(math.radians(float(deg)) - self._table_rad)
+        return self._turn_table_to_rad(math.radians(float(deg)))
 
     def _check_move(self, q: np.ndarray, table_rad: float) -> None:
         """Collision checks on the motion from the current joints and table angle to these."""
@@ -377,9 +394,12 @@ class Scanner:
     @staticmethod
     def _as_pose(pose) -> np.ndarray:
         if isinstance(pose, tuple) and len(pose) == 2:
-            xyz, yzz_deg = (np.asarray(v, dtype=np.float64) for v in pose)
+            try:
+                xyz, yzz_deg = (np.asarray(v, dtype=np.float64) for v in pose)
+            except (TypeError, ValueError):
+                xyz = yzz_deg = np.full(0, np.nan)
             if xyz.shape != (3,) or yzz_deg.shape != (3,) or not (np.isfinite(xyz).all() and np.isfinite(yzz_deg).all()):
-                raise InputError("a pose as (xyz_mm, yzz_deg) needs three finite numbers in each")
+                raise InputError(f"a pose as (xyz_mm, yzz_deg) needs three finite numbers in each, got {pose!r}")
             return pose_from_xyz_yzz(xyz, np.radians(yzz_deg))
         return check_transform(pose, "probe pose")
 
@@ -518,6 +538,9 @@ class Scanner:
 
         t = time.perf_counter()
         plan = plan_scan(cfg)
+        # plan_scan checks the motion from the config's start joints; the robot may stand
+        # elsewhere (moved, or a scan done before): the way from there to the path's start too.
+        self._check_path(plan.q[:1], plan.table_rad[:1], "the move to the path's start", record=False)
         self._timing["plan"] += time.perf_counter() - t
         yield from self._frames_steps(plan.q, plan.table_rad, plan=plan, progress=progress,
                                       clearance=plan.clearance, warnings=plan.warnings)
@@ -697,12 +720,18 @@ class Scanner:
 
         import json
 
-        key = (self.frames_taken, json.dumps(self._extra, sort_keys=True), len(self._warnings))
+        if extra is not None and not isinstance(extra, dict):
+            raise InputError(f"extra must be a dict of what joins the report, got {extra!r}")
+        if out_dir is not None:
+            self._check_out_dir(out_dir)
+        # Everything the report tells: the frames, what joins it, its warnings, the moves' clearances.
+        key = (self.frames_taken, json.dumps(self._extra, sort_keys=True),
+               json.dumps(extra or {}, sort_keys=True, default=str), len(self._warnings), len(self._clearances))
         # The path's frame numbers hold only while this Scanner has run nothing but its path.
         config = self.config if not self._off_path else replace(self.config, path_frames=None)
         # (A config set on the Scanner since is measured afresh: the cache holds the one it measured.)
         cached = self._cached is not None and self._cached[0] == key and self._cached[2] is self.config
-        if extra is None and cached:
+        if cached:
             if out_dir is None:
                 return self._cached[1]
             from .core.scan.outputs import written
@@ -755,6 +784,11 @@ class Scanner:
     def save(self, out_dir: str | Path) -> dict[str, Path]:
         """Write cloud.ply, report.json and preview.png into ``out_dir`` (each atomically);
         returns their paths."""
+        self._check_out_dir(out_dir)
+        return self.result(out_dir).files
+
+    def _check_out_dir(self, out_dir) -> None:
+        """An output folder save() and result(out_dir) can write to, or one line saying why not."""
         if not isinstance(out_dir, (str, Path)) or not str(out_dir):
             raise InputError(f"save needs an output folder (a path), got {out_dir!r}")
         from .core.files import check_output_folder
@@ -762,4 +796,3 @@ class Scanner:
 
         # A file in the way, no permission, the part's own mesh where cloud.ply goes: one line.
         check_output_folder(out_dir, OUTPUT_FILES.values(), inputs=self.config.input_files())
-        return self.result(out_dir).files

@@ -1,6 +1,7 @@
 """Robot rig files: loading by name or path, and one clear error per kind of mistake."""
 
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -200,3 +201,43 @@ def test_a_revolute_joint_refuses_millimetre_limits(tmp_path):
     path.write_text('name = "arm"\n' + LINK.replace("min_deg = -170.0", "min_deg = -170.0\nmin_mm = 3.0") * 6)
     with pytest.raises(ConfigError, match="min_deg and max_deg"):
         load_robot(str(path))
+
+
+def test_a_urdf_rig_and_a_home_path_are_read_from_the_configs_folder(tmp_path, monkeypatch):
+    """A rig named by its file (ur5.urdf beside the config) is the config's, not a file of that
+    name in the working folder (which a bug hunt loaded silently); ~ is the home folder."""
+    import shutil
+
+    from addon.core.config.scan import load_scan_config
+
+    repo = Path(__file__).resolve().parents[2]
+    demo = (repo / "rigs" / "scenes" / "demo.toml").read_text()
+    here = tmp_path / "cell"
+    here.mkdir()
+    shutil.copy(repo / "rigs" / "robots" / "urdf" / "ur5.urdf", here / "ur5.urdf")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    shutil.copy(repo / "rigs" / "robots" / "urdf" / "gantry.urdf", elsewhere / "ur5.urdf")  # same name, other robot
+    monkeypatch.chdir(elsewhere)
+    text = demo.replace('rig = "adept_viper_s650"', 'rig = "ur5.urdf"', 1).replace(
+        "start_deg = [0.0, 30.0, -15.0, 0.0, 75.0, 90.0]", "start_deg = [0.0, -90.0, 90.0, -90.0, -90.0, 0.0]", 1)
+    (here / "scene.toml").write_text(text)
+    assert load_scan_config(here / "scene.toml").robot.prismatic == (False,) * 6  # the UR5, not the gantry
+    monkeypatch.setenv("HOME", str(here))
+    (here / "home.toml").write_text(text.replace('rig = "ur5.urdf"', 'rig = "~/ur5.urdf"', 1))
+    assert load_scan_config(here / "home.toml").robot.prismatic == (False,) * 6
+
+
+def test_a_laser_plane_normal_not_of_unit_length_keeps_its_plane():
+    """[calibration.laser] normal = [2, 0, 0] with offset_mm = 10 is the plane 2x = 10, x = 5
+    (the normal was made unit length and the offset kept: x = 10)."""
+    from addon.core.optics.calibrated import ProbeCalibration
+    from addon.core.config.rigs import load_probe
+
+    probe = load_probe("default")
+    cal = ProbeCalibration.of(probe)
+    scaled = ProbeCalibration(cal.cameras, 2.0 * np.asarray(cal.plane_normal), 2.0 * cal.plane_offset_mm + 0.0, "test")
+    np.testing.assert_allclose(scaled.plane_normal, cal.plane_normal, atol=1e-12)
+    assert scaled.plane_offset_mm == pytest.approx(cal.plane_offset_mm, abs=1e-12)
+    shifted = ProbeCalibration(cal.cameras, [2.0, 0.0, 0.0], 10.0, "test")
+    assert shifted.plane_offset_mm == pytest.approx(5.0)

@@ -70,6 +70,7 @@ def test_frames_are_parsed_or_refused_by_name():
 
     assert parse_frames(None) is None and parse_frames("") is None
     assert parse_frames("5") == slice(5, 6)
+    assert list(range(10))[parse_frames("-1")] == [9] and list(range(10))[parse_frames("-2")] == [8]  # from the end
     assert parse_frames("0:40") == slice(0, 40) and parse_frames("::2") == slice(None, None, 2)
     for bad, message in (("0:4:0", "step must be"), ("0:4:-1", "step must be"), ("a:b", "expected A:B"),
                          ("1:2:3:4", "expected A:B"), ("x", "expected A:B")):

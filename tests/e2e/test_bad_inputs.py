@@ -421,6 +421,18 @@ CASES = [
     ("config: adaptive budget below a view", lambda t: ["adaptive", scene(t, DEMO + "\n[adaptive]\nmax_profiles = 10\n"),
                                                         "--engine", "raycast", "--out", str(t / "out")], 2,
      "raise --max-profiles, or [adaptive] max_profiles, to at least"),
+    # from a bug hunt in the loaders (an OpenCV assertion at the first frame, an OverflowError,
+    # a device ignored, a UnicodeError at the first IK call)
+    ("config: steger without smoothing", demo_with('method = "gauss"', 'method = "steger"\nsmoothing_px = 0.0'), 2,
+     'detect.smoothing_px: 0 is not allowed with method "steger"'),
+    ("config: a number of 400 digits", demo_with("a_mm = -500.0", "a_mm = 1" + "0" * 400), 2,
+     "table.a_mm: 1" + "0" * 400 + " is not allowed; it must be a finite number"),
+    ("config: a GPU device for Eevee", demo_with('engine = "cycles"', 'engine = "eevee"\ndevice = "OPTIX"'), 2,
+     "render.device: 'OPTIX' picks Cycles' render device"),
+    ("config: controller host too long",
+     lambda t: ["scan", scene(t, DEMO.replace('rig = "adept_viper_s650"', 'rig = "adept_viper_s650"\nik = "controller"', 1)
+                            + '\n[robot.controller]\nhost = "' + "a" * 64 + '.local"\n')], 2,
+     "robot.controller.host: 'aaaa"),
     ("config: controller IK without host", demo_with('rig = "adept_viper_s650"',
                                                    'rig = "adept_viper_s650"\nik = "controller"'), 2, "controller"),
     # probe rigs

@@ -434,6 +434,15 @@ def _waypoints(n: int) -> "Waypoints":
     (lambda: Scanner.from_config("demo", engine="raycast").turn_table(1e20), "within ±3600"),
     (lambda: Scanner.from_config("demo", engine="raycast").turn_table_to(-1e300), "within ±3600"),
     (lambda: list(Scanner.from_config("demo", engine="raycast").measurements(first=-5)), "measurements(first)"),
+    # a pose as (xyz, yzz) of the wrong kind, a complex angle, result()'s own arguments (a
+    # bug hunt: ValueErrors and TypeErrors, a ComplexWarning and the real part taken)
+    (lambda: Scanner.from_config("demo", engine="raycast").move_to((["a", 0, 210], [90, 180, 0])), "three finite"),
+    (lambda: Scanner.from_config("demo", engine="raycast").check_move_to(([1, [2], 3], [90, 180, 0])), "three finite"),
+    (lambda: Scanner.from_config("demo", engine="raycast").turn_table(np.complex128(1)), "finite number of degrees"),
+    (lambda: Scanner.from_config("demo", engine="raycast").result(out_dir=5), "output folder"),
+    (lambda: Scanner.from_config("demo", engine="raycast").result(extra=5), "extra must be a dict"),
+    (lambda: Scanner.from_config("demo", engine="raycast").config.__class__ and setattr(
+        Scanner.from_config("demo", engine="raycast"), "config", "demo"), "must be a ScanConfig"),
     # Paths built by hand (a review: a broadcast ValueError, an IndexError, an AttributeError,
     # a TypeError, or a NaN blamed on the joints)
     (lambda: Scanner.from_config("demo", engine="raycast").plan_path([1, 2, 3]), "a path is Waypoints"),
@@ -546,3 +555,29 @@ def test_the_demo_arm_given_as_an_object_starts_where_it_does_by_name():
     base = np.eye(4)
     base[2, 3] = 400.0
     assert Scanner(robot=load_robot("adept_viper_s650").with_base(base)).config.q_start is None
+
+
+def test_the_report_follows_moves_extras_and_a_replaced_config():
+    """A bug hunt's sequences: a move after a report changed no clearance in the next one; an
+    extra given to result() once stayed in every later report; a config replaced on the
+    Scanner still scanned the old part (its ray caster kept); turn_table_to landed a hair off."""
+    from addon.core.geometry.workpiece import builtin_workpiece
+
+    s = Scanner.from_config("demo", engine="raycast")
+    s.move_to(([12.0, 0.0, 210.0], [90.0, 180.0, 0.0]))
+    s.measure()
+    far = s.report().to_dict()["clearance"]["nearest"]["clearance_mm"]
+    s.move_to(([12.0, 0.0, 150.0], [90.0, 180.0, 0.0]))  # nearer the sphere, nothing measured
+    near = s.report().to_dict()["clearance"]["nearest"]["clearance_mm"]
+    now = min(c.distance_mm for c in s.clearance().nearest.values())
+    assert near < far - 30.0 and near == pytest.approx(now, abs=1e-3)
+    assert s.result(extra={"note": "A"}).report["note"] == "A"
+    assert "note" not in s.result().report
+    s.turn_table(0.1)
+    assert s.turn_table_to(30.0) == 30.0 and s.table_deg == 30.0
+    s.turn_table_to(0.0)
+    s.move_to(([12.0, 0.0, 210.0], [90.0, 180.0, 0.0]))
+    s.config = replace(s.config, workpiece=builtin_workpiece("step_block"))
+    top = float(s.config.workpiece.mesh.bounds[1][2])
+    points = s.measure().points
+    assert len(points) and points[:, 2].max() <= top + 0.05  # the block's, not the sphere's (its top at 60)

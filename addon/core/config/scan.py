@@ -69,7 +69,7 @@ from ..config.rigs import load_robot
 from ..optics.probe import MAX_PIXELS, Probe
 from .render import (DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions, laser_engine_mismatch,
                      raycast_mismatch, with_sensor)
-from .rigs import load_probe
+from .rigs import URDF_SUFFIXES, load_probe
 from ..optics.sensor import BIT_DEPTHS, SensorModel
 from ..optics.profile_filter import ProfileFilter
 from ..optics.triangulate import TRIANGULATION_METHODS
@@ -308,7 +308,7 @@ def parse_frames(text: str | None, what: str = "frames") -> slice | None:
     except ValueError:
         values = []
     if len(parts) == 1 and values and values[0] is not None:
-        return slice(values[0], values[0] + 1)
+        return slice(values[0], values[0] + 1 if values[0] != -1 else None)  # "-1": the last frame
     if len(values) not in (2, 3):
         raise InputError(f"{what} {text!r}: expected A:B or A:B:STEP with whole numbers (e.g. 0:40 or ::2)")
     if len(values) == 3 and values[2] is not None and values[2] < 1:
@@ -317,9 +317,10 @@ def parse_frames(text: str | None, what: str = "frames") -> slice | None:
 
 
 def _rig_path(base: Path, value: str) -> str:
-    """A rig given as a path is relative to the config file; a bare name is a bundled rig."""
-    if "/" in value or "\\" in value or value.endswith(".toml"):
-        p = Path(value)
+    """A rig given as a path or a file name (.toml, .urdf, .xml) is relative to the config file
+    (``~`` is the home folder); a bare name is a bundled rig."""
+    if "/" in value or "\\" in value or value.lower().endswith((".toml",) + URDF_SUFFIXES) or value.startswith("~"):
+        p = Path(value).expanduser()
         return str(p if p.is_absolute() else (base / p))
     return value
 
@@ -363,7 +364,15 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
             raise ConfigError(f"{path}: robot.start_deg: {'; '.join(outside)} (the robot's limits)")
     if rt.string("ik", default="local", choices=["local", "controller"]) == "controller":
         ct = rt.table("controller", default={})
-        controller = Controller(ct.string("host", default="127.0.0.1"),
+        host = ct.string("host", default="127.0.0.1")
+        try:  # a name a resolver can take (not empty, labels of 1-63 characters)
+            ok = 0 < len(host.encode("idna")) <= 253
+        except UnicodeError:
+            ok = False
+        if not ok:
+            raise ct.error("host", f"{host!r} is not a host name or address (1-253 characters, each dot-separated "
+                                   f"part 1-63)")
+        controller = Controller(host,
                                 ct.integer("port", default=DEFAULT_PORT, lo=1, hi=65535),
                                 ct.number("timeout_s", default=2.0, lo=0.0, hi=600.0, lo_open=True))
         ct.finish()
@@ -574,7 +583,7 @@ def _render(t: Table) -> tuple[RenderOptions, tuple[int, int] | None]:
     engine = t.string("engine", default="cycles", choices=ENGINES)
     opts = RenderOptions(
         engine=engine,
-        device=t.string("device", default="CPU", choices=DEVICES),
+        device=t.string("device", default="CPU", choices=DEVICES),  # Cycles' only (checked below)
         samples=t.integer("samples", default=1, lo=1, hi=65536),
         pixel_filter=t.string("pixel_filter", default="BOX", choices=PIXEL_FILTERS),
         filter_width_px=t.number("filter_width_px", default=0.01, lo=0.01, hi=10.0),
@@ -583,6 +592,9 @@ def _render(t: Table) -> tuple[RenderOptions, tuple[int, int] | None]:
         laser=t.string("laser", default=DEFAULT_LASER[engine], choices=LASERS),
         laser_peak=t.number("laser_peak", default=0.5, lo=0.0, hi=1e3, lo_open=True),
     )
+    if opts.device != "CPU" and engine != "cycles":  # as the command line's --device
+        raise t.error("device", f"{opts.device!r} picks Cycles' render device, and this config renders with {engine}: "
+                                f"leave device out, or set engine = \"cycles\"")
     resolution = None
     if t.has("resolution"):  # the same optics on another sensor: [W, H] = [columns, rows]
         w, h = t.numbers("resolution", 2, lo=2, hi=MAX_PIXELS)
@@ -606,6 +618,9 @@ def _detect(t: Table) -> tuple[str, DetectParams]:
         smoothing_px=t.number("smoothing_px", default=None, lo=0.0, hi=100.0),
         saturation=np.inf,  # renders are linear float: nothing clips unless a sensor model says so
     )
+    if method == "steger" and params.smoothing_px == 0.0:  # its ridge test takes the smoothed Hessian
+        raise t.error("smoothing_px", "0 is not allowed with method \"steger\", whose ridge test works on the "
+                                      "smoothed image; allowed (0, 100] px, or leave it out (matched to the line)")
     t.finish()
     return method, params
 

@@ -135,7 +135,10 @@ class Table:
     def _check_number(self, key, value, lo, hi, lo_open, hi_open, nonzero, where: str = "") -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(key, f"{where}{_describe(value)} is not a number")
-        v = float(value)
+        try:
+            v = float(value)
+        except OverflowError:  # a TOML integer of 309 digits or more
+            v = math.inf if value > 0 else -math.inf
         if not math.isfinite(v):
             raise self.error(key, f"{where}{value} is not allowed; it must be a finite number")
         bad_lo = lo is not None and (v <= lo if lo_open else v < lo)
