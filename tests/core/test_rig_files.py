@@ -241,3 +241,50 @@ def test_a_laser_plane_normal_not_of_unit_length_keeps_its_plane():
     assert scaled.plane_offset_mm == pytest.approx(cal.plane_offset_mm, abs=1e-12)
     shifted = ProbeCalibration(cal.cameras, [2.0, 0.0, 0.0], 10.0, "test")
     assert shifted.plane_offset_mm == pytest.approx(5.0)
+
+
+def test_a_calibration_made_at_the_configs_resolution_is_taken(tmp_path):
+    """[probe] calibration made on a 320x240 sensor with [render] resolution = [320, 240]: the
+    resolution is applied first, then the calibration (it was the other way round, and every
+    calibration at another size than the rig's was refused, the right one too)."""
+    from dataclasses import replace
+
+    from addon.core.config.rigs import load_probe, probe_toml
+    from addon.core.config.scan import load_scan_config
+    from addon.core.optics.calibrated import ProbeCalibration
+
+    repo = Path(__file__).resolve().parents[2]
+    demo = (repo / "rigs" / "scenes" / "demo.toml").read_text()
+    at_320 = load_probe("default").with_resolution(240, 320)
+    (tmp_path / "cal320.toml").write_text(probe_toml(replace(at_320, calibration=ProbeCalibration.of(at_320))))
+    text = demo.replace('rig = "default"', 'rig = "default"\ncalibration = "cal320.toml"', 1).replace(
+        "[render]", "[render]\nresolution = [320, 240]", 1)
+    (tmp_path / "scene.toml").write_text(text)
+    cfg = load_scan_config(tmp_path / "scene.toml")
+    assert (cfg.probe.cols_px, cfg.probe.rows_px) == (320, 240) and cfg.probe.calibration is not None
+    # the same calibration with the rig's own sensor size: refused, naming the file and the key
+    (tmp_path / "scene160.toml").write_text(text.replace("resolution = [320, 240]", "resolution = [160, 160]", 1))
+    with pytest.raises(ConfigError, match=r"scene160.toml: probe.calibration: .*cal320.toml"):
+        load_scan_config(tmp_path / "scene160.toml")
+    # a probe rig that carries its own calibration, at another resolution: the key is named
+    (tmp_path / "scene_rig.toml").write_text(demo.replace('rig = "default"', 'rig = "cal320.toml"', 1))
+    (tmp_path / "scene_rig.toml").write_text((tmp_path / "scene_rig.toml").read_text().replace(
+        "[render]", "[render]\nresolution = [160, 160]", 1))
+    with pytest.raises(ConfigError, match=r"scene_rig.toml: render.resolution: .*calibration"):
+        load_scan_config(tmp_path / "scene_rig.toml")
+
+
+def test_speckle_takes_the_probes_laser_wavelength_unless_the_sensor_sets_one(tmp_path):
+    """A probe rig's [laser] wavelength_nm was checked and never used: speckle read [sensor]
+    wavelength_nm (650 nm) whatever the laser was."""
+    from addon.core.config.scan import load_scan_config
+
+    repo = Path(__file__).resolve().parents[2]
+    probe = (repo / "rigs" / "probes" / "default.toml").read_text()
+    assert "wavelength_nm = 650.0" in probe
+    (tmp_path / "green.toml").write_text(probe.replace("wavelength_nm = 650.0", "wavelength_nm = 532.0", 1))
+    demo = (repo / "rigs" / "scenes" / "demo.toml").read_text().replace('rig = "default"', 'rig = "green.toml"', 1)
+    (tmp_path / "scene.toml").write_text(demo + "\n[sensor]\nspeckle = true\n")
+    assert load_scan_config(tmp_path / "scene.toml").sensor.wavelength_nm == 532.0
+    (tmp_path / "own.toml").write_text(demo + "\n[sensor]\nspeckle = true\nwavelength_nm = 905.0\n")
+    assert load_scan_config(tmp_path / "own.toml").sensor.wavelength_nm == 905.0

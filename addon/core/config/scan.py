@@ -33,7 +33,7 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
                  speckle, defocus, distortion = [k1, k2, p1, p2(, k3)], undistort, motion_blur, and
                  exposure_ms, auto_exposure, target_peak, gain, bit_depth, full_well_e,
                  electrons_per_unit, read_noise_e, dark_offset_dn, prnu, sensor_width_mm,
-                 pixel_pitch_um, f_number, focus_mm, wavelength_nm, frame_rate_hz, seed
+                 pixel_pitch_um, f_number, focus_mm, wavelength_nm (default: the probe's [laser]), frame_rate_hz, seed
                  (see addon.core.optics.sensor)
     [adaptive]   what the adaptive planner is told: box_min_mm, box_max_mm (the part's bounding box,
                  table frame) or radius_mm, height_mm (a cylinder on the table's axis), max_profiles
@@ -386,8 +386,8 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
         raise ConfigError(f"{path}: probe.rig: {exc}") from None
     if pt.has("mount"):
         probe = replace(probe, mount=pt.pose("mount"))
-    if pt.has("calibration"):
-        probe = with_calibration(probe, _rig_path(base, pt.string("calibration")), f"{path}: probe.calibration")
+    # Applied once [render] resolution has set the sensor (a calibration is made at one size).
+    calibration = _rig_path(base, pt.string("calibration")) if pt.has("calibration") else None
     pt.finish()
 
     tt = top.table("table", default={})
@@ -402,7 +402,12 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     waypoints = _paths(top, table)
     render, resolution = _render(top.table("render", default={}))
     if resolution is not None:
-        probe = probe.with_resolution(resolution[1], resolution[0])
+        try:
+            probe = probe.with_resolution(resolution[1], resolution[0])
+        except InputError as exc:  # a probe rig that carries its own calibration
+            raise ConfigError(f"{path}: render.resolution: {exc}") from None
+    if calibration is not None:
+        probe = with_calibration(probe, calibration, f"{path}: probe.calibration")
     detect_method, detect = _detect(top.table("detect", default={}))
     tri = top.table("triangulate", default={})
     tri_method = tri.string("method", default="exact", choices=TRIANGULATION_METHODS)
@@ -422,7 +427,11 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
                          lo.boolean("hide_robot", default=True), lo.integer("chunk_frames", default=8, lo=1, hi=10000),
                          lo.integer("band_margin_px", default=6, lo=0, hi=10000))
     lo.finish()
-    sensor = _sensor(top.table("sensor", default={}))
+    st = top.table("sensor", default={})
+    own_wavelength = st.has("wavelength_nm")
+    sensor = _sensor(st)
+    if not own_wavelength:  # speckle's wavelength is the probe's laser's ([laser] wavelength_nm) unless set here
+        sensor = replace(sensor, wavelength_nm=probe.wavelength_nm)
     st = top.table("safety", default={})
     safety = Safety(st.boolean("check", default=True),
                     st.number("min_clearance_mm", default=Safety().min_clearance_mm, lo=0.0, hi=1e4))
