@@ -66,7 +66,7 @@ def sensor_from(s) -> SensorModel:
                        undistort=s.sensor_undistort, exposure_ms=s.sensor_exposure_ms,
                        auto_exposure=s.sensor_auto_exposure, target_peak=s.sensor_target_peak, gain=s.sensor_gain,
                        bit_depth=int(s.sensor_bit_depth), f_number=s.sensor_f_number, focus_mm=s.sensor_focus_mm or None,
-                       seed=s.sensor_seed)
+                       seed=s.sensor_seed, wavelength_nm=probe_from(s).wavelength_nm)  # speckle: the laser's, as a config's
 
 
 def check_table_angle(s) -> None:
