@@ -228,21 +228,6 @@ def test_a_urdf_rig_and_a_home_path_are_read_from_the_configs_folder(tmp_path, m
     assert load_scan_config(here / "home.toml").robot.prismatic == (False,) * 6
 
 
-def test_a_laser_plane_normal_not_of_unit_length_keeps_its_plane():
-    """[calibration.laser] normal = [2, 0, 0] with offset_mm = 10 is the plane 2x = 10, x = 5
-    (the normal was made unit length and the offset kept: x = 10)."""
-    from addon.core.optics.calibrated import ProbeCalibration
-    from addon.core.config.rigs import load_probe
-
-    probe = load_probe("default")
-    cal = ProbeCalibration.of(probe)
-    scaled = ProbeCalibration(cal.cameras, 2.0 * np.asarray(cal.plane_normal), 2.0 * cal.plane_offset_mm + 0.0, "test")
-    np.testing.assert_allclose(scaled.plane_normal, cal.plane_normal, atol=1e-12)
-    assert scaled.plane_offset_mm == pytest.approx(cal.plane_offset_mm, abs=1e-12)
-    shifted = ProbeCalibration(cal.cameras, [2.0, 0.0, 0.0], 10.0, "test")
-    assert shifted.plane_offset_mm == pytest.approx(5.0)
-
-
 def test_a_calibration_made_at_the_configs_resolution_is_taken(tmp_path):
     """[probe] calibration made on a 320x240 sensor with [render] resolution = [320, 240]: the
     resolution is applied first, then the calibration (it was the other way round, and every

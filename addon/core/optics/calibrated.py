@@ -84,9 +84,10 @@ class ProbeCalibration:
     """A probe's calibration: two cameras and the laser plane n·x = offset (probe frame, mm).
 
     cameras : (camera 0, camera 1)
-    plane_normal : (3,) normal of the laser plane, pointing towards camera 0's side (made unit
-        length, the offset divided by the same: n·x = offset stays the plane given)
-    plane_offset_mm : the plane's signed distance from the probe origin along the normal
+    plane_normal : (3,) the laser plane's normal, pointing towards camera 0's side: a direction,
+        made unit length (probe.toml's ``normal`` may be given at any length)
+    plane_offset_mm : the plane's signed distance (mm) from the probe origin along that unit
+        normal, as given (not scaled with the normal's length)
     source : how it was obtained (for people)
     """
 
@@ -105,7 +106,7 @@ class ProbeCalibration:
         d = float(self.plane_offset_mm)
         if not np.isfinite(d):
             raise InputError(f"laser plane offset must be a finite number of mm, got {self.plane_offset_mm!r}")
-        n, d = n / norm, d / norm  # the plane n·x = d: a normal not of unit length scales its offset too
+        n = n / norm  # a direction: the offset is a distance in mm along it, whatever the length given
         n.setflags(write=False)
         object.__setattr__(self, "cameras", tuple(self.cameras))
         object.__setattr__(self, "plane_normal", n)
