@@ -784,7 +784,8 @@ class Scanner:
     def save(self, out_dir: str | Path) -> dict[str, Path]:
         """Write cloud.ply, report.json and preview.png into ``out_dir`` (each atomically);
         returns their paths."""
-        self._check_out_dir(out_dir)
+        if out_dir is None:  # result(None) would write nothing; result checks any other folder
+            raise InputError("save needs an output folder (a path), got None")
         return self.result(out_dir).files
 
     def _check_out_dir(self, out_dir) -> None:
