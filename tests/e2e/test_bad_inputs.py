@@ -329,6 +329,8 @@ CASES = [
      demo_with("fuse = true", "fuse = true\nmax_sigma_mm = -1.0"), 2, "max_sigma_mm"),
     ("config: sensor noise negative", demo_plus("[sensor]\nnoise = -0.5"), 2, "noise"),
     ("config: unknown sensor key", demo_plus("[sensor]\nblur = 2"), 2, "blur"),
+    ("config: defocus focused inside the lens", demo_plus("[sensor]\ndefocus = true\nfocus_mm = 1.0"), 2,
+     "scene.toml: sensor: defocus: [sensor] focus_mm 1 mm must lie beyond the lens's focal length"),
     ("config: safety clearance negative", demo_plus("[safety]\nmin_clearance_mm = -2.0"), 2,
      "min_clearance_mm"),
     ("config: fixture without file", demo_plus("[[fixture]]\nname = 'clamp'"), 2, "file"),
@@ -440,6 +442,9 @@ CASES = [
     ("probe: range NaN", probe_with("range_mm = [70.0, 250.0]", "range_mm = [nan, 250.0]"), 2, "range_mm"),
     ("probe: baseline zero", probe_with("a_mm = 60.0", "a_mm = 0.0"), 2, "a_mm"),
     ("probe: rows zero", probe_with("rows_px = 160", "rows_px = 0"), 2, "rows_px"),
+    ("probe: a sensor of 10 gigapixels", probe_with("rows_px = 160        # H: along the triangulation direction\n"
+                                                    "cols_px = 160", "rows_px = 100000\ncols_px = 100000"), 2,
+     "more than the 50,000,000 allowed"),
     ("probe: cols fractional", probe_with("cols_px = 160", "cols_px = 160.5"), 2, "cols_px"),
     ("probe: line width negative", probe_with("line_width_mm = 1.2", "line_width_mm = -1.2"), 2,
      "line_width_mm"),
@@ -481,6 +486,9 @@ CASES = [
      2, "workpiece.pose: the workpiece cube reaches 5.00 mm below the table top"),
     ("mesh: scale negative", lambda t: ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0',
                                         f'file = "{binary_stl_with_inf(t)}"\nscale = -1.0'))], 2, "scale"),
+    ("mesh: scale that overflows", lambda t: ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0',
+                                              f'file = "{good_cube_stl(t)}"\nscale = 1e308'))], 2,
+     "scale 1e+308 makes the mesh's coordinates overflow"),
     # 0 used to count as "not given" and the part was scanned at its file's own scale
     ("mesh: scale zero", lambda t: ["scan", scene(t, DEMO.replace('shape = "sphere"\nradius_mm = 30.0',
                                     f'file = "{good_cube_stl(t)}"\nscale = 0'))], 2, "allowed > 0"),

@@ -432,6 +432,11 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     sensor = _sensor(st)
     if not own_wavelength:  # speckle's wavelength is the probe's laser's ([laser] wavelength_nm) unless set here
         sensor = replace(sensor, wavelength_nm=probe.wavelength_nm)
+    if sensor.defocus:  # a focus the lens cannot reach is refused here, not at the scan's start
+        try:
+            sensor.spread_px(probe)
+        except InputError as exc:
+            raise ConfigError(f"{path}: sensor: {exc}") from None
     st = top.table("safety", default={})
     safety = Safety(st.boolean("check", default=True),
                     st.number("min_clearance_mm", default=Safety().min_clearance_mm, lo=0.0, hi=1e4))

@@ -360,7 +360,12 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     if not np.isfinite(scale) or scale <= 0:
         raise InputError(f"{path}: scale must be a positive number, got {scale}")
     if scale != 1.0:
-        mesh.apply_scale(scale)
+        finite = np.isfinite(mesh.vertices).all()
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is named below, not warned of
+            mesh.apply_scale(scale)
+        if finite and not np.isfinite(mesh.vertices).all():  # the file's coordinates were fine
+            raise InputError(f"{path}: scale {scale:g} makes the mesh's coordinates overflow: give the factor from the "
+                             f"file's unit to mm (e.g. 1000 for metres, 25.4 for inches)")
     # A file's own, narrower size range first, so every part of the wrong size gets one message;
     # a scale given outright says the size is meant, within the wider range of any workpiece.
     extent = float(np.max(mesh.extents))

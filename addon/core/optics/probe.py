@@ -39,6 +39,7 @@ from .calibrated import NOMINAL_PLANE, CameraModel, ProbeCalibration
 
 CAMERAS = (0, 1)
 MAX_PIXELS = 100_000
+MAX_SENSOR_PIXELS = 50_000_000  # rows × columns at most: one float image of it is 200 MB
 MAX_OFFSET_MM = 1e5  # the farthest a camera may sit from the laser (a, b), as probe files allow
 EDGE_TOL_PX = TOL.sensor_edge_px
 HOUSING_MARGIN_MM = 30.0  # the housing reaches this much beyond the two cameras, in all
@@ -88,6 +89,9 @@ class Probe:
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 2 <= v <= MAX_PIXELS:
                 raise InputError(f"{who}: {key} must be a whole number of pixels in [2, {MAX_PIXELS}], got {v!r}")
             object.__setattr__(self, key, int(v))
+        if self.rows_px * self.cols_px > MAX_SENSOR_PIXELS:  # each side allowed, the whole would not fit in memory
+            raise InputError(f"{who}: a sensor of {self.cols_px} x {self.rows_px} px is {self.rows_px * self.cols_px:,} "
+                             f"pixels, more than the {MAX_SENSOR_PIXELS:,} allowed (rows_px x cols_px)")
         for key in ("a_mm", "b_mm"):  # as a probe file allows: a probe is not metres across
             if abs(getattr(self, key)) > MAX_OFFSET_MM:
                 raise InputError(f"{who}: {key} = {getattr(self, key):g} mm is beyond the ±{MAX_OFFSET_MM:g} mm a "
