@@ -91,7 +91,8 @@ class Probe:
             object.__setattr__(self, key, int(v))
         if self.rows_px * self.cols_px > MAX_SENSOR_PIXELS:  # each side allowed, the whole would not fit in memory
             raise InputError(f"{who}: a sensor of {self.cols_px} x {self.rows_px} px is {self.rows_px * self.cols_px:,} "
-                             f"pixels, more than the {MAX_SENSOR_PIXELS:,} allowed (rows_px x cols_px)")
+                             f"pixels, more than the {MAX_SENSOR_PIXELS:,} allowed (rows_px x cols_px): its images "
+                             f"would not fit in memory")
         for key in ("a_mm", "b_mm"):  # as a probe file allows: a probe is not metres across
             if abs(getattr(self, key)) > MAX_OFFSET_MM:
                 raise InputError(f"{who}: {key} = {getattr(self, key):g} mm is beyond the ±{MAX_OFFSET_MM:g} mm a "
