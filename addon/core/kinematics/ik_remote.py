@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ScannerError
+from ..errors import InputError, ScannerError
 from .ik import ROT_TOL_RAD, IKResult, default_pos_tol, pose_errors
 
 PROTOCOL = 1
@@ -48,6 +48,15 @@ class Controller:
     host: str = "127.0.0.1"
     port: int = DEFAULT_PORT
     timeout_s: float = 2.0
+
+    def __post_init__(self) -> None:
+        try:  # a name a resolver can take (not empty, labels of 1-63 characters)
+            ok = isinstance(self.host, str) and 0 < len(self.host.encode("idna")) <= 253
+        except UnicodeError:
+            ok = False
+        if not ok:
+            raise InputError(f"{self.host!r} is not a host name or address (1-253 characters, each dot-separated "
+                             f"part 1-63)")
 
     @property
     def where(self) -> str:
