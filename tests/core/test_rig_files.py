@@ -121,6 +121,14 @@ def test_missing_link_mesh_is_an_error(tmp_path):
         load_robot(path)
 
 
+def test_mesh_offset_without_a_mesh_is_an_error(tmp_path):
+    # It was dropped silently: the user meant to place a mesh the file never names.
+    path = write_rig(tmp_path, "")
+    path.write_text(path.read_text().replace("max_deg = 170.0", 'max_deg = 170.0\n[link.mesh_offset]\nxyz_mm = [0, 0, 5]', 1))
+    with pytest.raises(ConfigError, match=r"link\[1\].mesh_offset.*has none"):
+        load_robot(path)
+
+
 def test_rigs_are_read_once_and_again_only_when_the_file_changes(tmp_path, monkeypatch):
     import os
     import shutil

@@ -180,6 +180,9 @@ def _read_robot(path: Path) -> Robot:
                 raise t.error("mesh", f"no such file: {mesh_path}")
             else:
                 missing = True
+        if t.has("mesh_offset") and not t.has("mesh"):
+            raise t.error("mesh_offset", "places the link's mesh, and this link has none: give its mesh = \"FILE\" "
+                                         "or leave the offset out")
         meshes.append((mesh, t.pose("mesh_offset")))
         t.finish()
     base = top.pose("base")
