@@ -296,7 +296,8 @@ def _summary(cfg, board, fit, views, dropped, distortion, seconds) -> dict:
             "deviation": dev[f"camera{c}"]}
     out["laser"] = {"normal": fit.probe.calibration.plane_normal.tolist(),
                     "offset_mm": fit.probe.calibration.plane_offset_mm, "fit_rms_mm": fit.plane_rms_mm,
-                    "points": fit.plane_points, "views": fit.plane_views, "deviation": dev["laser"]}
+                    "points": fit.plane_points, "views": fit.plane_views, "std": dict(fit.plane_std),
+                    "deviation": dev["laser"]}
     out["triangulation_error"] = triangulation_error(truth, fit.probe, true_dist)
     return out
 
