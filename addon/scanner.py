@@ -172,6 +172,7 @@ class Scanner:
         self._clearances: list = []  # the collision check of every move and path (PathClearance)
         self._planner = None  # the adaptive planner of the last adaptive() call, to go on from
         self._planner_config = None  # the config that planner was made for
+        self._last_plan = None  # (what was planned, with clearance, the plan): _plan_waypoints
         # False: sweeps and paths are still refused where they would collide, but their nearest
         # clearance is not measured for the report (two thirds of a raycast sweep's time; a
         # training loop's choice, see headless/scan_env.py).
@@ -474,6 +475,14 @@ class Scanner:
                              f"got {type(wp).__name__}")
         if len(wp) == 0:
             raise InputError(f"the {what} has no waypoints: give at least one")
+        # The same waypoints planned again from the same joints and table angle with the same
+        # config plan the same (a planner asks plan_path whether a view is possible, then scans
+        # it: the Gym environment's steps planned every view twice, 30 % of a step's time).
+        key = (self._config, wp.probe2table.tobytes(), wp.table_rad.tobytes(), self._q.tobytes(), self._table_rad)
+        memo = self._last_plan
+        if memo is not None and memo[0][0] is key[0] and memo[0][1:] == key[1:] and (memo[1] or not record):
+            q, table_rad, found = memo[2]
+            return q.copy(), table_rad.copy(), found
         sol = solve_path(self.config.cell, wp, self._q)
         if not sol.ok.all():
             from .pipeline import frame_ranges
@@ -482,7 +491,9 @@ class Scanner:
             raise UnreachablePose(f"{len(bad)} of {len(wp.table_rad)} poses of the {what} cannot be reached "
                                   f"(steps {frame_ranges(bad)}): {sol.messages[bad[0]]}")
         found = self._check_path(sol.q, wp.table_rad, what, record=record)
-        return np.asarray(sol.q, dtype=np.float64), np.asarray(wp.table_rad, dtype=np.float64), found
+        q, table_rad = np.array(sol.q, dtype=np.float64), np.array(wp.table_rad, dtype=np.float64)
+        self._last_plan = (key, record, (q.copy(), table_rad.copy(), found))
+        return q, table_rad, found
 
     def prepare_checks(self) -> None:
         """Build the cell's collision model now rather than inside the first collision check

@@ -95,8 +95,8 @@ class ScanPlanningEnv(gym.Env):
         grid = check_whole(grid, "grid (cells per side of the observation)", 2, 256)
         max_steps = check_whole(max_steps, "max_steps (sweeps per episode)", 1, 10**5)
         for value, what in ((time_cost, "time_cost"), (refusal_cost, "refusal_cost")):
-            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= value < float("inf"):
-                raise InputError(f"{what} must be a finite number ≥ 0, got {value!r}")
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= _as_float(value) < float("inf"):
+                raise InputError(f"{what} must be a finite number ≥ 0, got {_short(value)}")
         if not isinstance(turn_part, (bool, np.bool_)):
             raise InputError(f"turn_part must be True or False, got {turn_part!r}")
         if isinstance(config, (str, os.PathLike)):
@@ -147,13 +147,17 @@ class ScanPlanningEnv(gym.Env):
         lo, hi = part_box(config)
         settings = config.adaptive  # the model's cell and the gain a view must promise, as the command's
         self.planner = NextBestView(self.scanner, lo, hi, min_gain=settings.min_gain, voxel_mm=settings.voxel_mm)
-        self._by_key = {c.key: c for c in self.planner.pool}
-        self._scanned: set = set()  # views scanned this episode (their keys)
-        self.profiles, self.steps, self._ended = 0, 0, None
         smallest = self.planner.smallest_view()
         if smallest > self.max_profiles:
+            self.__dict__.pop("_by_key", None)  # no step, mask or reference action until a reset that works
             raise InputError(f"max_profiles {self.max_profiles} is below the smallest view's {smallest} profiles on "
                              f"{self.config.name}: every action would be refused (give at least {smallest})")
+        self._by_key = {c.key: c for c in self.planner.pool}
+        # Views scanned this episode, by key, as they were scanned: one asked for again is
+        # scanned the same way (a table turn first scanned before the part's radius was known,
+        # laid out anew with fewer profiles, found new cells and earned a reward though masked).
+        self._scanned: dict = {}
+        self.profiles, self.steps, self._ended = 0, 0, None
         return self._observation(), self._info({"sweep": None, "refused": None}, 0, 0)
 
     def _info(self, info: dict, learnt: int, found: int) -> dict:
@@ -207,15 +211,17 @@ class ScanPlanningEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         a = np.asarray(action)
         if a.shape != (3,) or a.dtype.kind not in "iu" or not self.action_space.contains(a.astype(np.int64)):
-            raise InputError(f"action {action!r} is not in the action space {self.action_space}: three integers "
+            raise InputError(f"action {_short(action)} is not in the action space {self.action_space}: three integers "
                              f"(an integer array, as action_space.sample() gives; floats are not taken, whole ones "
                              f"neither), a table step 0..{next_view.TABLE_STEPS - 1}, a view 0..{len(self.tilts) - 1} "
                              f"and the kind (0 a sweep, 1 a table turn)")
         if self._ended:
             raise InputError(f"the episode has ended ({self._ended}); call reset() before the next step")
         table_step, view, kind = (int(v) for v in a)
-        c = self._by_key.get(self._key(table_step, view, kind))
-        c = None if c is None else self.planner.sized(c)  # a table turn laid out for the part as known now
+        key = self._key(table_step, view, kind)
+        c = self._by_key.get(key)
+        # a table turn laid out for the part as known now; a view done, as it was done
+        c = None if c is None else self._scanned.get(key) or self.planner.sized(c)
         self.steps += 1
         if c is None:  # a sweep steeper than next_view.MAX_SWEEP_TILT_DEG: only table turns look that low
             info = {"sweep": f"sweep at table {360.0 * table_step / next_view.TABLE_STEPS:.0f} deg, tilt "
@@ -232,7 +238,7 @@ class ScanPlanningEnv(gym.Env):
             seconds = next_view.seconds(c, self.scanner.table_deg, self.scanner.pose("table")[:3, 3])
             before = self._surface_cells()
             profiles, learnt = self.planner.scan(self.scanner, c)
-            self._scanned.add(c.key)
+            self._scanned[c.key] = c
             found = max(self._surface_cells() - before, 0)
             self.profiles += len(profiles)
             reward = found / 100.0 - self.time_cost * seconds
@@ -276,12 +282,32 @@ class ScanPlanningEnv(gym.Env):
 
     def reference_action(self) -> np.ndarray | None:
         """The reference planner's choice as an action (None: it would stop)."""
+        if not hasattr(self, "_by_key"):
+            raise RuntimeError("call reset() before reference_action()")
         c = self.planner.choose(self.scanner, self.max_profiles - self.profiles)
         if c is None:
             return None
         step = int(round(c.table_deg * next_view.TABLE_STEPS / 360.0)) % next_view.TABLE_STEPS
         view = min(range(len(self.tilts)), key=lambda v: abs(self.tilts[v] - c.tilt_deg))
         return np.array([step, view, 1 if c.kind == "turn" else 0])
+
+
+def _as_float(value) -> float:
+    """``value`` as a float; inf where it is too large for one (an integer of 400 digits)."""
+    try:
+        return float(value)
+    except OverflowError:
+        return float("inf")
+
+
+def _short(value) -> str:
+    """``value`` for a one-line message: its repr up to 80 characters, an array's shape and type
+    where its repr is longer or runs over lines."""
+    text = repr(value)
+    if len(text) <= 80 and "\n" not in text:
+        return text
+    a = np.asarray(value, dtype=object) if not isinstance(value, np.ndarray) else value
+    return f"(an array of shape {a.shape}, {a.dtype})" if a.ndim else text.replace("\n", " ")[:80] + "..."
 
 
 if ENV_ID not in gym.registry:  # a module imported twice (by path and by name) registers once
@@ -386,7 +412,9 @@ def run(args) -> int:
     actions the mask allows), their coverage curves printed one under the other."""
     check_whole(args.seeds, "--seeds", 1, 1000)
     check_whole(args.seed, "--seed", 0, 2 ** 63 - 1)  # Gymnasium's seeds are whole numbers from 0
+    check_whole(args.max_profiles, "--max-profiles", 1, MAX_PROFILES)
     env = ScanPlanningEnv(args.config, max_profiles=args.max_profiles, engine=args.engine)
+    env.reset(seed=args.seed)  # a budget below the smallest view is refused before anything is printed
     seeds = list(range(args.seed, args.seed + args.seeds))
     print(f"ScanPlanningEnv on {env.config.name}: {args.max_profiles} profiles per episode, "
           f"seed{'s' if len(seeds) > 1 else ''} {seeds[0]}{f'-{seeds[-1]}' if len(seeds) > 1 else ''}")

@@ -138,10 +138,43 @@ def test_an_action_outside_the_action_space_is_refused_in_one_line():
     with pytest.raises(RuntimeError, match="reset"):
         env.step([0, 0, 0])
     env.reset(seed=0)
-    for bad in ([8, 0, 0], [-1, 0, 0], [0, 7, 0], [0, 0, 2], [1.7, 0.2, 0], [0, 0], [10 ** 20, 0, 0]):
-        with pytest.raises(ValueError, match="not in the action space"):
+    for bad in ([8, 0, 0], [-1, 0, 0], [0, 7, 0], [0, 0, 2], [1.7, 0.2, 0], [0, 0], [10 ** 20, 0, 0],
+                np.zeros((50, 3), int), np.array([2 ** 64 - 1, 0, 0], dtype=np.uint64)):
+        with pytest.raises(ValueError, match="not in the action space") as info:
             env.step(bad)
+        assert "\n" not in str(info.value) and len(str(info.value)) < 400, str(info.value)
     assert env.profiles == 0 and env.steps == 0  # nothing scanned, nothing counted
+
+
+def test_a_reset_that_was_refused_leaves_no_episode_to_step_and_huge_costs_are_named():
+    env = ScanPlanningEnv("demo", max_profiles=10, engine="raycast")
+    with pytest.raises(RuntimeError, match="reset"):
+        env.reference_action()
+    with pytest.raises(InputError, match="below the smallest view"):
+        env.reset(seed=0)
+    for call in (lambda: env.step(np.array([1, 2, 0])), env.action_mask, env.reference_action):
+        with pytest.raises(RuntimeError, match="reset"):
+            call()
+    with pytest.raises(InputError, match="time_cost"):
+        ScanPlanningEnv("demo", time_cost=10 ** 400)
+
+
+def test_a_view_scanned_again_is_scanned_as_it_was_and_finds_nothing():
+    """The 45° turn, first scanned before the part's radius was known (laid out at the box's
+    corner), asked for again once it is known: the same profiles, nothing new, a penalty (it
+    was laid out anew with fewer profiles, found new cells and earned a reward though masked)."""
+    env = ScanPlanningEnv("demo", max_profiles=600, engine="raycast")
+    env.reset(seed=0)
+    turn = np.array([0, env.tilts.index(45.0), 1])
+    _, first, _, _, info = env.step(turn)
+    assert info["refused"] is None and first > 0
+    frames = info["profiles"]
+    env.step(np.array([0, env.tilts.index(75.0), 1]))
+    assert not env.action_mask()[tuple(turn)]
+    before = env.profiles
+    _, again, _, _, info = env.step(turn)
+    assert info["refused"] is None and info["new_surface_cells"] == 0 and again < 0
+    assert env.profiles - before == frames
 
 
 def test_the_reward_pays_for_surface_found_and_info_keeps_its_keys_and_the_grid_its_surface():

@@ -581,3 +581,27 @@ def test_the_report_follows_moves_extras_and_a_replaced_config():
     top = float(s.config.workpiece.mesh.bounds[1][2])
     points = s.measure().points
     assert len(points) and points[:, 2].max() <= top + 0.05  # the block's, not the sphere's (its top at 60)
+
+
+def test_a_path_asked_about_and_then_scanned_is_planned_once(monkeypatch):
+    """plan_path then scan_path of the same waypoints from the same pose solves the path once
+    (the Gym environment's steps solved every view twice); a move between them, or a scan that
+    wants the clearance the question did not measure, plans again; the plan handed out is the
+    caller's to change."""
+    from addon.core.kinematics import path as path_module
+
+    calls = []
+    real = path_module.solve_path
+    monkeypatch.setattr(path_module, "solve_path", lambda *a, **k: calls.append(1) or real(*a, **k))
+    s = Scanner.from_config("demo", engine="raycast")
+    s.keep_clearance = False
+    wp = scanpath.sweep(6, [-20.0, 0.0, 210.0], [20.0, 0.0, 210.0])
+    q, table_rad = s.plan_path(wp)
+    q[:] = 0.0  # the caller's copy
+    assert len(s.scan_path(wp)) == 6 and len(calls) == 1
+    assert np.abs(s.plan_path(wp)[0]).max() > 0 and len(calls) == 2  # the robot moved: planned again
+    s.keep_clearance = True
+    s.turn_table(10.0)
+    s.plan_path(wp)
+    s.scan_path(wp)
+    assert len(calls) == 4 and s.result().report["clearance"] is not None
