@@ -71,6 +71,24 @@ def test_an_unknown_option_points_to_the_commands_own_help(command):
                                                   f"(see: python -m headless {where} --help)\n")
 
 
+@pytest.mark.parametrize("args, words", [
+    (("calibration", "--views", "5", "--readme"), "--views runs part of it"),
+    (("calibration", "--ideal-only", "--readme"), "--ideal-only runs part of it"),
+    (("stability", "--only", "kinematics", "--readme"), "--only runs part of it"),
+    (("parts", "--only", "nut", "--readme"), "--only runs part of it"),
+    (("accuracy", "--scenes", "plate", "--readme"), "--scenes runs part of it"),
+    (("realism", "--scenes", "demo", "--readme"), "--scenes runs part of it"),
+    (("parts", "--only", "zzzz"), "no part's name holds it; the parts: "),
+    (("calibration", "--views", "5", "1001"), "expected a whole number from 1 to 1000"),
+])
+def test_a_bench_refuses_a_partial_docs_table_and_a_bad_selection_before_any_work(args, words):
+    # (Each ran part of its table and then replaced the docs' whole table with it; --views
+    # 1001 was refused after the work for the others.)
+    out = run_cli("bench", *args)
+    assert out.returncode == 2 and "Traceback" not in out.stderr and out.stdout == "", out.stderr[-500:]
+    assert len(out.stderr.strip().splitlines()) == 1 and words in out.stderr, out.stderr
+
+
 def test_unknown_robot_name_lists_alternatives():
     out = run_cli("bench", "kinematics", "--robots", "abb_irb120", "--n", "10")
     assert out.returncode == 2
@@ -459,6 +477,10 @@ def test_gym_baselines_refuses_a_negative_seed_in_one_line():
     out = run_cli("gym-baselines", "--engine", "raycast", "--seed", "-1", "--max-profiles", "75")
     assert out.returncode == 2 and "Traceback" not in out.stderr
     assert out.stderr.strip().splitlines()[-1] == "error: --seed must be a whole number in [0, 9223372036854775807], got -1"
+    out = run_cli("gym-baselines", "--engine", "raycast", "--max-profiles", "-5")
+    assert out.returncode == 2 and out.stderr.strip().splitlines()[-1].startswith("error: --max-profiles must be")
+    out = run_cli("gym-baselines", "--engine", "raycast", "--max-profiles", "10")  # below the smallest view
+    assert out.returncode == 2 and "smallest view" in out.stderr and out.stdout == ""
 
 
 @needs_bpy

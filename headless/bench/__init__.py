@@ -22,3 +22,18 @@ def whole(lo: int = 1, hi: int = MAX_COUNT):
 
     parse.__name__ = "whole number"  # what argparse names in its message
     return parse
+
+
+def check_readme_whole(args: argparse.Namespace, **defaults) -> None:
+    """``--readme`` rewrites a docs table whole: refused with any of the options named (as
+    keyword = default value) given otherwise, since those run part of the table (the rest of
+    it was deleted from the page)."""
+    if not getattr(args, "readme", False):
+        return
+    given = [name for name, default in defaults.items() if getattr(args, name) != default]
+    if given:
+        from addon.core.errors import InputError
+
+        options = " and ".join(f"--{name.replace('_', '-')}" for name in given)
+        raise InputError(f"--readme rewrites the docs' whole table and {options} runs part of it: leave "
+                         f"{'it' if len(given) == 1 else 'them'} out, or --readme")

@@ -146,6 +146,9 @@ def run(args: argparse.Namespace) -> int:
 
     if args.frames < 2 or args.repeats < 1 or args.eevee_frames < 1:
         raise InputError("--frames must be at least 2, --repeats and --eevee-frames at least 1")
+    from headless.bench import check_readme_whole
+
+    check_readme_whole(args, scenes=",".join(SCENES), factors="")
     scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
     unknown = [s for s in scenes if s not in SCENES]
     if unknown or not scenes:

@@ -18,14 +18,14 @@ import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
-from headless.bench import whole
+from headless.bench import check_readme_whole, whole
 
 VIEWS = (5, 10, 20, 40)
 SCENES = (("tilted_plane", slice(None, None, 3), "plate"), ("demo", slice(None, None, 6), "sphere"))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--views", type=whole(), nargs="+", default=list(VIEWS), help="board poses per calibration")
+    parser.add_argument("--views", type=whole(1, 1000), nargs="+", default=list(VIEWS), help="board poses per calibration")
     parser.add_argument("--ideal-only", action="store_true", help="leave out the realistic sensor's rows")
     parser.add_argument("--readme", action="store_true", help="put the tables and the plot into docs/calibration.md")
     parser.set_defaults(run=run)
@@ -68,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from addon.core.config.scan import load_scan_config
     from addon.core.errors import CalibrationError
 
+    check_readme_whole(args, views=list(VIEWS), ideal_only=False)
     base = {name: load_scan_config(name) for name, _, _ in SCENES}
     realistic_sensor = load_scan_config("cylinder_realistic").sensor
     sensors = [("ideal", None)] + ([] if args.ideal_only else [("realistic", realistic_sensor)])

@@ -138,17 +138,22 @@ def picture(rows: list[dict], path) -> None:
 def run(args: argparse.Namespace) -> int:
     from headless.parts import all_parts
 
+    from addon.core.errors import InputError
+    from headless.bench import check_readme_whole
+
+    check_readme_whole(args, only="")
+    catalogue = all_parts()
+    wanted = [w.strip().lower() for w in args.only.split(",") if w.strip()]
+    picked = {n: m for n, m in catalogue.items() if not wanted or any(w in n.lower() for w in wanted)}
+    if not picked:
+        raise InputError(f"--only {args.only!r}: no part's name holds it; the parts: {', '.join(catalogue)}")
     rows = []
-    for name, mesh in all_parts().items():
-        if not any(want.strip().lower() in name.lower() for want in args.only.split(",")):
-            continue
+    for name, mesh in picked.items():
         row = measure_part(name, mesh, args.frames, args.probe)
         rows.append(row)
         print(f"{name}: {row['points']} points, RMS {row['rms']:.1f} um (floor {row['floor']:.1f}), "
               f"{row['outliers']} beyond 0.2 mm, {row['coverage_measurable'] * 100:.1f} % of the measurable surface, "
               f"dropped {row['dropped']}", flush=True)
-    if not rows:
-        raise SystemExit(f"error: no part's name contains {args.only!r}")
     command = f"python -m headless bench parts --frames {args.frames}" + (
         f" --probe {args.probe}" if args.probe != "default" else "")
     body = (f"Real parts ({command}; each part's own path: a table turn from above, two at 45° from the side, "

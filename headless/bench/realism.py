@@ -80,6 +80,9 @@ def run(args: argparse.Namespace) -> int:
         from addon.core.errors import InputError
 
         raise InputError("--frames, --repeats and --noise-frames must be at least 1")
+    from headless.bench import check_readme_whole
+
+    check_readme_whole(args, scenes="demo,step_block")  # (--only writes one section whole)
     sections = {}
     if args.only != "noise":
         sections["realism"] = scans(args)

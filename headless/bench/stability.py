@@ -590,6 +590,9 @@ def run_case(c: Case) -> Outcome:
 
 
 def run(args: argparse.Namespace) -> int:
+    from headless.bench import check_readme_whole
+
+    check_readme_whole(args, only=None)
     rows = []
     for c in CASES:
         if args.only and c.group != args.only:
