@@ -104,11 +104,14 @@ def test_calibrated_probe_file_round_trip(tmp_path):
     cams = tuple(CameraModel(np.array([[331.0 + c, 0, 79.9], [0, 332.5, 80.1], [0, 0, 1]]),
                              [0.01, -0.002, 1e-4, -2e-4, 0.0], trans(0.2, 0.1, -0.3) @ PROBE.cam2probe(c))
                  for c in (0, 1))
-    probe = replace(PROBE, name='odd "name"', calibration=ProbeCalibration(cams, n, 0.25, "test"))
+    # Names as users give them: quotes, a backslash, a tab, a control character, an emoji
+    # (JSON's escaping wrote it as two surrogates, which no TOML reader takes).
+    probe = replace(PROBE, name='odd "name" \\ 🔧\t\x01\x7f', source="ü 𝛑",
+                    calibration=ProbeCalibration(cams, n, 0.25, "test 🔧"))
     path = tmp_path / "probe.toml"
-    path.write_text(probe_toml(probe))
+    path.write_text(probe_toml(probe), encoding="utf-8")
     back = load_probe(path)
-    assert back.name == probe.name and back.calibration.source == "test"
+    assert back.name == probe.name and back.source == probe.source and back.calibration.source == "test 🔧"
     assert abs(back.phi_rad - PROBE.phi_rad) < 1e-15 and np.abs(back.mount - PROBE.mount).max() < 1e-12
     for a, b in zip(back.calibration.cameras, cams):
         assert np.abs(a.K - b.K).max() < 1e-12

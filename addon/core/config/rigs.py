@@ -9,7 +9,6 @@ Loaded rigs are cached by path and file time, so a panel redraw reads no file.
 from __future__ import annotations
 
 import functools
-import json
 import os
 import math
 from pathlib import Path
@@ -340,4 +339,18 @@ def probe_toml(probe: Probe) -> str:
 
 
 def _quoted(text: str) -> str:
-    return json.dumps(text)  # a JSON string is a valid TOML basic string
+    """``text`` as a TOML basic string. (JSON's escapes are TOML's too, except that JSON writes
+    a character beyond U+FFFF as two surrogates, which TOML refuses: a probe named with an
+    emoji was written into a file nothing could read.)"""
+    out = []
+    for ch in text:
+        code = ord(ch)
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif code < 0x20 or code == 0x7F:
+            out.append({"\n": "\\n", "\t": "\\t", "\r": "\\r"}.get(ch, f"\\u{code:04X}"))
+        elif 0xD800 <= code <= 0xDFFF:  # a lone surrogate (from a file name read with surrogateescape)
+            out.append("\uFFFD")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
