@@ -110,9 +110,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"ik-server: {robot.name} on {args.host}:{server.port} (protocol {PROTOCOL}); Ctrl-C stops it", flush=True)
     try:
         server.serve_forever()
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM through the command's stop handling
         print("ik-server: stopped", flush=True)
-        return 130
+        return getattr(exc, "exit_code", 130)
     finally:
         server.server_close()
     return 0

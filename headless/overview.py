@@ -5,15 +5,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from headless.bench import whole
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="out/cell_overview.png", help="PNG to write (default out/cell_overview.png)")
     parser.add_argument("--robot", default="adept_viper_s650", help="robot rig under rigs/robots/ (default adept_viper_s650)")
     parser.add_argument("--probe", default="default", help="probe rig under rigs/probes/ (default: default)")
     parser.add_argument("--workpiece", default="sphere", help="plane, sphere, cylinder or step_block")
-    parser.add_argument("--width", type=int, default=720, help="picture width in pixels (default 720)")
-    parser.add_argument("--height", type=int, default=480, help="picture height in pixels (default 480)")
-    parser.add_argument("--samples", type=int, default=24, help="Cycles samples per pixel (default 24)")
+    parser.add_argument("--width", type=whole(16, 8192), default=720, help="picture width in pixels, 16 to 8192 (default 720)")
+    parser.add_argument("--height", type=whole(16, 8192), default=480, help="picture height in pixels, 16 to 8192 (default 480)")
+    parser.add_argument("--samples", type=whole(1, 4096), default=24, help="Cycles samples per pixel, 1 to 4096 (default 24)")
     parser.add_argument("--scan", metavar="CONFIG",
                         help="first run this scan through the Scanner panel's operator and show the imported "
                              "cloud, framed on the table")
@@ -22,10 +24,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from addon.core.errors import InputError
+    from addon.core.files import check_output_file
     from addon.scene.overview import render_overview
     from addon.scene.session import new_scene
     from headless import demo_cell
 
+    check_output_file(args.out, "--out")  # before the render, not after
+    if args.frames and not args.scan:
+        raise InputError("--frames picks part of --scan's path: give --scan CONFIG too, or leave --frames out")
+    if args.scan:
+        from addon.core.config.scan import load_scan_config, parse_frames
+
+        # the config and --frames checked before Blender starts (the operator's error was a traceback)
+        load_scan_config(args.scan).with_overrides(frames=parse_frames(args.frames, "--frames"))
     scene = new_scene()
     if args.scan:
         return _with_scan(args, scene, render_overview)
@@ -49,7 +61,12 @@ def _with_scan(args, scene, render_overview) -> int:
         s = scene.scanner
         s.scan_config = "FILE"
         s.scan_file = str(load_scan_config(args.scan).source)
-        bpy.ops.scanner.scan(frames=args.frames)
+        try:
+            bpy.ops.scanner.scan(frames=args.frames)
+        except RuntimeError as exc:  # the operator's own report: its last line says what went wrong
+            from addon.core.errors import ScannerError
+
+            raise ScannerError(f"the Scanner panel's scan: {str(exc).strip().splitlines()[-1]}") from None
         cfg = load_scan_config(args.scan)
         sc = SceneCell.attach(scene, cfg.cell, cfg.probe, cfg.workpiece)
         cloud = bpy.data.objects["Scan cloud"]

