@@ -40,13 +40,26 @@ def supported_pythons() -> list[str]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--platforms", nargs="+", default=list(PLATFORMS), choices=PLATFORMS,
                         help="platforms to build for (default: all four)")
-    parser.add_argument("--out", default="dist", help="folder for the zips (default dist/)")
-    parser.add_argument("--pythons", nargs="+", default=None, metavar="X.Y",
+    parser.add_argument("--out", default="dist", type=folder_argument, help="folder for the zips (default dist/)")
+    parser.add_argument("--pythons", nargs="+", default=None, metavar="X.Y", type=python_version,
                         help="CPython versions the zip must carry compiled wheels for "
                              "(default: those of the supported Blender releases)")
     parser.add_argument("--blender-ext", default=os.environ.get("BLENDER_EXT_TOOL"), metavar="PATH",
                         help="Blender's blender_ext.py (default: $BLENDER_EXT_TOOL, else the one in the installed bpy)")
     parser.set_defaults(run=run)
+
+
+def folder_argument(text: str) -> str:
+    from headless.preflight import folder_argument as checked
+
+    return checked(text)
+
+
+def python_version(text: str) -> str:
+    """argparse type of --pythons: a CPython version as X.Y (3.11)."""
+    if not re.fullmatch(r"3\.\d{1,2}", text):
+        raise argparse.ArgumentTypeError(f"expected a CPython version as X.Y (e.g. 3.11), got {text!r}")
+    return text
 
 
 def blender_ext_tool(explicit: str | None = None) -> Path:
@@ -55,7 +68,10 @@ def blender_ext_tool(explicit: str | None = None) -> Path:
     if explicit:
         tool = Path(explicit)
         if not tool.is_file():
-            sys.exit(f"error: Blender's extension tool {tool} does not exist")
+            from addon.core.errors import InputError
+
+            raise InputError(f"--blender-ext {tool}: no such file (Blender's blender_ext.py, inside bpy at "
+                             f"<version>/scripts/addons_core/bl_pkg/cli/)")
         return tool
     spec = importlib.util.find_spec("bpy")  # locate the package without starting Blender
     if spec is None or not spec.origin:
@@ -150,9 +166,13 @@ def build(platforms: list[str], out: Path, pythons: list[str] | None = None, too
     needed = [w for w in wheels if wheel_for(w, platforms)]
     check_pythons(needed, platforms, pythons or supported_pythons())
     tool = blender_ext_tool(tool)
+    from addon.core.files import check_output_folder
+
+    check_output_folder(out, (), "--out")  # before the downloads
     for w in needed:
         fetch(w)
     out.mkdir(parents=True, exist_ok=True)
+    made = []
     with tempfile.TemporaryDirectory(prefix="scanner-ext-") as tmp:
         stage = Path(tmp) / manifest["id"]
         stage.mkdir()
@@ -163,14 +183,17 @@ def build(platforms: list[str], out: Path, pythons: list[str] | None = None, too
         for w in needed:
             shutil.copy2(WHEELS / w, stage / "wheels" / w)
         (stage / "blender_manifest.toml").write_text(staged_manifest(manifest_text, platforms, needed))
+        built = Path(tmp) / "built"  # then moved into --out: the zips of this run, not others there
+        built.mkdir()
         for step in (["validate", str(stage)],
-                     ["build", "--source-dir", str(stage), "--output-dir", str(out)]
+                     ["build", "--source-dir", str(stage), "--output-dir", str(built)]
                      + (["--split-platforms"] if len(platforms) > 1 else [])):
             res = subprocess.run([sys.executable, str(tool), *step], capture_output=True, text=True)
             if res.returncode != 0:
                 raise SystemExit(f"error: blender_ext {step[0]} failed:\n{res.stdout}{res.stderr}")
-    zips = sorted(out.glob(f"{manifest['id']}-{manifest['version']}*.zip"))
-    return zips
+        for z in sorted(built.glob("*.zip")):
+            made.append(Path(shutil.move(str(z), str(out / z.name))))
+    return made
 
 
 def run(args: argparse.Namespace) -> int:

@@ -646,8 +646,12 @@ def test_a_failed_write_says_no_results_were_written_and_which_shards_stay(tmp_p
     (("overview", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
     (("overview", "--out", "{tmp}/afile/x.png"), "afile is a file"),
     (("realism-figure", "--frame", "1", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
+    (("build-extension", "--pythons", "foo"), "expected a CPython version as X.Y"),
+    (("build-extension", "--out", ""), "an empty name is no folder"),
+    (("build-extension", "--blender-ext", "{tmp}/nope.py"), "nope.py: no such file"),
+    (("build-extension", "--out", "{tmp}/afile"), "is a file"),
 ])
-def test_picture_commands_refuse_bad_options_and_outputs_before_rendering(tmp_path, args, words):
+def test_commands_refuse_bad_options_and_outputs_before_any_work(tmp_path, args, words):
     # (--width 0 divided by zero; --frames abc was the panel operator's traceback; an --out
     # folder was found after the renders, and named a hidden temporary file)
     (tmp_path / "afile").write_text("x")
