@@ -151,7 +151,8 @@ def calibrate_steps(config: ScanConfig | str | Path, out_dir: str | Path | None 
               f"ChArUco board of {board.square_mm:g} mm squares" + (", lens distortion fitted" if distortion else ""))
     _refuse_clipped_boards(images, found, sensor)
     fit = calibrate_probe(truth, board, found, distortion=distortion, source=source)
-    fit.probe = replace(fit.probe, name=f"{truth.name} (calibrated)")
+    suffix = " (calibrated)"  # once: a calibrated probe calibrated again is not "(calibrated) (calibrated)"
+    fit.probe = replace(fit.probe, name=truth.name if truth.name.endswith(suffix) else truth.name + suffix)
     summary = _summary(cfg, board, fit, found, dropped, distortion, time.perf_counter() - t0)
     files = {}
     if out_dir is not None:

@@ -183,3 +183,20 @@ def test_an_overexposed_board_is_refused_with_an_exposure_hint(tmp_path, capsys)
     assert "found the board in 0 of 4" in err[0] and "clipped" in err[0] and "exposure_ms" in err[0], err
     assert "poses" not in err[0], err
     assert not (tmp_path / "cal").exists() or not any((tmp_path / "cal").iterdir())
+
+
+def test_a_calibrated_probe_given_as_the_rig_is_named_by_its_file_and_calibrates_again(calibrated, tmp_path):
+    """A probe.toml that calibrate wrote, given as a config's [probe] rig (not as its
+    calibration): the report names the file as for [probe] calibration (the summary read
+    "in calibrated in the cell of ..."), and calibrating that config again names the probe
+    "(calibrated)" once."""
+    run, out = calibrated
+    text = (REPO / "rigs" / "scenes" / "demo.toml").read_text()
+    assert 'rig = "default"' in text
+    config = tmp_path / "rig_calibrated.toml"
+    config.write_text(text.replace('rig = "default"', f'rig = "{(out / "probe.toml").as_posix()}"', 1))
+    cfg = load_scan_config(str(config))
+    assert cfg.probe.calibration.source.startswith(str((out / "probe.toml").resolve()))
+    assert "calibrated in the cell of" in cfg.probe.calibration.source
+    again = calibrate(str(config), None, views=8)
+    assert again.fit.probe.name.count("(calibrated)") == 1, again.fit.probe.name

@@ -377,9 +377,14 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
 
     pt = top.table("probe")
     try:
-        probe = load_probe(_rig_path(base, pt.string("rig")))
+        rig = _rig_path(base, pt.string("rig"))
+        probe = load_probe(rig)
     except ConfigError as exc:
         raise ConfigError(f"{path}: probe.rig: {exc}") from None
+    if probe.calibration is not None:  # a rig that carries its calibration: the report names its file
+        made = probe.calibration.source  # (as with [probe] calibration = FILE: with_calibration)
+        probe = replace(probe, calibration=replace(probe.calibration, source=f"{resolve_rig('probes', rig)}"
+                                                   + (f" ({made})" if made else "")))
     if pt.has("mount"):
         probe = replace(probe, mount=pt.pose("mount"))
     # Applied once [render] resolution has set the sensor (a calibration is made at one size).
