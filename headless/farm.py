@@ -135,15 +135,25 @@ def cluster_client(workers: int, scheduler: str | None):
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
+        # The client's own log (a lost worker's "Couldn't gather", a dead scheduler's 45-line
+        # traceback) would run into the command's output; what matters is said in one line.
+        names = ["distributed"] + [n for n in logging.root.manager.loggerDict if n.startswith("distributed.")]
+        levels = {n: logging.getLogger(n).level for n in names}  # each has its own (dask's config sets them)
+        for n in names:
+            logging.getLogger(n).setLevel(logging.CRITICAL)
         try:
-            client = Client(scheduler, timeout="30s")
-        except Exception as exc:  # whatever answers there is not a Dask scheduler (or stopped answering)
-            raise ScannerError(f"--scheduler {scheduler}: no Dask scheduler answered there "
-                               f"({type(exc).__name__}: {str(exc)[:120]})") from None
-        try:
-            yield client
+            try:
+                client = Client(scheduler, timeout="30s")
+            except Exception as exc:  # whatever answers there is not a Dask scheduler (or stopped answering)
+                raise ScannerError(f"--scheduler {scheduler}: no Dask scheduler answered there "
+                                   f"({type(exc).__name__}: {str(exc)[:120]})") from None
+            try:
+                yield client
+            finally:
+                client.close()
         finally:
-            client.close()
+            for n, level in levels.items():
+                logging.getLogger(n).setLevel(level)
         return
     # For the cluster's whole life, not only its start: a worker that dies is started again by
     # its nanny in this process, and the new one must be as deaf as the first.
@@ -253,7 +263,14 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     wall = time.perf_counter() - t_farm
     if measured is not None:
         measured()
-    results = [shards.read(folder / s.file_name(), s, fp) for s in parts]  # checked again before merging
+    results = []
+    for s in parts:  # checked again before merging
+        try:
+            results.append(shards.read(folder / s.file_name(), s, fp))
+        except shards.ShardInvalid as exc:  # another process wrote or removed it meanwhile (a --shard task)
+            raise ScannerError(f"{s.describe()} in {folder} changed after it was computed ({exc}): another "
+                               f"process wrote or removed it; nothing merged, run the scan again to recompute "
+                               f"it") from None
     expected = {s.file_name() for s in parts}
     others = sorted(p.name for p in folder.glob("shard_*.npz") if p.name not in expected)
     if others:  # another split's (another scan, or --shard-frames): never read, never removed
@@ -322,11 +339,26 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
         from dask.distributed import as_completed
 
         address = client.scheduler.address
+        where = f"the scheduler at {address}"
+        # From here on a stop (Ctrl-C) is looked at, and the stop's message knows the shards to
+        # do (a stop was held until the first shard finished: minutes with Cycles).
+        progress("shards", 0, len(todo))
         worker_addresses = sorted(client.scheduler_info()["workers"])
         log(f"farm: scheduler {address}, {len(worker_addresses)} workers"
             + ("" if worker_addresses else " (none yet: the shards wait for workers to join it)"))
-        # The config (with its meshes) and the plan go to every worker once, not with every task.
-        shared = client.scatter([config, plan], broadcast=True, hash=False)
+        if not worker_addresses:
+            _wait_for_workers(client, where, todo, progress)
+
+        def send_inputs():
+            """The config (with its meshes) and the plan, to every worker once, not with every task."""
+            try:
+                return client.scatter([config, plan], broadcast=True, hash=False)
+            except Exception as exc:  # the workers went (died, or left the scheduler) while it sent
+                raise ScannerError(f"could not send the scan to the workers of {where}: they left while it was "
+                                   f"sent ({type(exc).__name__}: {str(exc)[:120]}); the shards finished are kept, "
+                                   f"run the scan again to go on") from None
+
+        shared = send_inputs()
         tries = {s.index: 0 for s, _ in todo}
         owner = lock_holder(Path(out_dir))  # the command's lock: shards finishing after a stop write nothing
 
@@ -340,21 +372,39 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
         done = 0
         pending = as_completed(list(shard_of))
         for fut in pending:
-            if fut.cancelled():
+            s = shard_of.pop(fut)
+            info = None
+            if not fut.cancelled():
+                try:
+                    info = fut.result()  # a shard that raised raises here, with the worker's message
+                except Exception as exc:
+                    if type(exc).__name__ == "KilledWorker":  # the scheduler's own retries spent
+                        raise ScannerError(f"{s.describe()}: every worker that took it died (Dask gave up after "
+                                           f"its retries: out of memory, or a crash in Blender?); the shards "
+                                           f"finished are kept, nothing merged") from None
+                    # Cancelled on the way (its inputs or its result lost with a dying worker):
+                    # as a cancelled one. Anything else is the shard's own error.
+                    if not (fut.cancelled() or "Cancelled" in type(exc).__name__ or _lost_connection(exc)):
+                        raise
+                    if _lost_connection(exc) and client.status != "running":
+                        raise ScannerError(f"{where} stopped answering ({type(exc).__name__}); the shards finished "
+                                           f"are kept, run the scan again to go on") from None
+            fut.release()  # its result is read: nothing more to keep on a worker that may die
+            if info is None:
                 # Dask cancels a task whose scattered inputs went down with a dying worker
                 # (they have no recipe to recompute them): scatter again and resubmit.
-                s = shard_of.pop(fut)
                 tries[s.index] += 1
                 if tries[s.index] > SHARD_RETRIES:
                     raise ScannerError(f"{s.describe()} was cancelled by the cluster {tries[s.index]} times "
-                                       "(its workers keep dying); nothing merged")
+                                       "(its workers keep dying); the shards finished are kept, nothing merged")
                 log(f"  {s.describe()} cancelled by the cluster (a worker died); submitting it again")
-                shared = client.scatter([config, plan], broadcast=True, hash=False)
+                if not client.scheduler_info()["workers"]:
+                    _wait_for_workers(client, where, todo, progress, done)
+                shared = send_inputs()
                 again = submit(s)
                 shard_of[again] = s
                 pending.add(again)
                 continue
-            info = fut.result()  # a shard that raised raises here, with the worker's message
             if not info["written"] and lock_holder(Path(out_dir)) == owner:
                 # The scan still holds its folder, yet the worker found no lock there: it sees
                 # another folder at that path (its own disk), where nothing would come back.
@@ -366,3 +416,28 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
             log(f"  shard {info['shard']} done: {info['points']} points in {info['seconds']:.1f} s "
                 f"(worker pid {info['pid']}{', cell reused' if info['reused_cell'] else ''})")
     return address, worker_addresses
+
+
+WORKER_WAIT_S = 600.0  # how long a scan waits for a first worker to join its scheduler
+
+
+def _wait_for_workers(client, where: str, todo, progress, done: int = 0) -> None:
+    """Wait until a worker joins (a stop is looked at every few seconds); none in WORKER_WAIT_S:
+    one line saying so. (Sending the scan with no worker there failed after 30 s with Dask's
+    "No valid workers found", though the log had said the shards would wait.)"""
+    t = time.monotonic()
+    while not client.scheduler_info()["workers"]:
+        if time.monotonic() - t > WORKER_WAIT_S:
+            raise ScannerError(f"no worker joined {where} in {WORKER_WAIT_S / 60:.0f} minutes: start workers on it "
+                               f"(dask worker {client.scheduler.address}, docs/farm.md) and run the scan again")
+        progress("shards", done, len(todo))
+        try:
+            client.wait_for_workers(1, timeout=2)
+        except Exception:  # a timeout: look for a stop, and again
+            pass
+
+
+def _lost_connection(exc: BaseException) -> bool:
+    """Whether ``exc`` is the connection to the cluster going (distributed's CommClosedError, a
+    closed stream), not an error of the shard itself."""
+    return type(exc).__name__ in ("CommClosedError", "StreamClosedError") or "Stream is closed" in str(exc)

@@ -19,7 +19,7 @@ import os
 import shutil
 import socket
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from addon.core.errors import InputError
@@ -31,6 +31,10 @@ MEMORY_BYTES_PER_PIXEL = 100
 EXR_BYTES_PER_PIXEL = 12  # RGB float32, uncompressed, per view
 PIXELS_PER_SECOND = 4e5  # Cycles at one sample, two CPU cores (bench scan: the demo at 160x160)
 MAX_HOURS = 8.0  # a longer estimate is refused unless --force
+# A local farm's worker: a Python process with bpy loaded and the cell built, before any frame
+# (a Cycles worker of the demo peaked at 484 MB). The check counted only the frames, and let
+# 64 workers start on a machine with 24 GB free that they needed 31 GB of.
+WORKER_PROCESS_BYTES = 500_000_000
 SCHEDULER_TIMEOUT_S = 5.0
 SCHEDULER_GRACE_S = 5.0  # beyond Dask's own connect timeout, for its handshake
 
@@ -108,11 +112,13 @@ def check_render_size(budget: RenderBudget, force: bool = False, memory: int | N
     processes rendering one at once), or whose time estimate exceeds MAX_HOURS, unless ``force``."""
     size = f"{budget.width}x{budget.height}"
     memory = available_memory() if memory is None else memory
-    if not force and memory is not None and budget.memory_bytes * workers > memory:
+    need = budget.memory_bytes * workers + (WORKER_PROCESS_BYTES * workers if workers > 1 else 0)
+    if not force and memory is not None and need > memory:
         if workers > 1:
-            raise InputError(f"{workers} local workers each render a {size} frame at once, about "
-                             f"{_size(budget.memory_bytes * workers)} of memory, and this machine has {_size(memory)} "
-                             f"free; use fewer --workers or a smaller --resolution (or --force)")
+            raise InputError(f"{workers} local workers, each a Blender process (about "
+                             f"{_size(WORKER_PROCESS_BYTES)}) rendering a {size} frame at once, need about "
+                             f"{_size(need)} of memory, and this machine has {_size(memory)} free; use fewer "
+                             f"--workers or a smaller --resolution (or --force)")
         raise InputError(f"a {size} frame needs about {_size(budget.memory_bytes)} of memory to render and this "
                          f"machine has {_size(memory)} free; use a smaller --resolution (or --force)")
     if not force and budget.seconds > MAX_HOURS * 3600:
@@ -199,16 +205,24 @@ def _check_speaks_dask(address: str, timeout_s: float) -> None:
 
 
 def check_scan(config, out: str | Path, *, names=(), farm: bool = False, scheduler: str | None = None,
-               force: bool = False, local_workers: int = 1) -> None:
+               force: bool = False, local_workers: int = 1, frames: int | None = None) -> None:
     """Every check above for a scan of ``config`` into ``out`` (``local_workers``: the processes a
-    local farm renders in side by side)."""
+    local farm renders in side by side; ``frames``: the frames this machine renders, where not
+    the whole path: a farm task's shard, none for a merge or where a scheduler's workers
+    render)."""
     check_output_folder(out, names, "--out", config.input_files())
     if farm:
         shards = Path(out) / "shards"
         if shards.exists() and not shards.is_dir():
             raise InputError(f"--out {out}: {shards} is a file where the farm keeps its shard files; move it away")
-    budget = render_budget(config)
-    check_render_size(budget, force, workers=max(1, min(int(local_workers), budget.frames)))
-    check_temp_room(budget)
+        if shards.is_dir():  # (made by the farm otherwise, where --out is writable)
+            check_output_folder(shards, (), "the farm's shards folder")
     if scheduler is not None:
         check_scheduler_answers(scheduler)
+    budget = render_budget(config)
+    if frames is not None:
+        if frames < 1:
+            return  # nothing rendered here
+        budget = replace(budget, frames=min(int(frames), budget.frames))
+    check_render_size(budget, force, workers=max(1, min(int(local_workers), budget.frames)))
+    check_temp_room(budget)

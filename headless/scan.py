@@ -283,8 +283,12 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
 
         local = local_workers(len(config.waypoints), args.workers if args.workers is not None else 2,
                               args.shard_frames)
+    # What renders here: a --shard task its shard, a --merge nothing, a scheduler's workers all
+    # (elsewhere). (The whole path was counted: a farm job's task of 4 frames was refused as 10 h.)
+    here = 0 if args.merge or args.scheduler is not None else \
+        min(args.shard_frames, len(config.waypoints)) if args.shard is not None else None
     preflight.check_scan(config, out, names=OUTPUT_FILES.values(), farm=farm, scheduler=args.scheduler,
-                         force=args.force, local_workers=local)
+                         force=args.force, local_workers=local, frames=here)
     n = len(config.waypoints)
     size = " x ".join(f"{v:.4g}" for v in config.workpiece.mesh.extents) + " mm"  # a unit mistake shows here
     faces = len(config.workpiece.mesh.faces)

@@ -215,13 +215,16 @@ def test_a_cluster_lacking_a_package_or_the_code_is_told_which_and_a_local_one_i
         farm._compute_shards(None, None, [], None, "", None, 1, None, None, None, None)
 
 
-def test_the_memory_check_counts_a_frame_per_local_worker():
-    from headless.preflight import RenderBudget, check_render_size
+def test_the_memory_check_counts_a_frame_and_a_blender_process_per_local_worker():
+    from headless.preflight import WORKER_PROCESS_BYTES, RenderBudget, check_render_size
 
     budget = RenderBudget(1000, 1000, 100, 2, 1, 8)  # 100 MB a frame
-    check_render_size(budget, memory=250_000_000, workers=2)
-    with pytest.raises(InputError, match="3 local workers each render a 1000x1000 frame at once, about 300.0 MB"):
-        check_render_size(budget, memory=250_000_000, workers=3)
+    check_render_size(budget, memory=250_000_000, workers=1)
+    room = 2 * (100_000_000 + WORKER_PROCESS_BYTES)
+    check_render_size(budget, memory=room, workers=2)
+    with pytest.raises(InputError, match=r"3 local workers, each a Blender process .* rendering a 1000x1000 frame "
+                                         r"at once, need about 1.8 GB"):
+        check_render_size(budget, memory=room, workers=3)
 
 
 def test_with_motion_blur_a_shard_scans_its_frames_as_the_whole_path_does():
@@ -460,3 +463,69 @@ def test_a_shard_the_cluster_cancels_is_submitted_again(config, single, tmp_path
     assert any("cancelled by the cluster" in line for line in lines), lines
     same_cloud(res.cloud, single.cloud)
     assert res.report["farm"]["computed"] == 4
+
+
+def always_die_in_shard(index: int):
+    """A Dask worker plugin: a worker that starts shard ``index`` dies at once (os._exit), as
+    one the out-of-memory killer takes every time would."""
+    from dask.distributed import WorkerPlugin
+
+    class DieInShard(WorkerPlugin):
+        def __init__(self, index: int):
+            self.index = index
+
+        def setup(self, worker):
+            import os
+
+            from headless import farm as worker_farm
+
+            run_shard = worker_farm.run_shard
+            plugin = self
+
+            def dying_run_shard(config, plan, shard, *args, **kwargs):
+                if shard.index == plugin.index:
+                    os._exit(9)
+                return run_shard(config, plan, shard, *args, **kwargs)
+
+            worker_farm.run_shard = dying_run_shard
+
+    return DieInShard(index)
+
+
+def test_workers_that_keep_dying_end_the_scan_in_one_line_and_keep_the_shards_finished(tmp_path):
+    """Shard 1 kills every worker that takes it: the command ends with one line, exit 2 (it
+    ended in a traceback: the cancellation raised from inside result(), or the scatter to a
+    worker already gone), and nothing merged."""
+    import re
+    import subprocess
+    import sys
+
+    from dask.distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1", dashboard_address=None,
+                      silence_logs=50) as cluster, Client(cluster) as client:
+        client.register_plugin(always_die_in_shard(1), name="always-die-in-shard-1")
+        out = subprocess.run([sys.executable, "-m", "headless", "scan", "step_block", "--engine", "raycast",
+                              "--frames", "::5", "--scheduler", cluster.scheduler_address, "--shard-frames", "5",
+                              "--out", str(tmp_path / "out"), "--quiet"],
+                             cwd=Path(__file__).resolve().parents[2], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 2 and "Traceback" not in out.stderr and "distributed." not in out.stderr, \
+        out.stderr[-3000:]
+    (line,) = [ln for ln in out.stderr.splitlines() if ln.startswith("error:")]
+    # (the shard named is the one whose retries ran out: shard 1, or one whose inputs went
+    # down with a worker that died in shard 1)
+    assert re.search(r"shard \d \(frames|workers of the scheduler", line), line
+    assert not (tmp_path / "out" / "cloud.ply").exists()
+
+
+def test_the_time_check_counts_the_frames_rendered_here(tmp_path):
+    """A farm task renders its shard, a merge nothing, a scheduler's workers elsewhere: the
+    8-hour check counts those (it counted the whole path, and refused a job's 4-frame task as
+    10 h unless --force)."""
+    from headless.preflight import check_scan
+
+    big = load_scan_config("demo").with_overrides(resolution=(1280, 1024), samples=32)
+    with pytest.raises(InputError, match="more than 8 h"):
+        check_scan(big, tmp_path / "a", farm=True)
+    check_scan(big, tmp_path / "b", farm=True, frames=4)
+    check_scan(big, tmp_path / "c", farm=True, frames=0)
