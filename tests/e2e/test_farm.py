@@ -529,3 +529,50 @@ def test_the_time_check_counts_the_frames_rendered_here(tmp_path):
         check_scan(big, tmp_path / "a", farm=True)
     check_scan(big, tmp_path / "b", farm=True, frames=4)
     check_scan(big, tmp_path / "c", farm=True, frames=0)
+
+
+def test_a_shard_changed_before_the_merge_is_named_in_one_line(config, tmp_path):
+    # (A --shard task of another scan wrote over it, or it was removed: ShardInvalid came out
+    # as a traceback.)
+    from addon.core.errors import ScannerError
+
+    out = tmp_path / "out"
+
+    def spoil():
+        next((out / "shards").glob("shard_*.npz")).unlink()
+
+    with pytest.raises(ScannerError, match=r"shard \d \(frames .*changed after it was computed.*nothing merged"):
+        farm.run_farm(config, out, workers=1, shard_frames=10, log=lambda m: None, render_threads=1,
+                      measured=spoil)
+    assert not (out / "cloud.ply").exists()
+
+
+def test_a_shards_folder_that_cannot_be_written_is_refused_before_the_cluster_starts(tmp_path):
+    from headless.preflight import check_scan
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "shards").symlink_to("/proc")  # a folder nobody may make files in
+    with pytest.raises(InputError, match="shards folder.*cannot be written"):
+        check_scan(load_scan_config("demo"), out, farm=True)
+
+
+def test_a_scheduler_without_workers_waits_for_one_to_join(config, single, tmp_path, monkeypatch):
+    # (The log said the shards would wait; Dask's scatter gave up after 30 s: "No valid workers found".)
+    import threading
+
+    from dask.distributed import LocalCluster
+
+    monkeypatch.setattr(farm, "WORKER_WAIT_S", 120.0)
+    lines = []
+    with LocalCluster(n_workers=0, threads_per_worker=1, host="127.0.0.1", dashboard_address=None,
+                      silence_logs=50) as cluster:
+        joins = threading.Timer(3.0, lambda: cluster.scale(1))
+        joins.start()
+        try:
+            res = farm.run_farm(config, tmp_path / "out", scheduler=cluster.scheduler_address, shard_frames=10,
+                                log=lines.append, render_threads=1)
+        finally:
+            joins.cancel()
+    assert any("none yet" in line for line in lines), lines
+    same_cloud(res.cloud, single.cloud)
