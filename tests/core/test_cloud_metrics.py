@@ -50,6 +50,13 @@ def test_ply_round_trip_keeps_attributes(tmp_path):
     assert not [p for p in path.parent.iterdir() if p.name != "cloud.ply"]  # no temporary left over
 
 
+def test_an_empty_cloud_reads_back_empty(tmp_path):
+    # (a scan that measured nothing writes one; trimesh reads it as an empty Scene, and
+    # load_ply raised AttributeError)
+    back = load_ply(save_ply(Cloud.empty(), tmp_path / "cloud.ply"))
+    assert len(back) == 0 and back.points.shape == (0, 3)
+
+
 def test_failed_write_leaves_no_file(tmp_path, monkeypatch):
     target = tmp_path / "cloud.ply"
 

@@ -126,6 +126,9 @@ def test_angles_from_range_inverts_eq7():
     [
         (dict(phi_rad=math.radians(10), gamma_rad=math.radians(13)), "φ − γ"),
         (dict(phi_rad=math.radians(80), gamma_rad=math.radians(13)), r"φ \+ γ"),
+        # the whole view grazing (a 0.5 mm baseline): every point would be dropped, and the scan
+        # blamed its path
+        (dict(phi_rad=math.radians(1.0), gamma_rad=math.radians(0.6)), r"less than 2°.*grazing"),
         (dict(a_mm=0.0), "a > 0"),
         (dict(a_mm=-5.0), "a > 0"),
         (dict(rows_px=0), "rows_px"),

@@ -65,6 +65,24 @@ def test_saturation_clips_and_quantises():
     assert np.all(detect_line(bright, "gauss", DetectParams(saturation=1.0)).code == 2)
 
 
+@pytest.mark.parametrize("gain, noise", [(0.5, False), (0.5, True), (0.8, True), (1.0, True)])
+def test_a_line_clipped_at_the_full_well_is_flagged_whatever_the_gain(gain, noise):
+    """Below gain 1 the full well clips before the ADC's top: the detector is told that level
+    by the config (it was told 1.0, and a line clipped at half scale passed as good)."""
+    from addon.core.config.scan import load_scan_config
+
+    sensor = SensorModel(saturate=True, noise=noise, gain=gain, exposure_ms=5.0)
+    cfg = load_scan_config("demo").with_realism(sensor)
+    img = line_image(160, np.full(160, 70.0), 1.5, peak=0.6)
+    out = sensor.apply(img, PROBE, 0, 0)
+    assert out.max() == pytest.approx(cfg.detect.saturation, abs=1e-6)  # what a clipped pixel reads
+    line = detect_line(out, "gauss", cfg.detect)
+    assert np.mean(line.code == 2) > 0.95, line.counts()
+    # a line under the clip stays good
+    dim = sensor.apply(line_image(160, np.full(160, 70.0), 1.5, peak=0.02), PROBE, 0, 0)
+    assert np.mean(detect_line(dim, "gauss", cfg.detect).code == 2) == 0.0
+
+
 def test_auto_exposure_puts_the_peak_at_the_target():
     s = SensorModel(saturate=True, auto_exposure=True, target_peak=0.7)
     img = line_image(160, np.full(160, 70.0), 1.5, peak=0.05, background=0.0, integrate=False)

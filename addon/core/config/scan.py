@@ -208,7 +208,7 @@ class ScanConfig:
             raise InputError(f"material {material!r} is not one of: {', '.join(MATERIALS)}")
         if roughness is not None:
             check_number(roughness, "roughness", 0.0, 1.0)
-        detect = replace(self.detect, saturation=1.0) if sensor.clips else self.detect
+        detect = replace(self.detect, saturation=sensor.clip_level) if sensor.clips else self.detect
         render = self.render if ambient is None else replace(self.render, ambient=check_number(ambient, "ambient", 0, 100))
         return replace(self, sensor=sensor, detect=detect, render=render,
                        material=self.material if material is None else material,

@@ -95,6 +95,19 @@ def save_ply(cloud: Cloud, path: str | Path) -> Path:
     return write_bytes_atomic(path, ply_bytes(cloud))
 
 
+def _vertex_count(path: Path) -> int | None:
+    """The vertex count a PLY file's header declares (None: no such line in its first lines)."""
+    with open(path, "rb") as fh:
+        for _ in range(64):
+            line = fh.readline()
+            if not line or line.strip() == b"end_header":
+                return None
+            words = line.split()
+            if words[:2] == [b"element", b"vertex"] and len(words) == 3 and words[2].isdigit():
+                return int(words[2])
+    return None
+
+
 def load_ply(path: str | Path) -> Cloud:
     """Read a PLY point cloud; frame, camera and quality default to 0 when absent."""
     path = Path(path)
@@ -104,6 +117,12 @@ def load_ply(path: str | Path) -> Cloud:
         loaded = trimesh.load(path, file_type="ply", process=False)
     except Exception as exc:  # trimesh raises many kinds for a bad file
         raise ScannerError(f"{path}: not a readable PLY file ({type(exc).__name__}: {exc})") from None
+    if not hasattr(loaded, "vertices"):
+        # trimesh reads a PLY with no vertices (an empty cloud, as a scan that measured
+        # nothing writes) as an empty Scene
+        if getattr(loaded, "is_empty", False) and _vertex_count(path) == 0:
+            return Cloud.empty()
+        raise ScannerError(f"{path}: not a point cloud (trimesh read a {type(loaded).__name__})")
     raw = getattr(loaded, "metadata", {}).get("_ply_raw", {}).get("vertex", {}).get("data")
     points = np.asarray(loaded.vertices, dtype=np.float64)
     n = len(points)

@@ -348,7 +348,28 @@ def _second_peak(S, r, peak, width, p: DetectParams) -> np.ndarray:
     masked = S.copy()
     masked[rows[inside], cols[inside]] = -np.inf
     second = masked.max(axis=0)
-    return (second >= p.second_peak_ratio * peak) & (second >= p.min_peak)
+    far = (second >= p.second_peak_ratio * peak) & (second >= p.min_peak)
+    return far | _near_peak(S, r, peak, band, p)
+
+
+def _near_peak(S, r, peak, band, p: DetectParams) -> np.ndarray:
+    """True where, inside the exclusion band, the profile falls from the main peak to below
+    half of a later sample and rises to that sample, at least ``second_peak_ratio`` × main and
+    ``min_peak``: a second line (a reflection) 2-4 px away, which the band hid (``cog`` then
+    averaged the two lines, ``gauss`` took either; the band's floor of 4 rows is three times
+    the default line's width). One line's flank only falls."""
+    H, W = S.shape
+    cols = np.arange(W)
+    out = np.zeros(W, dtype=bool)
+    for sign in (-1, 1):
+        low = np.asarray(peak, dtype=np.float64).copy()  # the lowest sample so far going out
+        for k in range(1, int(band.max()) + 1):
+            rows = r + sign * k
+            inside = (rows >= 0) & (rows < H) & (k <= band)
+            v = np.where(inside, S[np.clip(rows, 0, H - 1), cols], -np.inf)
+            out |= inside & (v >= p.second_peak_ratio * peak) & (v >= p.min_peak) & (low < 0.5 * v)
+            low = np.where(inside, np.minimum(low, v), low)
+    return out
 
 
 def _log_samples(C, r, cols) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -610,6 +631,9 @@ def _detect_threshold(C, rgb, p: DetectParams, code: np.ndarray, row_offset: int
     code[(code == 0) & (count == 0)] = LineCode.NO_LINE
     # A column whose lit pixels do not form one run holds two separated lines.
     code[(code == 0) & (count != last - first + 1)] = LineCode.AMBIGUOUS
+    # A run that touches the first or last row may go on beyond it: its centre is unknown (the
+    # other methods' peak on the edge row; this one reported such runs as good).
+    code[(code == 0) & ((first == 0) | (last == H - 1))] = LineCode.EDGE
     width = np.where(count > 0, count.astype(np.float64), np.nan)
     code[(code == 0) & (width > p.max_width_px)] = LineCode.TOO_WIDE
     r = _argmax_rows(C)

@@ -37,6 +37,10 @@ from ..tolerances import TOL
 from ..kinematics.transforms import check_transform, make_pose, rigid_inverse
 from .calibrated import NOMINAL_PLANE, CameraModel, ProbeCalibration
 
+# A camera ray meeting the laser plane at less than this is grazing: its point is dropped
+# (triangulate). A probe whose whole view meets the plane so is refused.
+MIN_ANGLE_DEG = 2.0
+
 CAMERAS = (0, 1)
 MAX_PIXELS = 100_000
 MAX_SENSOR_PIXELS = 50_000_000  # rows × columns at most: one float image of it is 200 MB
@@ -111,6 +115,11 @@ class Probe:
             raise InputError(
                 f"{who}: φ + γ = {deg(self.phi_rad + self.gamma_rad):.4g}° ≥ 90°: the near edge of the view points "
                 f"away from the laser plane; need φ + γ < 90° (φ = {deg(self.phi_rad):g}°, γ = {deg(self.gamma_rad):g}°)")
+        if deg(self.phi_rad + self.gamma_rad) < MIN_ANGLE_DEG:
+            raise InputError(
+                f"{who}: φ + γ = {deg(self.phi_rad + self.gamma_rad):.3g}°: every camera ray meets the laser plane at "
+                f"less than {MIN_ANGLE_DEG:g}°, so every point would be dropped as grazing; need φ + γ ≥ "
+                f"{MIN_ANGLE_DEG:g}° (a wider baseline a_mm for this range, or a wider view)")
         if self.line_width_mm <= 0:
             raise InputError(f"{who}: laser line width must be > 0 mm, got {self.line_width_mm:g}")
         if not 0 < self.fan_rad < math.pi:

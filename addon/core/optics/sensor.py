@@ -127,6 +127,16 @@ class SensorModel:
         return self.saturate
 
     @property
+    def clip_level(self) -> float:
+        """The image value (fraction of full scale) a clipped pixel reads: the ADC's top, or the
+        full well where the gain puts it lower (gain 0.5: half scale, plus the dark offset). The
+        detector flags lines that reach it (it took 1.0 whatever the gain, and a line clipped
+        at half scale passed as good, off by a quarter pixel with a σ of 0.016 px)."""
+        top = 2 ** self.bit_depth - 1
+        well = self.full_well_e * self.gain * self._dn_per_e() + (self.dark_offset_dn if self.noise else 0.0)
+        return float(min(top, round(well)) / top)
+
+    @property
     def shutter_fraction(self) -> float:
         """The share of a frame the shutter is open (rounded to 12 decimals: 9.8 ms at 100 Hz is 0.98)."""
         return round(self.exposure_ms * self.frame_rate_hz / 1000.0, 12)

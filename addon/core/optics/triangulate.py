@@ -5,7 +5,9 @@ camera's K and cam2probe) with the laser plane X = 0. It holds for any camera
 pose, not only the paper's symmetric one. A calibrated probe
 (:mod:`addon.core.optics.calibrated`) uses its calibrated cameras and laser plane.
 
-``method="paper"`` is Eq. 6 verbatim, with the paper's pixel coordinates
+``method="paper"`` is Eq. 6 as printed but for its P_Z, which prints a/(f·tan(...)) + b:
+a dimensional typo (taken literally, P_Z is about 0.35 mm; Eq. 7's range has no f). With the
+paper's pixel coordinates
 p_x = ±(u − c_x), p_y = c_y − v (see :mod:`addon.core.optics.probe`)::
 
     P_X = 0,  P_Y = a·p_x / (f·sin(φ − atan(p_y/f))),  P_Z = a / tan(φ − atan(p_y/f)) + b
@@ -33,10 +35,9 @@ import numpy as np
 
 from .detect import LineDetection
 from ..errors import InputError
-from .probe import Probe, _check_camera
+from .probe import MIN_ANGLE_DEG, Probe, _check_camera
 
 TRIANGULATION_METHODS = ("exact", "paper")
-MIN_ANGLE_DEG = 2.0
 UNKNOWN_SIGMA_PX = 0.1  # a detection that states no uncertainty (made up from given rows)
 CAMERA_BITS = {0: 1, 1: 2}  # Profile.camera: 1 = camera 0, 2 = camera 1, 3 = both (fused)
 
