@@ -126,9 +126,6 @@ def test_angles_from_range_inverts_eq7():
     [
         (dict(phi_rad=math.radians(10), gamma_rad=math.radians(13)), "φ − γ"),
         (dict(phi_rad=math.radians(80), gamma_rad=math.radians(13)), r"φ \+ γ"),
-        # the whole view grazing (a 0.5 mm baseline): every point would be dropped, and the scan
-        # blamed its path
-        (dict(phi_rad=math.radians(1.0), gamma_rad=math.radians(0.6)), r"less than 2°.*grazing"),
         (dict(a_mm=0.0), "a > 0"),
         (dict(a_mm=-5.0), "a > 0"),
         (dict(rows_px=0), "rows_px"),
@@ -206,3 +203,19 @@ def test_a_line_wider_than_the_detector_takes_is_warned_of_before_it_is_refused(
     k = 1.01 * WIDE_MARGIN * top / base.min()
     wider = replace(cfg, probe=replace(cfg.probe, line_width_mm=k * cfg.probe.line_width_mm))
     assert "over 3 times what the detector takes" in blind_settings(wider)
+
+
+def test_a_probe_rig_whose_whole_view_grazes_the_laser_plane_is_refused(tmp_path):
+    """φ + γ under the 2° the triangulation takes: every point would be dropped as grazing, and
+    the scan blamed its path (a 0.5 mm baseline). Refused where the rig is read; a Probe made
+    through the API may still lower the limit (triangulate_profile's min_angle_deg)."""
+    from addon.core.config.rigs import load_probe, probe_toml
+    from addon.core.errors import ConfigError
+    from addon.core.optics.probe import angles_from_range
+
+    phi, gamma = angles_from_range(0.5, 0.0, 70.0, 250.0)
+    probe = Probe("tiny", 0.5, 0.0, phi, gamma, 100, 100)  # the API takes it
+    path = tmp_path / "tiny.toml"
+    path.write_text(probe_toml(probe), encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"tiny.toml.*φ \+ γ = 0.4.*less than 2°.*grazing"):
+        load_probe(path)

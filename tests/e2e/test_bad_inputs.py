@@ -347,7 +347,7 @@ CASES = [
         "--engine", "raycast"], 2, "at frames 0-179 (path[1] to path[2]): the probe comes within 148.00 mm of the "
                                    "workpiece"),
     ("probe: cameras that cannot image the line (a baseline of a nanometre)", probe_with("a_mm = 60.0", "a_mm = 1e-6"),
-     2, "does not image the laser plane"),
+     2, "every point would be dropped as grazing"),
     ("config: a part wholly beyond the table", demo_with("radius_mm = 30.0", "radius_mm = 30.0\n[workpiece.pose]\n"
                                                                              "xyz_mm = [400.0, 0.0, 0.0]"), 2,
      "lies wholly beyond the table (its nearest point 370 mm from the table's axis"),

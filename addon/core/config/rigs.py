@@ -20,7 +20,7 @@ from ..kinematics.robot import MAX_JOINT_DEG, MAX_LENGTH_MM, N_JOINTS, Robot
 from ..kinematics.euler import pose_to_xyz_yzz
 from ..kinematics.transforms import make_pose
 from ..optics.calibrated import CameraModel, ProbeCalibration
-from ..optics.probe import MAX_PIXELS, Probe, angles_from_range
+from ..optics.probe import MAX_PIXELS, Probe, angles_from_range, check_not_grazing
 from .toml import load_toml, resolve_rig
 
 
@@ -261,9 +261,11 @@ def _read_probe(path: Path) -> Probe:
     calibration = _read_calibration(top.table("calibration", default=None))
     top.finish()
     try:
-        return Probe(name=name, a_mm=a, b_mm=b, phi_rad=phi, gamma_rad=gamma, rows_px=rows, cols_px=cols,
-                     line_width_mm=width, fan_rad=math.radians(fan), wavelength_nm=wavelength, mount=mount,
-                     source=source, calibration=calibration)
+        probe = Probe(name=name, a_mm=a, b_mm=b, phi_rad=phi, gamma_rad=gamma, rows_px=rows, cols_px=cols,
+                      line_width_mm=width, fan_rad=math.radians(fan), wavelength_nm=wavelength, mount=mount,
+                      source=source, calibration=calibration)
+        check_not_grazing(probe)
+        return probe
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None
 

@@ -115,11 +115,6 @@ class Probe:
             raise InputError(
                 f"{who}: φ + γ = {deg(self.phi_rad + self.gamma_rad):.4g}° ≥ 90°: the near edge of the view points "
                 f"away from the laser plane; need φ + γ < 90° (φ = {deg(self.phi_rad):g}°, γ = {deg(self.gamma_rad):g}°)")
-        if deg(self.phi_rad + self.gamma_rad) < MIN_ANGLE_DEG:
-            raise InputError(
-                f"{who}: φ + γ = {deg(self.phi_rad + self.gamma_rad):.3g}°: every camera ray meets the laser plane at "
-                f"less than {MIN_ANGLE_DEG:g}°, so every point would be dropped as grazing; need φ + γ ≥ "
-                f"{MIN_ANGLE_DEG:g}° (a wider baseline a_mm for this range, or a wider view)")
         if self.line_width_mm <= 0:
             raise InputError(f"{who}: laser line width must be > 0 mm, got {self.line_width_mm:g}")
         if not 0 < self.fan_rad < math.pi:
@@ -286,3 +281,15 @@ def angles_from_range(a_mm: float, b_mm: float, z_min_mm: float, z_max_mm: float
     near = math.atan(a_mm / (z_min_mm - b_mm))  # φ + γ
     far = math.atan(a_mm / (z_max_mm - b_mm))   # φ − γ
     return 0.5 * (near + far), 0.5 * (near - far)
+
+
+def check_not_grazing(probe: "Probe") -> None:
+    """Refuse a probe whose every camera ray meets the laser plane at less than MIN_ANGLE_DEG:
+    a scan would drop every point as grazing and blame its path. (Checked where a probe rig
+    is read, not in Probe itself: the triangulation's limit can be lowered through the API.)"""
+    total = math.degrees(probe.phi_rad + probe.gamma_rad)
+    if total < MIN_ANGLE_DEG:
+        raise InputError(
+            f"probe {probe.name!r}: φ + γ = {total:.3g}°: every camera ray meets the laser plane at less than "
+            f"{MIN_ANGLE_DEG:g}°, so every point would be dropped as grazing; need φ + γ ≥ {MIN_ANGLE_DEG:g}° (a wider "
+            f"baseline a_mm for this range, or a wider view)")
