@@ -69,10 +69,10 @@ def parse_resolution(text: str | None):
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise InputError(f"--resolution {text!r}: expected WxH, e.g. 320x320") from None
-    from addon.core.optics.probe import MAX_PIXELS
+    from addon.core.optics.probe import MAX_PIXELS, MIN_PIXELS
 
-    if not (2 <= w <= MAX_PIXELS and 2 <= h <= MAX_PIXELS):
-        raise InputError(f"--resolution {text!r}: both sizes must be in [2, {MAX_PIXELS}] pixels")
+    if not (MIN_PIXELS <= w <= MAX_PIXELS and MIN_PIXELS <= h <= MAX_PIXELS):
+        raise InputError(f"--resolution {text!r}: both sizes must be in [{MIN_PIXELS}, {MAX_PIXELS}] pixels")
     return w, h
 
 

@@ -482,12 +482,50 @@ def add_probe(collection, probe: Probe, laser: str = "gobo", laser_power_w: floa
     return probe_frame, cams, lasers
 
 
+def _check_robot_meshes(robot) -> None:
+    """Every link and base mesh of ``robot`` reads as a mesh with faces; InputError naming the
+    file otherwise."""
+    import trimesh
+
+    from ..core.errors import InputError
+    from ..core.kinematics.link_shapes import base_mesh, link_mesh
+
+    def named(entry) -> str:
+        return entry[0] if entry and isinstance(entry[0], str) else "its own geometry"
+
+    entries = [(f"link {k + 1}", named(robot.link_meshes[k] if robot.link_meshes else ()),
+                lambda k=k: link_mesh(robot, k)) for k in range(6)]
+    entries.append(("base", named(robot.base_mesh), lambda: base_mesh(robot)))
+    for what, source, load in entries:
+        try:
+            mesh = load()
+        except Exception as exc:  # trimesh raises many kinds for a file that is gone or not a mesh
+            raise InputError(f"the {what} mesh of {robot.name} ({source}) cannot be read now "
+                             f"({type(exc).__name__}: {exc}); the cell is left as it was") from None
+        if mesh is not None and (not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0):
+            raise InputError(f"the {what} mesh of {robot.name} ({source}) has no faces now; the cell is left as "
+                             f"it was")
+
+
+def surface_key(material: str, roughness: float) -> list:
+    """The workpiece's surface as the cell records it: a roughness counts only for the
+    surfaces that have one."""
+    return [material, round(float(roughness), 6) if material in ("glossy", "mirror") else None]
+
+
 def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Workpiece | None = None,
                laser: str = "gobo", laser_power_w: float | None = None, name: str = "Scanner Cell",
                material: str = "grey", roughness: float = 0.2, fixtures=()) -> SceneCell:
     """Build (or rebuild) the cell in ``scene``. The probe's mount becomes the robot's tool;
     ``fixtures`` (the table's: ``core.safety.Fixture``) turn with the table. The artist's
-    objects parented to the cell's stay where they were, on the new cell's."""
+    objects parented to the cell's stay where they were, on the new cell's. What can fail is
+    checked before the old cell goes (a link mesh changed on disk since the rig was read, a
+    roughness that is not a number): a failed build left half a cell."""
+    _check_robot_meshes(cell.robot)
+    if workpiece is not None:
+        from .materials import surface
+
+        surface(material, roughness)
     old_root = bpy.data.collections.get(name)
     kept = [] if old_root is None else _children_kept(old_root)
     motions = {} if old_root is None else _own_motions(old_root)
@@ -517,7 +555,10 @@ def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Work
     for obj in root.all_objects:
         mark(obj, built_role(obj.name, names_before))
     register_built(root)
-    root[BUILT_FROM_KEY] = json.dumps(built_from(cell.robot, probe, workpiece, cell.table))
+    # (and how it looks: a Material or Laser changed after the build went unnoticed, and the
+    # views rendered the old ones)
+    root[BUILT_FROM_KEY] = json.dumps({**built_from(cell.robot, probe, workpiece, cell.table),
+                                       "surface": surface_key(material, roughness), "laser": laser})
     bpy.context.view_layer.update()
     if kept or motions:
         roles = {role_of(o): o for o in own_objects(root)}

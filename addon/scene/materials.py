@@ -55,11 +55,17 @@ def surface(kind: str = "grey", roughness: float = 0.2) -> bpy.types.Material:
         return diffuse("Grey workpiece")
     if kind == "dark":
         return diffuse("Dark workpiece", DIFFUSE_SURFACES["dark"])
-    name = f"{kind.title()} workpiece r{roughness:.2f}"
+
+    if isinstance(roughness, bool) or not isinstance(roughness, (int, float)) or not 0.0 <= roughness <= 1.0:
+        from ..core.errors import InputError
+
+        raise InputError(f"the workpiece's roughness must be a number from 0 to 1, got {roughness!r}")
+    # Named by the roughness to 4 digits (to 2, 0.004 took 0.001's material), its values set
+    # each time (a material of that name may have been edited)
+    name = f"{kind.title()} workpiece r{roughness:.4g}"
     mat = bpy.data.materials.get(name)
-    if mat is not None:
-        return mat
-    mat = new_material(name)
+    if mat is None or mat.node_tree is None or mat.node_tree.nodes.get("Principled BSDF") is None:
+        mat = new_material(name)
     bsdf = mat.node_tree.nodes.get("Principled BSDF")
     bsdf.inputs["Base Color"].default_value = (*(0.6,) * 3, 1.0) if kind == "glossy" else (0.9, 0.9, 0.9, 1.0)
     bsdf.inputs["Roughness"].default_value = roughness if kind == "glossy" else 0.05

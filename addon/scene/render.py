@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -27,7 +28,7 @@ import numpy as np
 from ..core.config.render import RenderOptions
 from ..core.errors import InputError
 from ..core.exr import read_exr
-from ..core.optics.probe import Probe
+from ..core.optics.probe import MAX_RENDER_PIXELS, Probe
 from ..core.optics.sensor import MAX_SHUTTER_FRAMES
 from .cameras import CLIP_START_M, EEVEE_CLIP_START_M, probe_cameras
 from .compat import ensure_node_tree, new_world
@@ -45,6 +46,9 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, cam
     r = scene.render
     r.engine = BLENDER_ENGINES[settings.engine]
     W, H = probe.cols_px, probe.rows_px
+    if max(W, H) > MAX_RENDER_PIXELS:  # Blender would render it smaller without a word
+        raise InputError(f"a {W} x {H} px sensor: Blender renders at most {MAX_RENDER_PIXELS} px a side; use a "
+                         f"smaller sensor, or the raycast engine")
     r.resolution_x, r.resolution_y, r.resolution_percentage = W, H, 100
     r.pixel_aspect_x = r.pixel_aspect_y = 1.0
     r.use_border = False
@@ -254,6 +258,8 @@ def render_animation(scene: bpy.types.Scene, first: int, last: int, cameras=(0, 
     """
     if last < first:
         raise InputError(f"frame range {first}..{last} is empty")
+    if first < 0:  # Blender's frame_start stops at 0: it rendered frame 0 and the files were not found
+        raise InputError(f"frame {first}: Blender renders frames from 0 on; go to frame 0 or later")
     with ctrl_c_after_render():
         return _render_animation(scene, first, last, cameras, out_dir, rows)
 
@@ -284,11 +290,8 @@ def _render_animation(scene, first, last, cameras, out_dir, rows):
         return out
     finally:
         scene.frame_start, scene.frame_end, scene.frame_step, r.filepath, r.use_file_extension = old
-        if not keep:
-            try:
-                folder.rmdir()
-            except OSError:
-                pass
+        if not keep:  # with what a failed render left in it
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 def render_still(scene: bpy.types.Scene, camera: bpy.types.Object, width: int, height: int) -> np.ndarray:

@@ -125,7 +125,20 @@ def set_joints(obj: bpy.types.Object, q) -> None:
 
 
 def get_joints(obj: bpy.types.Object) -> np.ndarray:
-    return np.array([obj[joint_property(k + 1)] for k in range(N_JOINTS)], dtype=np.float64)
+    """The rig's joint values q (6,); InputError where a joint's property was deleted or set to
+    something that is not a number (one click in Object Properties > Custom Properties: Go
+    and Scan gave KeyError tracebacks)."""
+    out = []
+    for k in range(N_JOINTS):
+        name = joint_property(k + 1)
+        value = obj.get(name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            from ..core.errors import InputError
+
+            raise InputError(f"the robot {obj.name!r} has no joint value {name} (its custom property is "
+                             f"{'missing' if value is None else repr(value)}): press Build Cell again")
+        out.append(float(value))
+    return np.array(out, dtype=np.float64)
 
 
 def dh_frames(obj: bpy.types.Object, robot: Robot) -> np.ndarray:

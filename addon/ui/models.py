@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -30,7 +31,13 @@ def chosen_file(value: str, what: str) -> str:
     """The absolute path of a file chosen in the panel; InputError when none is chosen."""
     if not value:
         raise InputError(f"choose a {what} file first")
-    return bpy.path.abspath(value)
+    return panel_path(value)
+
+
+def panel_path(value: str) -> str:
+    """A path from the panel made absolute: //-relative to the .blend file, ~ the home folder
+    (a scan to "~/scans" made a folder named "~" where Blender was started)."""
+    return os.path.expanduser(bpy.path.abspath(value))
 
 
 def robot_from(s):
@@ -152,6 +159,13 @@ def cell_mismatch(context) -> str | None:
         _DESCRIBED[key] = described
     built = json.loads(root[BUILT_FROM_KEY])
     differ = []
+    from ..scene.cell import surface_key
+
+    if "laser" in built and built["laser"] != s.laser:
+        differ.append(f"the laser: built {built['laser']}, chosen {s.laser}")
+    if "surface" in built and built["surface"] != surface_key(s.material, s.roughness):
+        differ.append(f"the workpiece's surface: built {built['surface'][0]}, chosen {s.material}"
+                      + (f" (roughness {s.roughness:g})" if built["surface"][0] == s.material else ""))
     # A cell saved before the table was recorded was built on the default table (Turntable()).
     built.setdefault("table", [PAPER_A_R_MM, PAPER_D_R_MM])
     if built["table"] != described["table"]:
@@ -237,7 +251,7 @@ def default_output_dir() -> Path:
 def output_dir(folder: str, config_name: str) -> Path:
     """A scan's output folder: ``config_name`` (made file-safe) inside ``folder`` (a Blender
     path; empty: the extension's user folder)."""
-    base = Path(bpy.path.abspath(folder)) if folder else default_output_dir()
+    base = Path(panel_path(folder)) if folder else default_output_dir()
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in config_name) or "scan"
     return base / safe
 

@@ -65,7 +65,9 @@ class SCANNER_OT_build_cell(bpy.types.Operator):
         except ScannerError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        sc.pose(np.zeros(6), s.table_angle)
+        # Zeros where the limits allow them (a rig whose limits exclude 0 stood outside them, and
+        # Go refused to start), as the Scanner's start joints are clipped.
+        sc.pose(np.clip(np.zeros(6), sc.cell.robot.q_min_rad, sc.cell.robot.q_max_rad), s.table_angle)
         part = s.workpiece if s.workpiece != models.FILE else bpy.path.basename(s.workpiece_file)
         moved = lift_text(lift)
         rested = "" if moved is None else f" (put on the table: {moved})"
@@ -113,6 +115,7 @@ class SCANNER_OT_go(bpy.types.Operator):
         s = context.scene.scanner
         robot_obj = models.find_robot(context.scene)
         try:
+            models.check_table_angle(s)  # (NaN from a script: a traceback in the collision check)
             mismatch = models.cell_mismatch(context)
             if mismatch is not None:  # the IK and the checks would be the panel's robot's, the arm another's
                 raise InputError(models.stale_cell_message(mismatch))
@@ -346,7 +349,10 @@ class _SteppedScan:
     def _start(self, context):
         self._state = RenderState(context.scene)  # put back when the work ends, however it ends
         robot = models.find_robot(context.scene)
-        self._pose = None if robot is None else (robot.get("robot_name"), rig.get_joints(robot).copy())
+        try:  # the pose to put back afterwards (none where a joint's property was deleted)
+            self._pose = None if robot is None else (robot.get("robot_name"), rig.get_joints(robot).copy())
+        except InputError:
+            self._pose = None
         s = context.scene.scanner
         # A cell built here that the scan's config will stand in for: the message says so.
         self._swapped = robot is not None and (bool(getattr(self, "config", "")) or s.scan_config != models.CELL)
@@ -591,7 +597,7 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
 
     @classmethod
     def poll(cls, context):
-        if models.cell_object(models.CLOUD_NAME) is None:
+        if models.cell_object(models.CLOUD_NAME, scene=context.scene) is None:  # this scene's, not another's
             cls.poll_message_set("There is no scanned cloud in the scene: Scan first")
             return False
         return True
@@ -600,7 +606,7 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
         from ..core.geometry.cloud import save_ply
         from ..scene.cloud_object import cloud_from_object
 
-        given = bpy.path.abspath(self.filepath)
+        given = models.panel_path(self.filepath)
         target = bpy.path.ensure_ext(given, ".ply")
         folder = os.path.dirname(target) or "."
         try:
@@ -612,7 +618,7 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
             if not os.path.isdir(folder):  # a file dialog's export goes into a folder that is there
                 raise InputError(f"{folder} is a file, not a folder" if os.path.exists(folder) else
                                  f"the folder {folder} does not exist (create it first)")
-            cloud = cloud_from_object(models.cell_object(models.CLOUD_NAME))
+            cloud = cloud_from_object(models.cell_object(models.CLOUD_NAME, scene=context.scene))
             path = save_ply(cloud, target)
         except (ScannerError, OSError) as exc:
             # The file's name, never the temporary one it is written to first.
@@ -644,8 +650,9 @@ class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
         # The sensor and material a scan from the panel would have: the images are calibrated on
         # as they will be scanned with, and the cell is the one a scan builds.
         cfg = _with_panel_sensor(context, _panel_config(context, self.config), self.config)
-        self._folder = models.output_dir(self.output_dir or context.scene.scanner.output_dir,
-                                         f"{cfg.name} calibration")
+        # Checked as a scan's folder is (a //-folder of a .blend never saved wrote into
+        # wherever Blender was started)
+        self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, f"{cfg.name} calibration")
         return None, calibrate_steps(cfg, self._folder, views=self.views, scene=context.scene)
 
     @staticmethod

@@ -201,7 +201,7 @@ class SCANNER_PT_scan(_ScannerPanel, bpy.types.Panel):
         col.operator("scanner.calibrate", icon="CAMERA_DATA")
         from ..scene.cloud_object import error_scale_um
 
-        top = error_scale_um(models.cell_object(models.CLOUD_NAME))
+        top = error_scale_um(models.cell_object(models.CLOUD_NAME, scene=context.scene))
         if top is not None:  # the cloud's colours: one scan's scale, so say it
             col.label(text=f"Cloud colour: error 0 µm (blue) to {top:.1f} µm (red) and more", icon="COLOR")
 

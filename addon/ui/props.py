@@ -17,7 +17,7 @@ from ..core.config.toml import available_rigs
 from ..core.config.scan import MATERIALS
 from ..core.config.rigs import load_probe
 from ..core.config.scan import MAX_PROFILES
-from ..core.optics.probe import MAX_PIXELS
+from ..core.optics.probe import MAX_PIXELS, MIN_PIXELS
 from ..core.optics.sensor import BIT_DEPTHS, SensorModel
 from ..core.geometry.workpiece import BUILTINS
 from ..core.kinematics.turntable import PAPER_A_R_MM, PAPER_D_R_MM
@@ -57,7 +57,8 @@ BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"}
 def _table_angle_changed(self, context):
     from ..scene.cell import cell_object
 
-    table = cell_object("Turntable")
+    # This scene's cell only (the angle set in another scene turned this one's table)
+    table = cell_object("Turntable", scene=self.id_data)
     if table is not None and math.isfinite(self.table_angle):  # NaN is refused by the operators, never shown
         table.rotation_euler[2] = self.table_angle
 
@@ -132,9 +133,9 @@ class ScannerSettings(bpy.types.PropertyGroup):
                              max=math.pi / 2, description="Angle between the beam and each camera's axis")
     probe_gamma: FloatProperty(name="Half view γ", subtype="ANGLE", default=_PROBE.gamma_rad, min=0.0,
                                max=math.pi / 2, description="Half field of view along the triangulation direction")
-    probe_rows: IntProperty(name="Rows", default=_PROBE.rows_px, min=2, max=MAX_PIXELS,
+    probe_rows: IntProperty(name="Rows", default=_PROBE.rows_px, min=MIN_PIXELS, max=MAX_PIXELS,
                             description="Sensor rows (H), along the triangulation direction")
-    probe_cols: IntProperty(name="Columns", default=_PROBE.cols_px, min=2, max=MAX_PIXELS,
+    probe_cols: IntProperty(name="Columns", default=_PROBE.cols_px, min=MIN_PIXELS, max=MAX_PIXELS,
                             description="Sensor columns (W), along the laser line")
     # -- sensor realism (off: the ideal sensor of the paper) --------------------------
     sensor_realistic: BoolProperty(name="Realistic sensor", default=False,

@@ -1249,3 +1249,129 @@ def test_the_cell_built_here_scans_with_the_cells_laser_and_adaptive_takes_the_p
     assert bpy.ops.scanner.adaptive() == {"FINISHED"}
     report = json.loads(next(tmp_path.rglob("*adaptive*/report.json")).read_text())
     assert report["config"]["sensor"] == ["noise"]
+
+
+def test_a_rebuild_that_fails_on_a_mesh_changed_on_disk_leaves_the_old_cell(panel, tmp_path):
+    """The rig file unchanged, its base mesh made junk (or removed) since: the build is refused
+    in one line naming the file, and the cell built before is still whole (it was removed first,
+    leaving a robot alone in it, or a traceback)."""
+    import shutil
+    import trimesh
+
+    from addon.core.config.toml import resolve_rig
+
+    rig_file = tmp_path / "arm.toml"
+    shutil.copy(resolve_rig("robots", "puma560"), rig_file)
+    text = "\n".join(ln for ln in rig_file.read_text().splitlines()
+                     if not ln.startswith(("base_mesh", "meshes_optional", "mesh =")))
+    rig_file.write_text('base_mesh = "base.stl"\n' + text + "\n")
+    trimesh.creation.box([200.0, 200.0, 100.0]).export(tmp_path / "base.stl")
+    s = panel.scanner
+    s.robot, s.robot_file = "FILE", str(rig_file)
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    before = sorted(o.name for o in bpy.data.collections["Scanner Cell"].all_objects)
+    (tmp_path / "base.stl").write_text("not an stl\n")
+    with pytest.raises(RuntimeError, match=r"base mesh .*base.stl.*the cell is left as it was"):
+        bpy.ops.scanner.build_cell()
+    (tmp_path / "base.stl").unlink()
+    with pytest.raises(RuntimeError, match=r"base mesh .*base.stl.*cannot be read now"):
+        bpy.ops.scanner.build_cell()
+    assert sorted(o.name for o in bpy.data.collections["Scanner Cell"].all_objects) == before
+
+
+def test_go_and_scan_name_a_nan_table_angle_and_a_deleted_joint_and_a_rig_limited_away_from_zero(panel, tmp_path):
+    from addon.core.config.toml import resolve_rig
+
+    bpy.ops.scanner.build_cell()
+    panel.scanner.table_angle = float("nan")
+    with pytest.raises(RuntimeError, match="Table angle must be a finite angle"):
+        bpy.ops.scanner.go()
+    panel.scanner.table_angle = 0.0
+    del robot_obj()["q3"]  # one click in Custom Properties
+    with pytest.raises(RuntimeError, match="no joint value q3.*Build Cell again"):
+        bpy.ops.scanner.go()
+    # a rig whose J2 limits exclude 0 is built at its nearest limit, and Go starts from there
+    rig_file = tmp_path / "viper.toml"
+    text = resolve_rig("robots", "adept_viper_s650").read_text()
+    assert "min_deg = -150.0" in text or "min_deg" in text
+    lines, seen = [], 0
+    for line in text.splitlines():
+        if line.strip().startswith("min_deg"):
+            seen += 1
+            if seen == 2:
+                line = "min_deg = 10.0"
+        lines.append(line)
+    rig_file.write_text("\n".join(lines) + "\n")
+    panel.scanner.robot, panel.scanner.robot_file = "FILE", str(rig_file)
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    assert rig.get_joints(robot_obj())[1] == pytest.approx(math.radians(10.0))
+    try:  # whatever Go says of its target, it no longer refuses to start from the built pose
+        bpy.ops.scanner.go()
+    except RuntimeError as exc:
+        assert "stands outside its joint limits" not in str(exc), exc
+
+
+def test_a_changed_laser_or_surface_asks_for_a_rebuild_and_a_nan_roughness_is_refused_before_it(panel):
+    from addon.ui import models
+
+    bpy.ops.scanner.build_cell()
+    assert models.cell_mismatch(bpy.context) is None
+    panel.scanner.laser = "slit"
+    assert "the laser: built gobo, chosen slit" in models.cell_mismatch(bpy.context)
+    panel.scanner.laser = "gobo"
+    panel.scanner.material = "glossy"
+    assert "the workpiece's surface" in models.cell_mismatch(bpy.context)
+    bpy.ops.scanner.build_cell()
+    mats = {}
+    for r in (0.001, 0.004):  # each its own material (0.004 took 0.001's, named to 2 decimals)
+        panel.scanner.roughness = r
+        bpy.ops.scanner.build_cell()
+        wp = next(o for o in bpy.data.collections["Scanner Cell"].all_objects if o.name.startswith("Workpiece"))
+        mats[r] = wp.active_material.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value
+    assert mats[0.001] == pytest.approx(0.001, abs=1e-6) and mats[0.004] == pytest.approx(0.004, abs=1e-6)
+    before = sorted(o.name for o in bpy.data.collections["Scanner Cell"].all_objects)
+    panel.scanner["roughness"] = float("nan")  # from a script (the slider keeps 0..1)
+    with pytest.raises(RuntimeError, match="roughness must be a number from 0 to 1"):
+        bpy.ops.scanner.build_cell()
+    assert sorted(o.name for o in bpy.data.collections["Scanner Cell"].all_objects) == before
+
+
+def test_the_table_angle_of_another_scene_leaves_this_cell_alone(panel):
+    bpy.ops.scanner.build_cell()
+    other = bpy.data.scenes.new("Other")
+    try:
+        other.scanner.table_angle = 1.0
+        table = next(o for o in bpy.data.collections["Scanner Cell"].all_objects if o.name == "Turntable")
+        assert table.rotation_euler[2] == pytest.approx(panel.scanner.table_angle)
+    finally:
+        bpy.data.scenes.remove(other)
+
+
+def test_probe_views_at_a_negative_frame_are_refused_in_one_line(panel):
+    # (Blender rendered frame 0, the files of frame -5 were not found: a traceback, and a
+    # temporary folder of images left behind)
+    import glob
+    import tempfile
+
+    bpy.ops.scanner.build_cell()
+    before = set(glob.glob(f"{tempfile.gettempdir()}/scanner-render-*"))
+    panel.frame_set(-5)
+    try:
+        with pytest.raises(RuntimeError, match="Blender renders frames from 0 on"):
+            bpy.ops.scanner.render_views()
+    finally:
+        panel.frame_set(1)
+    assert set(glob.glob(f"{tempfile.gettempdir()}/scanner-render-*")) == before
+
+
+def test_panel_paths_expand_the_home_folder_and_calibrate_refuses_a_folder_of_an_unsaved_file(panel):
+    import os
+
+    from addon.ui import models
+
+    # (a scan to "~/scans" made a folder named "~" where Blender was started)
+    assert models.panel_path("~/scans") == os.path.join(os.path.expanduser("~"), "scans")
+    assert str(models.output_dir("~/scans", "demo")).startswith(os.path.expanduser("~"))
+    assert not bpy.data.filepath
+    with pytest.raises(RuntimeError, match="relative to the .blend file, which is not saved yet"):
+        bpy.ops.scanner.calibrate(config="demo", views=4, output_dir="//cal")

@@ -20,7 +20,7 @@ from ..kinematics.robot import MAX_JOINT_DEG, MAX_LENGTH_MM, N_JOINTS, Robot
 from ..kinematics.euler import pose_to_xyz_yzz
 from ..kinematics.transforms import make_pose
 from ..optics.calibrated import CameraModel, ProbeCalibration
-from ..optics.probe import MAX_PIXELS, Probe, angles_from_range, check_not_grazing
+from ..optics.probe import MAX_PIXELS, MIN_PIXELS, Probe, angles_from_range, check_not_grazing
 from .toml import load_toml, resolve_rig
 
 
@@ -249,8 +249,8 @@ def _read_probe(path: Path) -> Probe:
     else:
         phi = math.radians(cam.number("phi_deg", lo=0.0, hi=90.0, lo_open=True, hi_open=True))
         gamma = math.radians(cam.number("gamma_deg", lo=0.0, hi=90.0, lo_open=True, hi_open=True))
-    rows = cam.integer("rows_px", lo=2, hi=MAX_PIXELS)
-    cols = cam.integer("cols_px", lo=2, hi=MAX_PIXELS)
+    rows = cam.integer("rows_px", lo=MIN_PIXELS, hi=MAX_PIXELS)
+    cols = cam.integer("cols_px", lo=MIN_PIXELS, hi=MAX_PIXELS)
     cam.finish()
     laser = top.table("laser", default={})
     width = laser.number("line_width_mm", default=0.3, lo=0.0, hi=100.0, lo_open=True)

@@ -66,7 +66,7 @@ from ..optics.detect import DetectParams
 from ..errors import ConfigError, InputError, check_number, check_whole, is_whole
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
-from ..optics.probe import MAX_PIXELS, Probe
+from ..optics.probe import MAX_PIXELS, MIN_PIXELS, Probe
 from .render import (DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions, laser_engine_mismatch,
                      raycast_mismatch, with_sensor)
 from .rigs import URDF_SUFFIXES, load_probe
@@ -267,8 +267,8 @@ class ScanConfig:
         cfg = replace(cfg, render=render)
         if resolution is not None:
             size = resolution if isinstance(resolution, (tuple, list)) else ()
-            if len(size) != 2 or not all(is_whole(v) and 2 <= v <= MAX_PIXELS for v in size):
-                raise InputError(f"--resolution (resolution) must be two whole numbers (width, height) of 2 to "
+            if len(size) != 2 or not all(is_whole(v) and MIN_PIXELS <= v <= MAX_PIXELS for v in size):
+                raise InputError(f"--resolution (resolution) must be two whole numbers (width, height) of {MIN_PIXELS} to "
                                  f"{MAX_PIXELS} pixels, got {resolution!r}")
             W, H = (int(v) for v in size)
             cfg = replace(cfg, probe=cfg.probe.with_resolution(H, W))
@@ -612,7 +612,7 @@ def _render(t: Table) -> tuple[RenderOptions, tuple[int, int] | None]:
                                 f"leave device out, or set engine = \"cycles\"")
     resolution = None
     if t.has("resolution"):  # the same optics on another sensor: [W, H] = [columns, rows]
-        w, h = t.numbers("resolution", 2, lo=2, hi=MAX_PIXELS)
+        w, h = t.numbers("resolution", 2, lo=MIN_PIXELS, hi=MAX_PIXELS)
         if w != int(w) or h != int(h):
             raise t.error("resolution", f"[{w:g}, {h:g}]: pixel counts must be whole numbers")
         resolution = (int(w), int(h))

@@ -42,7 +42,12 @@ from .calibrated import NOMINAL_PLANE, CameraModel, ProbeCalibration
 MIN_ANGLE_DEG = 2.0
 
 CAMERAS = (0, 1)
+# A sensor side: from Blender's smallest render (4 px: it rendered 160 x 3 as 160 x 4, and the
+# sensor model then failed on the mismatch) ...
+MIN_PIXELS = 4
 MAX_PIXELS = 100_000
+# ... to Blender's largest (a longer side is refused where Blender renders: scene.render)
+MAX_RENDER_PIXELS = 65_536
 MAX_SENSOR_PIXELS = 50_000_000  # rows × columns at most: one float image of it is 200 MB
 MAX_OFFSET_MM = 1e5  # the farthest a camera may sit from the laser (a, b), as probe files allow
 EDGE_TOL_PX = TOL.sensor_edge_px
@@ -90,8 +95,9 @@ class Probe:
             object.__setattr__(self, key, float(v))
         for key in ("rows_px", "cols_px"):
             v = getattr(self, key)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 2 <= v <= MAX_PIXELS:
-                raise InputError(f"{who}: {key} must be a whole number of pixels in [2, {MAX_PIXELS}], got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not MIN_PIXELS <= v <= MAX_PIXELS:
+                raise InputError(f"{who}: {key} must be a whole number of pixels in [{MIN_PIXELS}, {MAX_PIXELS}], "
+                                 f"got {v!r}")
             object.__setattr__(self, key, int(v))
         if self.rows_px * self.cols_px > MAX_SENSOR_PIXELS:  # each side allowed, the whole would not fit in memory
             raise InputError(f"{who}: a sensor of {self.cols_px} x {self.rows_px} px is {self.rows_px * self.cols_px:,} "
