@@ -129,6 +129,7 @@ def test_angles_from_range_inverts_eq7():
         (dict(a_mm=0.0), "a > 0"),
         (dict(a_mm=-5.0), "a > 0"),
         (dict(rows_px=0), "rows_px"),
+        (dict(rows_px=3), r"rows_px must be a whole number of pixels in \[4, "),  # Blender renders 4 at least
         (dict(cols_px=2.5), "cols_px"),
         (dict(gamma_rad=0.0), "half field of view"),
         (dict(line_width_mm=0.0), "line width"),

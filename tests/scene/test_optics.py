@@ -177,3 +177,13 @@ def test_markers_image_where_probe_project_puts_them(scene, name):
         assert len(found) == len(expected) >= 6
         for e in expected:
             assert np.min(np.linalg.norm(found - e, axis=1)) <= 0.1
+
+
+def test_a_sensor_side_blender_cannot_render_is_refused_not_shrunk(scene):
+    # (Blender renders at most 65 536 px a side: a 70 000 x 4 sensor came out 65 536 x 4 without a word)
+    from addon.core.errors import InputError
+
+    probe = load_probe("default").with_resolution(4, 70_000)
+    _, _, cams, _ = probe_scene(scene, probe)
+    with pytest.raises(InputError, match="at most 65536 px a side"):
+        configure(scene, probe, RenderOptions(samples=1), cams[0])
