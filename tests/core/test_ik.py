@@ -388,6 +388,22 @@ def test_ur_wrist_singularity(q5):
     assert_reaches(robot, res, T, tol_scale=10)
 
 
+def test_ur_wrist_exactly_straight_is_solved_for_random_arms():
+    """q5 = 0 or π exactly, the rest random within the limits: the closed form reaches every
+    target (about 0.5 % were called out of reach: θ5 from arccos of a cosine one ulp under 1
+    came out 1.5e-8 rad, not singular, and θ6 from rounding noise)."""
+    rng = np.random.default_rng(5)
+    from addon.core.config.toml import RIGS_DIR
+
+    for name in ("ur5", RIGS_DIR / "robots" / "urdf" / "ur5.urdf"):
+        robot = load_robot(name)
+        qs = robot.random_q(400, rng)
+        qs[:, 4] = np.where(rng.random(400) < 0.5, 0.0, np.pi)
+        qs = qs[[not robot.limit_violations(q) for q in qs]]
+        failed = [q for q in qs if not robot.ik(robot.fk(q), q0=q).success]
+        assert len(qs) > 100 and not failed, (name, len(failed), failed[:2])
+
+
 def test_ur_shoulder_offset_cylinder_is_unreachable():
     """o5 = p − d6·z6 satisfies o5·z1 = d2 + d3 + d4 with z1 horizontal, whatever the joints:
     poses whose o5 lies nearer the base axis than that are out of reach, by geometry."""

@@ -402,6 +402,13 @@ def _six(tmp_path, **kw):
     ("xacro file", "a xacro file.*expand it first"),
     ("a link twice", "link 'l2' is defined 2 times"),
     ("a joint twice", "joint 'extra' is defined 2 times"),
+    # (a cylinder of radius 0 crashed the process in the collision library; the others were
+    # tracebacks; a cycle hung the loader)
+    ("cylinder of radius 0", "a cylinder's radius and length must be 2 finite number"),
+    ("sphere of radius 0", "a sphere's radius must be 1 finite number"),
+    ("box of two sizes", "a box's size must be 3 finite number"),
+    ("geometry origin nan", "link 'l2': the origin of one of its visuals is not finite"),
+    ("a cycle", "form a cycle"),
 ])
 def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     kw = {}
@@ -440,6 +447,24 @@ def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     elif case == "a joint twice":
         extra = '<link name="cam{k}"/><joint name="extra" type="fixed"><parent link="l2"/><child link="cam{k}"/></joint>'
         path = _six(tmp_path, extra=extra.format(k=1) + extra.format(k=2))
+        kw = {"tool_link": "l6"}
+    elif case in ("cylinder of radius 0", "sphere of radius 0", "box of two sizes", "geometry origin nan"):
+        geometry, origin = {"cylinder of radius 0": ('<cylinder radius="0" length="0.1"/>', ""),
+                            "sphere of radius 0": ('<sphere radius="0"/>', ""),
+                            "box of two sizes": ('<box size="0.1 0.1"/>', ""),
+                            "geometry origin nan": ('<box size="0.1 0.1 0.1"/>', '<origin xyz="0 nan 0"/>')}[case]
+        path = _six(tmp_path)
+        path.write_text(path.read_text().replace(
+            '<link name="l2"/>', f'<link name="l2"><visual>{origin}<geometry>{geometry}</geometry></visual></link>'))
+    elif case == "a cycle":
+        path = _six(tmp_path)
+        text = path.read_text()
+        at = text.index('<joint name="j1"')
+        end = text.index("</joint>", at)
+        parent = text[at:end][text[at:end].index('<parent link="') + 14:]
+        parent = parent[:parent.index('"')]
+        path.write_text(text[:at] + text[at:end].replace(f'<parent link="{parent}"/>', '<parent link="l6"/>', 1)
+                        + text[end:])
         kw = {"tool_link": "l6"}
     elif case == "xacro file":
         path = tmp_path / "arm.urdf.xacro"

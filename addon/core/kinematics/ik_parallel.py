@@ -117,7 +117,10 @@ def parallel_branches(arm: ParallelAxesArm, F: np.ndarray, seed_theta: np.ndarra
         return z1x * R[:, 0, column, None] + z1y * R[:, 1, column, None]
 
     # -- θ5: z1·z6 = −sα4 sα5 cos θ5 -----------------------------------------------------
-    th5 = _WRIST * np.arccos(np.clip(-arm.s4 * arm.s5 * dot_z1(2), -1.0, 1.0))
+    # From both its sine (|z1 × z6|, the in-plane part) and its cosine: arccos of a cosine that
+    # rounds to 1 − 1 ulp gave 1.5e-8 rad, not singular, and θ6 then came from rounding noise
+    # (a reachable target with the wrist straight was called out of reach).
+    th5 = _WRIST * np.arctan2(np.hypot(dot_z1(0), dot_z1(1)), -arm.s4 * arm.s5 * dot_z1(2))
     s5, c5 = np.sin(th5), np.cos(th5)
 
     # -- θ6: in frame 6, z1 = (sα4 s5 c6, −sα4 s5 s6, ·) ----------------------------------
@@ -174,10 +177,6 @@ def parallel_branches(arm: ParallelAxesArm, F: np.ndarray, seed_theta: np.ndarra
     return Branches(theta=theta, shoulder_ok=shoulder_ok, elbow_ok=elbow_ok)
 
 
-def _clip_unit(v: float) -> float:
-    return -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)
-
-
 def parallel_branches_one(arm: ParallelAxesArm, F: np.ndarray) -> list[tuple[float, ...] | None] | None:
     """The eight branches of :func:`parallel_branches` for one flange pose F (4, 4), in the
     same order, on Python floats (a single target's solve is otherwise mostly numpy's cost
@@ -194,7 +193,7 @@ def parallel_branches_one(arm: ParallelAxesArm, F: np.ndarray) -> list[tuple[flo
         c1, s1 = math.cos(th1), math.sin(th1)
         z1x, z1y = sa1 * s1, -sa1 * c1
         d0, d1, d2 = (z1x * r00 + z1y * r10, z1x * r01 + z1y * r11, z1x * r02 + z1y * r12)
-        acos5 = math.acos(_clip_unit(-sa4 * sa5 * d2))
+        acos5 = math.atan2(math.hypot(d0, d1), -sa4 * sa5 * d2)  # (as in the batched form)
         wrist = []
         for th5 in (acos5, -acos5):
             s5, c5 = math.sin(th5), math.cos(th5)

@@ -114,9 +114,14 @@ class UrdfChain:
                               f"(links: {', '.join(sorted(links))})")
         chain = []
         link = tool_link
+        seen = set()
         while link != base:
             if link not in parent_joint:
                 raise ConfigError(f"{path}: link {tool_link!r} does not hang below {base!r}")
+            if link in seen:  # (the walk up from the tool went round for ever)
+                raise ConfigError(f"{path}: the joints above {tool_link!r} form a cycle through link {link!r}; "
+                                  f"a robot's links form a tree")
+            seen.add(link)
             chain.append(parent_joint[link])
             link = parent_joint[link].parent
         chain.reverse()
@@ -210,9 +215,15 @@ class UrdfChain:
 
 
 def _descendants(link: str, children: dict) -> list[str]:
-    out = [link]
-    for j in children.get(link, []):
-        out.extend(_descendants(j.child, children))
+    """``link`` and every link below it (iteratively, each once: a cycle ended in RecursionError)."""
+    out, todo, seen = [], [link], set()
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        out.append(name)
+        todo.extend(j.child for j in reversed(children.get(name, [])))
     return out
 
 
@@ -416,16 +427,36 @@ def _geometry_mesh(geometry, urdf_path: Path, package_dirs, files_read: list | N
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
             raise ConfigError(f"{urdf_path}: mesh {file} holds no usable triangles (empty, or NaN coordinates)")
         if geometry.mesh.scale is not None:
-            factors = np.broadcast_to(np.asarray(geometry.mesh.scale, dtype=np.float64).reshape(-1), 3)
-            mesh.apply_transform(np.diag(np.r_[factors, 1.0]))
+            factors = _sizes(geometry.mesh.scale, (1, 3), f"mesh {file}'s scale", urdf_path)
+            mesh.apply_transform(np.diag(np.r_[np.broadcast_to(factors, 3), 1.0]))
         return mesh
+    # Sizes finite and above zero (a cylinder of radius 0 made a mesh without faces, on which
+    # the collision library crashed the process; a sphere of radius 0 or a box of two sizes
+    # gave tracebacks)
     if geometry.box is not None:
-        return trimesh.creation.box(np.asarray(geometry.box.size, dtype=np.float64))
+        return trimesh.creation.box(_sizes(geometry.box.size, (3,), "a box's size", urdf_path))
     if geometry.cylinder is not None:
-        return trimesh.creation.cylinder(radius=geometry.cylinder.radius, height=geometry.cylinder.length, sections=32)
+        radius, length = _sizes([geometry.cylinder.radius, geometry.cylinder.length], (2,),
+                                "a cylinder's radius and length", urdf_path)
+        return trimesh.creation.cylinder(radius=radius, height=length, sections=32)
     if geometry.sphere is not None:
-        return trimesh.creation.icosphere(subdivisions=2, radius=geometry.sphere.radius)
+        (radius,) = _sizes([geometry.sphere.radius], (1,), "a sphere's radius", urdf_path)
+        return trimesh.creation.icosphere(subdivisions=2, radius=radius)
     return None
+
+
+def _sizes(values, counts: tuple, what: str, urdf_path: Path) -> np.ndarray:
+    """``values`` as finite sizes above zero, as many as one of ``counts``; ConfigError naming
+    ``what`` otherwise."""
+    try:
+        a = np.asarray(values, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    if a.size not in counts or not np.isfinite(a).all() or not (a > 0).all():
+        shown = values if isinstance(values, (int, float, str)) else list(np.asarray(values, dtype=object).reshape(-1))
+        raise ConfigError(f"{urdf_path}: {what} must be {' or '.join(map(str, counts))} finite number(s) above zero, "
+                          f"got {shown}")
+    return a
 
 
 def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs, files_read: list | None = None) -> tuple[tuple, tuple]:
@@ -452,6 +483,9 @@ def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs, files_read: list
                 if mesh is None:
                     continue
                 origin = np.eye(4) if item.origin is None else _in_mm(item.origin)
+                if not np.isfinite(origin).all():
+                    raise ConfigError(f"{chain.path}: link {link.name!r}: the origin of one of its {kind} is not "
+                                      f"finite (xyz and rpy must be numbers)")
                 mesh.apply_transform(rigid_inverse(frames0[k]) @ chain.link_pose[link.name] @ origin @ scale)
                 pieces[k].append(mesh)
         if kind == "visuals":

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
-from ..errors import ScannerError
+from ..errors import InputError, ScannerError
 from ..kinematics.link_shapes import base_mesh, link_cylinders, link_mesh
 from ..kinematics.robot import N_JOINTS, Robot
 from ..kinematics.turntable import TABLE_RADIUS_MM, TABLE_THICKNESS_MM, Turntable
@@ -125,6 +125,10 @@ def _shape(fcl, geometry, local: np.ndarray, centre, radius: float) -> Shape:
 
 
 def mesh_shape(fcl, mesh: trimesh.Trimesh, local=None) -> Shape:
+    if len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
+        # (FCL crashes the process on a model without triangles: a URDF cylinder of radius 0)
+        raise InputError("a collision mesh has no triangles, or coordinates that are not finite; the loaders "
+                         "refuse such meshes: give the part, fixture or link a surface")
     bvh = fcl.BVHModel()
     bvh.beginModel(len(mesh.vertices), len(mesh.faces))
     bvh.addSubModel(np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64))
