@@ -579,3 +579,22 @@ def test_a_mesh_file_edited_after_loading_is_read_again(tmp_path):
     (tmp_path / "link2.stl").unlink()
     with pytest.raises(ConfigError, match="link2.stl"):
         load_robot(path)
+
+
+def test_each_urdf_link_without_collision_geometry_keeps_its_visual_one_within_a_dh_link(tmp_path):
+    """wrist_3_link has only a visual (its 75 mm cylinder); ee_link, fixed to it and so in the
+    same DH link, is given a 10 mm collision box: link 6's collision body is both, not the box
+    alone (the fallback went by DH link)."""
+    from addon.core.kinematics.link_shapes import link_mesh
+
+    text = UR5_URDF.read_text()
+    assert '<link name="ee_link"/>' in text
+    edited = tmp_path / "ur5.urdf"
+    edited.write_text(text.replace('<link name="ee_link"/>', '<link name="ee_link"><collision><geometry>'
+                                   '<box size="0.01 0.01 0.01"/></geometry></collision></link>'))
+    for mesh_dir in ("meshes",):
+        if (UR5_URDF.parent / mesh_dir).is_dir():
+            (tmp_path / mesh_dir).symlink_to(UR5_URDF.parent / mesh_dir)
+    original = link_mesh(load_robot(UR5_URDF), 5, collision=True)
+    body = link_mesh(load_robot(edited), 5, collision=True)
+    assert body.extents.max() >= original.extents.max() - 1e-6 > 50.0
