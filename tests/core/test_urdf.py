@@ -409,6 +409,8 @@ def _six(tmp_path, **kw):
     ("box of two sizes", "a box's size must be 3 finite number"),
     ("geometry origin nan", "link 'l2': the origin of one of its visuals is not finite"),
     ("a cycle", "form a cycle"),
+    ("a joint without a parent", "joint 'j2' has no <parent"),
+    ("a visual without geometry", "link 'l2' has a <visual> without a shape"),
 ])
 def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     kw = {}
@@ -456,6 +458,17 @@ def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
         path = _six(tmp_path)
         path.write_text(path.read_text().replace(
             '<link name="l2"/>', f'<link name="l2"><visual>{origin}<geometry>{geometry}</geometry></visual></link>'))
+    elif case == "a joint without a parent":
+        path = _six(tmp_path)
+        text = path.read_text()
+        at = text.index('<joint name="j2"')
+        end = text.index("</joint>", at)
+        block = text[at:end]
+        start = block.index("<parent ")
+        path.write_text(text[:at] + block[:start] + block[block.index("/>", start) + 2:] + text[end:])
+    elif case == "a visual without geometry":
+        path = _six(tmp_path)
+        path.write_text(path.read_text().replace('<link name="l2"/>', '<link name="l2"><visual></visual></link>'))
     elif case == "a cycle":
         path = _six(tmp_path)
         text = path.read_text()

@@ -345,6 +345,7 @@ def _parse(path: Path, package_dirs):
         if "xacro" in element.tag or any("${" in v or "$(" in v for v in element.attrib.values()):
             raise unexpanded_xacro(path)
     _check_joint_numbers(tree.getroot(), path)
+    _check_geometry_elements(tree.getroot(), path)
     try:
         return URDF.load(str(path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False,
                          filename_handler=lambda name: name)
@@ -360,6 +361,11 @@ def _check_joint_numbers(root, path: Path) -> None:
     so that a NaN is named where the user wrote it, not in the DH table derived from it."""
     for joint in root.iter("joint"):
         name = joint.get("name", "?")
+        for tag in ("parent", "child"):  # (yourdfpy's own words for these were an AttributeError's)
+            element = joint.find(tag)
+            if element is None or not element.get("link"):
+                raise ConfigError(f"{path}: joint {name!r} has no <{tag} link=\"...\"/>; every joint names its "
+                                  f"parent and its child link")
         for tag, attribute, unit in JOINT_VECTORS:
             element = joint.find(tag)
             text = None if element is None else element.get(attribute)
@@ -376,6 +382,18 @@ def _check_joint_numbers(root, path: Path) -> None:
                     raise ConfigError(f"{where}: {word!r} is not a finite number; give three finite numbers ({unit})")
             if len(words) != 3:
                 raise ConfigError(f"{where}: {text.strip()!r} has {len(words)} numbers; give three ({unit})")
+
+
+def _check_geometry_elements(root, path: Path) -> None:
+    """Every visual and collision holds a <geometry> with one shape in it (a TypeError's words
+    from yourdfpy otherwise)."""
+    for link in root.iter("link"):
+        for kind in ("visual", "collision"):
+            for item in link.findall(kind):
+                geometry = item.find("geometry")
+                if geometry is None or len(list(geometry)) == 0:
+                    raise ConfigError(f"{path}: link {link.get('name', '?')!r} has a <{kind}> without a shape in its "
+                                      f"<geometry> (box, cylinder, sphere or mesh)")
 
 
 def _check_conversion(robot: Robot, chain: UrdfChain) -> None:
