@@ -6,6 +6,7 @@ the user can fix are reported in the status bar, and nothing changes then.
 
 from __future__ import annotations
 
+import json
 import os
 
 import bpy
@@ -356,6 +357,7 @@ class _SteppedScan:
         s = context.scene.scanner
         # A cell built here that the scan's config will stand in for: the message says so.
         self._swapped = robot is not None and (bool(getattr(self, "config", "")) or s.scan_config != models.CELL)
+        self._built_before = _built_from_of_scene(context.scene) if self._swapped else None
         try:
             models.check_table_angle(s)
             self._scanner, self._steps = self._open(context)
@@ -524,10 +526,31 @@ def _with_panel_sensor(context, cfg, config_given: str):
     return cfg
 
 
-def _swapped_text(op, report: dict) -> str:
-    """The message's note where the scan took the config's cell in place of the Scanner Cell."""
+def _built_from_of_scene(scene) -> dict | None:
+    """What the cell in ``scene`` was built from (scene.cell.built_from), None where none is."""
+    from ..scene.cell import BUILT_FROM_KEY, CELL_NAME, in_scene
+
+    root = bpy.data.collections.get(CELL_NAME)
+    if root is None or not in_scene(root, scene) or BUILT_FROM_KEY not in root:
+        return None
+    return json.loads(root[BUILT_FROM_KEY])
+
+
+def _swapped_text(op, report: dict, config=None) -> str:
+    """The message's note where the scan took the config's cell in place of a different
+    Scanner Cell (not where the cell there was that config's own: a scan of a config left its
+    cell, and every later scan of it said it had been swapped in)."""
+    if not op._swapped:
+        return ""
+    before, cfg = getattr(op, "_built_before", None), config
+    if before is not None and cfg is not None:
+        from ..scene.cell import built_from
+
+        now = built_from(cfg.robot, cfg.probe, cfg.workpiece, cfg.table)
+        if all(before.get(k) == now[k] for k in ("robot", "robot_poses", "probe", "workpiece", "table")):
+            return ""
     return (f"; the cell is the scan config's ({report['config']['name']}): choose The Cell Built Here to scan the "
-            f"Scanner Cell's own" if op._swapped else "")
+            f"Scanner Cell's own")
 
 
 class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
@@ -583,7 +606,7 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
         warned = _report_warnings(self, result.report)
         self.report({"INFO"}, f"Scanned {result.report['points']} points, {_error_text(result.report['error_um'])}; "
                               f"files in {result.files['cloud'].parent}{_colour_text()}{warned}"
-                              f"{_swapped_text(self, result.report)}")
+                              f"{_swapped_text(self, result.report, scanner.config)}")
         return {"FINISHED"}
 
 
@@ -716,7 +739,7 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
         warned = _report_warnings(self, r)
         self.report({"INFO"}, f"Adaptive scan: {views}, {r['frames']} profiles, {r['points']} points, "
                               f"{_error_text(r['error_um'])}; files in {result.files['cloud'].parent}{_colour_text()}"
-                              f"{warned}{_swapped_text(self, r)}")
+                              f"{warned}{_swapped_text(self, r, scanner.config)}")
         return {"FINISHED"}
 
 

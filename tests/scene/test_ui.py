@@ -1375,3 +1375,23 @@ def test_panel_paths_expand_the_home_folder_and_calibrate_refuses_a_folder_of_an
     assert not bpy.data.filepath
     with pytest.raises(RuntimeError, match="relative to the .blend file, which is not saved yet"):
         bpy.ops.scanner.calibrate(config="demo", views=4, output_dir="//cal")
+
+
+def test_a_second_scan_of_a_config_does_not_say_its_own_cell_was_swapped_in(panel, tmp_path):
+    # (the first scan of a config leaves that config's cell; every later scan of it said "the
+    # cell is the scan config's: choose The Cell Built Here ...", though nothing was swapped)
+    panel.scanner.output_dir = str(tmp_path)
+    assert bpy.ops.scanner.scan(config="demo", frames="0:1", engine="raycast") == {"FINISHED"}
+    from addon.ui import ops
+
+    texts = []
+    real = ops._swapped_text
+    ops._swapped_text = lambda op, report, config=None: texts.append(real(op, report, config)) or texts[-1]
+    try:
+        assert bpy.ops.scanner.scan(config="demo", frames="1:2", engine="raycast") == {"FINISHED"}
+        panel.scanner.robot = "puma560"  # a cell of another robot built here: that one is swapped out
+        bpy.ops.scanner.build_cell()
+        assert bpy.ops.scanner.scan(config="demo", frames="1:2", engine="raycast") == {"FINISHED"}
+    finally:
+        ops._swapped_text = real
+    assert texts[0] == "" and "the cell is the scan config's" in texts[1], texts
