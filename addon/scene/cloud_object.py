@@ -50,6 +50,11 @@ def _points_modifier(obj: bpy.types.Object, material: bpy.types.Material, radius
         tree.links.new(nin.outputs[0], to_points.inputs["Mesh"])
         tree.links.new(to_points.outputs["Points"], set_mat.inputs["Geometry"])
         tree.links.new(set_mat.outputs["Geometry"], nout.inputs[0])
+    # The material each time (deleted and made again, the group kept pointing at nothing, and
+    # later clouds came without colours)
+    for node in tree.nodes:
+        if node.bl_idname == "GeometryNodeSetMaterial":
+            node.inputs["Material"].default_value = material
     mod = obj.modifiers.new("Points", "NODES")
     mod.node_group = tree
 

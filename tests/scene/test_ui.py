@@ -1395,3 +1395,13 @@ def test_a_second_scan_of_a_config_does_not_say_its_own_cell_was_swapped_in(pane
     finally:
         ops._swapped_text = real
     assert texts[0] == "" and "the cell is the scan config's" in texts[1], texts
+
+
+def test_a_deleted_cloud_material_is_made_again_and_used_by_the_next_cloud(panel, tmp_path):
+    panel.scanner.output_dir = str(tmp_path)
+    assert bpy.ops.scanner.scan(config="demo", frames="0:1", engine="raycast") == {"FINISHED"}
+    bpy.data.materials.remove(bpy.data.materials["Scanner cloud"])  # the artist tidies up
+    assert bpy.ops.scanner.scan(config="demo", frames="1:2", engine="raycast") == {"FINISHED"}
+    tree = bpy.data.node_groups["Scanner cloud points"]
+    (node,) = [n for n in tree.nodes if n.bl_idname == "GeometryNodeSetMaterial"]
+    assert node.inputs["Material"].default_value == bpy.data.materials["Scanner cloud"]
