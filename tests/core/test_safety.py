@@ -500,3 +500,31 @@ def test_merging_checks_keeps_every_count_and_collision_and_numbers_later_entrie
     assert len(merged.collisions) == len(merged.deepest) == 1 and not merged.ok
     single = PathClearance.merge([check([1], 62, False)])
     assert single.report()["samples_checked"] == 62 and list(single.report()["per_path"]) == ["1"]
+
+
+def test_a_part_wholly_inside_a_closed_link_mesh_touches_it():
+    """A 10 mm sphere inside the UR5 URDF's upper-arm cylinder (checked by trimesh: every
+    vertex inside) is a collision, not 44 mm of clearance: the link's closed mesh is asked
+    whether the part lies in it, at a point of the part (its frame's origin is the table's
+    centre, far from it)."""
+    import trimesh
+
+    from addon.core.config.rigs import load_probe, load_robot
+    from addon.core.config.toml import RIGS_DIR
+    from addon.core.kinematics.link_shapes import link_mesh
+    from addon.core.kinematics.turntable import Turntable
+    from addon.core.safety.clearance import CollisionModel
+
+    probe = load_probe("default")
+    robot = load_robot(RIGS_DIR / "robots" / "urdf" / "ur5.urdf").with_tool(probe.mount)
+    table = Turntable()
+    q = np.radians([0, -90, 90, -90, -90, 0])
+    frame = robot.link_frames(q)[2]
+    upper = link_mesh(robot, 1, collision=True)
+    centre = trimesh.transform_points(upper.bounds.mean(axis=0)[None], table.base2table(0.0) @ frame)[0]
+    part = trimesh.creation.icosphere(subdivisions=3, radius=10.0)
+    part.apply_translation(centre)
+    in_link = trimesh.transform_points(part.vertices, np.linalg.inv(table.base2table(0.0) @ frame))
+    assert upper.contains(in_link).all()  # the truth, from trimesh
+    found = CollisionModel(robot, probe, table, part).clearance_at(q, 0.0)
+    assert not found.ok and "link 2" in found.message() and "workpiece" in found.message()

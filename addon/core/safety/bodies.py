@@ -193,7 +193,10 @@ def robot_bodies(robot: Robot, probe: Probe) -> list[Body]:
         name = f"link {k + 1}"
         mesh = link_mesh(robot, k, collision=True)
         if mesh is not None:
-            bodies.append(Body(name, f"link{k + 1}", [mesh_shape(fcl, mesh)], True))
+            # a closed link mesh also tells a part or fixture wholly inside it (a hollow BVH
+            # alone called a part inside a URDF link's cylinder 44 mm clear)
+            bodies.append(Body(name, f"link{k + 1}", [mesh_shape(fcl, mesh)], True,
+                               mesh if mesh.is_watertight else None))
             continue
         shapes = []
         for c in cylinders[k]:

@@ -296,7 +296,10 @@ class CollisionModel:
         for outer, inner, To, Ti in ((b, a, Tb, Ta), (a, b, Ta, Tb)):
             if outer.mesh is None:
                 continue
-            centres = np.array([(Ti @ s.local)[:3, 3] for s in inner.shapes])
+            # A point of each inner shape: a mesh's first vertex (its frame's origin may lie far
+            # from it: a part's is the table's centre), else its centre
+            centres = np.array([(Ti @ s.local @ np.r_[s.vertices[0] if s.vertices is not None and len(s.vertices)
+                                                        else s.centre, 1.0])[:3] for s in inner.shapes])
             local = (centres - To[:3, 3]) @ To[:3, :3]
             if np.any(outer.mesh.contains(local)):
                 return (0.0, np.full(3, np.nan), np.full(3, np.nan))
