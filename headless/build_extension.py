@@ -25,6 +25,8 @@ import tempfile
 import tomllib
 from pathlib import Path
 
+from headless.preflight import folder_argument
+
 REPO = Path(__file__).resolve().parent.parent
 WHEELS = REPO / "wheels"
 PLATFORMS = ("linux-x64", "windows-x64", "macos-arm64", "macos-x64")
@@ -47,12 +49,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--blender-ext", default=os.environ.get("BLENDER_EXT_TOOL"), metavar="PATH",
                         help="Blender's blender_ext.py (default: $BLENDER_EXT_TOOL, else the one in the installed bpy)")
     parser.set_defaults(run=run)
-
-
-def folder_argument(text: str) -> str:
-    from headless.preflight import folder_argument as checked
-
-    return checked(text)
 
 
 def python_version(text: str) -> str:

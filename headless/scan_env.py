@@ -59,7 +59,7 @@ whole sweep (seconds on a CPU): this is a test bench, not a fast simulator of vi
 
 from __future__ import annotations
 
-import numbers
+import sys
 import os
 
 import gymnasium as gym
@@ -68,7 +68,7 @@ from gymnasium import spaces
 
 from addon.adaptive import NextBestView, part_box
 from addon.core.config.scan import MAX_PROFILES
-from addon.core.errors import InputError, check_whole
+from addon.core.errors import InputError, check_number, check_whole
 from addon.core.geometry.known_space import FREE, SURFACE, UNKNOWN
 from addon.core.scan import next_view
 
@@ -95,8 +95,7 @@ class ScanPlanningEnv(gym.Env):
         grid = check_whole(grid, "grid (cells per side of the observation)", 2, 256)
         max_steps = check_whole(max_steps, "max_steps (sweeps per episode)", 1, 10**5)
         for value, what in ((time_cost, "time_cost"), (refusal_cost, "refusal_cost")):
-            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 <= _as_float(value) < float("inf"):
-                raise InputError(f"{what} must be a finite number ≥ 0, got {_short(value)}")
+            check_number(value, what, 0.0, sys.float_info.max)  # finite (a 400-digit integer too), ≥ 0
         if not isinstance(turn_part, (bool, np.bool_)):
             raise InputError(f"turn_part must be True or False, got {turn_part!r}")
         if isinstance(config, (str, os.PathLike)):
@@ -290,14 +289,6 @@ class ScanPlanningEnv(gym.Env):
         step = int(round(c.table_deg * next_view.TABLE_STEPS / 360.0)) % next_view.TABLE_STEPS
         view = min(range(len(self.tilts)), key=lambda v: abs(self.tilts[v] - c.tilt_deg))
         return np.array([step, view, 1 if c.kind == "turn" else 0])
-
-
-def _as_float(value) -> float:
-    """``value`` as a float; inf where it is too large for one (an integer of 400 digits)."""
-    try:
-        return float(value)
-    except OverflowError:
-        return float("inf")
 
 
 def _short(value) -> str:
