@@ -32,7 +32,7 @@ from .materials import diffuse
 from .meshes import mesh_object
 from .ownership import built_role, mark, own_objects, recorded_objects, register_built, role_of
 from ..core.config.render import RenderOptions, laser_engine_mismatch
-from .render import EXPOSURE_KEY_FRAMES, configure, opengl_device, render_animation
+from .render import EXPOSURE_KEY_FRAMES, configure, ctrl_c_after_render, opengl_device, render_animation
 from .turntable import add_fixture, add_turntable, add_workpiece, set_table_angle
 from .units import from_blender, points_to_blender
 
@@ -213,15 +213,18 @@ class SceneCell:
         mismatch = laser_engine_mismatch(settings.engine, self.laser_model)
         if mismatch:
             raise InputError(f"this cell's laser: {mismatch}")
-        self.device_used = configure(self.scene, self.probe, settings, self.cameras[0])
-        with self._only_the_cell():
-            if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else
-                images = render_animation(self.scene, first, last, cameras, out_dir, rows)
-            else:
-                if move_table is None:  # Cycles does not motion-blur lights: with motion blur, move the part
-                    move_table = settings.motion_blur_shutter > 0
-                with self._without_rig(first, last, move_table):
+        # The render settings' updates free Cycles' earlier engines, whose Python finaliser
+        # would swallow a Ctrl-C landing in it: the deferral holds from here to the restore.
+        with ctrl_c_after_render():
+            self.device_used = configure(self.scene, self.probe, settings, self.cameras[0])
+            with self._only_the_cell():
+                if not leave_out_robot:  # for comparison: the rig evaluated and rendered with everything else
                     images = render_animation(self.scene, first, last, cameras, out_dir, rows)
+                else:
+                    if move_table is None:  # Cycles does not motion-blur lights: with motion blur, move the part
+                        move_table = settings.motion_blur_shutter > 0
+                    with self._without_rig(first, last, move_table):
+                        images = render_animation(self.scene, first, last, cameras, out_dir, rows)
         if settings.engine == "eevee":  # its OpenGL device is known once it has rendered
             self.device_used = opengl_device() or self.device_used
         return images

@@ -19,7 +19,7 @@ from mathutils import Vector
 from ..core.files import write_png
 from .cell import SceneCell
 from ..core.config.render import RenderOptions
-from .render import configure, render_animation, render_still
+from .render import configure, ctrl_c_after_render, render_animation, render_still
 
 VIEW_DIRECTION = Vector((1.0, -1.25, 0.75)).normalized()  # from the front right, above
 
@@ -67,17 +67,20 @@ def render_overview(sc: SceneCell, path: str | Path, width: int = 720, height: i
     scene.collection.objects.link(sun)
     lights = [o.data for o in sc.laser if o.type == "LIGHT"]
     powers = [light.energy for light in lights]
-    try:
-        configure(scene, sc.probe, RenderOptions(samples=samples, filter_width_px=1.5,
-                                                  pixel_filter="BLACKMAN_HARRIS", ambient=0.35), cam)
-        for light, power in zip(lights, powers):
-            light.energy = power * 8.0
-        outside = render_still(scene, cam, width, height)
-    finally:
-        for light, power in zip(lights, powers):
-            light.energy = power
-        bpy.data.objects.remove(cam, do_unlink=True)
-        bpy.data.objects.remove(sun, do_unlink=True)
+    # The settings' updates free Cycles' engines too, whose finaliser would swallow a Ctrl-C
+    # (see SceneCell.render): the deferral holds to the end of the clean-up.
+    with ctrl_c_after_render():
+        try:
+            configure(scene, sc.probe, RenderOptions(samples=samples, filter_width_px=1.5,
+                                                      pixel_filter="BLACKMAN_HARRIS", ambient=0.35), cam)
+            for light, power in zip(lights, powers):
+                light.energy = power * 8.0
+            outside = render_still(scene, cam, width, height)
+        finally:
+            for light, power in zip(lights, powers):
+                light.energy = power
+            bpy.data.objects.remove(cam, do_unlink=True)
+            bpy.data.objects.remove(sun, do_unlink=True)
 
     def label(img, text):
         cv2.putText(img, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)

@@ -193,6 +193,33 @@ def test_a_ctrl_c_during_a_render_call_is_raised_once_the_call_is_over():
         signal.signal(signal.SIGINT, old)
 
 
+def test_a_ctrl_c_while_the_render_settings_are_applied_stops_the_call_once_it_is_over(scene, monkeypatch):
+    """Applying the render settings frees Cycles' earlier engines, whose Python finaliser
+    printed a KeyboardInterrupt landing there as "Exception ignored" and let a script go on:
+    the deferral covers the settings and the restore as well as the render call."""
+    import os
+    import signal
+
+    import addon.scene.cell as cell_module
+    from addon.scene.render import RAISED_AFTER_RENDER
+
+    sc = build_cell(scene, Cell(load_robot("puma560")), load_probe("default"), builtin_workpiece("plane"))
+    qs, thetas = scanning_path(sc, 1)
+    sc.keyframe(qs, thetas)
+    real = cell_module.configure
+    deferred = []
+
+    def configure_and_press_ctrl_c(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)  # lands where the engines are freed
+        deferred.append(signal.getsignal(signal.SIGINT) is not signal.default_int_handler)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(cell_module, "configure", configure_and_press_ctrl_c)
+    with pytest.raises(KeyboardInterrupt, match=RAISED_AFTER_RENDER):
+        sc.render(1, 1)
+    assert deferred == [True] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 def test_the_blender_cell_pages_example_runs_and_sees_the_laser_line():
     """docs/blender-cell.md's first example, as written, in a Python of its own."""
     import os
