@@ -220,6 +220,60 @@ def test_only_the_bodies_wound_inside_out_are_turned(tmp_path):
     assert "1 of its 2 bodies" in wp.notes[0]
 
 
+def test_a_sealed_void_keeps_its_wall_facing_the_void_and_is_noted(tmp_path):
+    """A hollow ball (outer radius 30 mm, a sealed void of 25 mm, its wall rightly facing the
+    void) is not an inside-out body: turned out, the void read as solid (a point in it came
+    out 10 µm inside the part) and the part as two bodies reaching into each other. Its outer
+    shell saved inside out is turned, the void's wall still not."""
+    outer = trimesh.creation.icosphere(4, radius=30.0)
+    void = trimesh.creation.icosphere(4, radius=25.0)
+    void = trimesh.Trimesh(void.vertices, np.fliplr(void.faces), process=False)  # facing into the void
+    ball = trimesh.util.concatenate([outer, void])
+    ball.apply_translation([0.0, 0.0, 30.0])
+    ball.export(tmp_path / "hollow.stl")
+    wp = load_workpiece(tmp_path / "hollow.stl")
+    assert wp.mesh.volume == pytest.approx(outer.volume + void.volume)
+    in_void, in_wall, outside = [0.0, 0.0, 30.0 + 24.99], [0.0, 0.0, 30.0 + 27.5], [0.0, 0.0, 30.0 + 30.01]
+    signed = distances(np.array([in_void, in_wall, outside]), wp.truth)[1]
+    assert signed[0] > 0.005 and signed[1] < -2.0 and signed[2] > 0.005
+    assert len(wp.notes) == 1 and "1 sealed void" in wp.notes[0] and "reach into" not in wp.notes[0]
+    inside_out = trimesh.util.concatenate([trimesh.Trimesh(outer.vertices, np.fliplr(outer.faces)), void])
+    inside_out.apply_translation([0.0, 0.0, 30.0])
+    inside_out.export(tmp_path / "inside_out.stl")
+    turned = load_workpiece(tmp_path / "inside_out.stl")
+    assert turned.mesh.volume == pytest.approx(wp.mesh.volume)
+    assert any("1 of its 2 bodies" in n for n in turned.notes) and any("1 sealed void" in n for n in turned.notes)
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_faces_saved_twice_are_kept_once(tmp_path, closed):
+    """A double-sided export saves every face once per winding: half the points on the sheet
+    matched the copy facing the other way and failed the same-surface test (coverage 0.89 for
+    points covering it all). One face saved twice made a closed box read as open (no bias)."""
+    from addon.core.geometry.metrics import coverage, evaluate
+
+    if closed:
+        box = trimesh.creation.box([40.0, 30.0, 20.0])
+        box.apply_translation([0.0, 0.0, 10.0])
+        mesh = trimesh.Trimesh(box.vertices, np.vstack([box.faces, box.faces[:1]]), process=False)
+    else:
+        x, y = np.meshgrid(np.linspace(-30.0, 30.0, 11), np.linspace(-30.0, 30.0, 11))
+        V = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, 10.0)])
+        a = (np.arange(10)[:, None] * 11 + np.arange(10)[None, :]).ravel()
+        F = np.vstack([np.column_stack([a, a + 1, a + 12]), np.column_stack([a, a + 12, a + 11])])
+        mesh = trimesh.Trimesh(V, np.vstack([F, np.fliplr(F)]), process=False)
+    mesh.export(tmp_path / "twice.ply")
+    wp = load_workpiece(tmp_path / "twice.ply")
+    assert len(wp.mesh.faces) == len(np.unique(np.sort(mesh.faces, axis=1), axis=0))
+    if closed:
+        above = np.array([[0.0, 0.0, 20.01], [5.0, 5.0, 20.01]])  # 10 µm over the lid
+        assert evaluate(above, wp.truth).bias_um == pytest.approx(10.0, abs=0.01)
+    else:
+        rng = np.random.default_rng(0)
+        on = np.column_stack([rng.uniform(-30.0, 30.0, (20000, 2)), np.full(20000, 10.0)])
+        assert coverage(on, wp.truth, 1.0) > 0.99
+
+
 def test_faces_lying_in_the_table_top_are_not_drawn_and_a_closed_part_is_drawn_whole():
     """The table is drawn where an open mesh's faces lie in its top: both drawn, each ray would
     meet either. A closed part's own bottom stays (hidden under it either way)."""

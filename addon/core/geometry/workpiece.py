@@ -180,12 +180,49 @@ def _without_collapsed_faces(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trime
     if collapsed.any():
         mesh = trimesh.Trimesh(mesh.vertices, F[~collapsed], process=False)
         mesh.remove_unreferenced_vertices()
-    distinct = len(np.unique(np.sort(np.asarray(mesh.faces), axis=1), axis=0))
+    _, first = np.unique(np.sort(np.asarray(mesh.faces), axis=1), axis=0, return_index=True)
+    distinct = len(first)
     if distinct < 0.5 * len(mesh.faces):
         raise InputError(f"{path}: {len(mesh.faces) - distinct} of its {len(mesh.faces)} faces repeat others: the "
                          f"file was not read as written (an OBJ's relative, negative indices are one cause); "
                          f"export it again with plain indices, or as STL or PLY")
+    if distinct < len(mesh.faces):
+        # A face saved twice (a double-sided export saves each once per winding): each copy is
+        # the nearest face to half the points on it, and a point matched to the copy facing
+        # the other way would not count as on the same surface (coverage); a closed part with
+        # one repeated face reads as open (no bias). Each is kept once.
+        mesh = trimesh.Trimesh(mesh.vertices, np.asarray(mesh.faces)[np.sort(first)], process=False)
     return mesh
+
+
+def _body_labels(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Each face's closed body (its connected piece), numbered from 0."""
+    vertex_piece = trimesh.graph.connected_component_labels(mesh.edges, node_count=len(mesh.vertices))
+    return np.unique(vertex_piece, return_inverse=True)[1][mesh.faces[:, 0]]
+
+
+def _bodies_wound_inward(mesh: trimesh.Trimesh, labels: np.ndarray) -> list[int]:
+    """The bodies of a closed, consistently wound mesh that are wound inside out: those of
+    negative volume, but for a sealed void's wall, which lies wholly inside an odd number of
+    the others and rightly faces the void (turned out, the void read as solid). A body of
+    positive volume inside another is left as it is (a solid within a solid: _overlap_note)."""
+    count = int(labels.max()) + 1
+    bodies = [trimesh.Trimesh(mesh.vertices, mesh.faces[labels == k], process=False) for k in range(count)]
+    volumes = [b.volume for b in bodies]
+    wrong = []
+    for k, body in enumerate(bodies):
+        if volumes[k] >= 0:
+            continue
+        corners = body.vertices[np.unique(body.faces)]
+        corners = corners[:: max(1, len(corners) // 64)]
+        depth = 0 if count > MAX_OVERLAP_BODIES else sum(
+            1 for j, other in enumerate(bodies)
+            if j != k and abs(volumes[j]) > abs(volumes[k])
+            and np.all((other.bounds[0] <= corners) & (corners <= other.bounds[1]))
+            and bool(np.all(other.contains(corners))))
+        if depth % 2 == 0:
+            wrong.append(k)
+    return wrong
 
 
 def _overlap_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: str) -> str | None:
@@ -199,10 +236,13 @@ def _overlap_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: s
     bodies = [trimesh.Trimesh(mesh.vertices, mesh.faces[labels == k]) for k in range(count)]
     if not all(b.is_watertight for b in bodies):
         return None
+    solid = [b.volume > 0 for b in bodies]  # the others are sealed voids' walls (see _void_note)
     hidden = 0.0
     for i, a in enumerate(bodies):
-        others = [b for j, b in enumerate(bodies) if j != i and np.all(np.maximum(a.bounds[0], b.bounds[0])
-                                                                       < np.minimum(a.bounds[1], b.bounds[1]))]
+        if not solid[i]:
+            continue
+        others = [b for j, b in enumerate(bodies) if j != i and solid[j] and np.all(
+            np.maximum(a.bounds[0], b.bounds[0]) < np.minimum(a.bounds[1], b.bounds[1]))]
         if not others:
             continue
         points = trimesh.sample.sample_surface(a, max(200, int(OVERLAP_SAMPLES * a.area / mesh.area)), seed=i)[0]
@@ -216,6 +256,21 @@ def _overlap_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: s
             f"{hidden / mesh.area * 100:.2g} % of its surface lies inside another body, where no laser reaches, and "
             f"still counts in the whole part's coverage; unite them first (a boolean union) to scan the part as one "
             f"solid")
+
+
+def _void_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: str) -> str | None:
+    """A note where a closed, consistently wound mesh holds sealed voids (bodies wound to face
+    inward, inside another): their walls are the part's surface, but no laser reaches them."""
+    if not (mesh.is_watertight and mesh.is_winding_consistent) or labels.max() < 1:
+        return None
+    voids = [k for k in range(int(labels.max()) + 1)
+             if trimesh.Trimesh(mesh.vertices, mesh.faces[labels == k], process=False).volume < 0]
+    if not voids:
+        return None
+    share = float(mesh.area_faces[np.isin(labels, voids)].sum()) / mesh.area
+    return (f"the {role} mesh {path.name} holds {len(voids)} sealed void{'s' if len(voids) > 1 else ''} "
+            f"({share * 100:.2g} % of its surface), which no laser reaches: the void walls count in the whole "
+            f"part's coverage, not in the measurable surface's")
 
 
 def _gaps_to(points: np.ndarray, body: trimesh.Trimesh, corners: np.ndarray) -> np.ndarray:
@@ -394,17 +449,19 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         # A body wound inward: the signed distance would call its outside its inside, and the
         # bias would change sign. The surface is the same; its outside is not in doubt. Each
         # separate body is judged on its own (one may be right, another inside out).
-        bodies = mesh.split(only_watertight=False)
-        inverted = sum(1 for b in bodies if b.volume < 0)
+        labels = _body_labels(mesh)
+        wrong = _bodies_wound_inward(mesh, labels)
+        inverted = len(wrong)
         if inverted:
-            if len(bodies) == 1:
-                # Rebuilt, not mesh.invert(): that keeps the cached face normals, which then
-                # point inward against the new winding (the renderers saw every face from
-                # behind, and no point landed on the part).
-                mesh = trimesh.Trimesh(mesh.vertices, np.fliplr(mesh.faces), process=False)
-            else:
-                trimesh.repair.fix_normals(mesh, multibody=True)
-            which = "" if len(bodies) == 1 else f" ({inverted} of its {len(bodies)} bodies)"
+            # Rebuilt, not mesh.invert(): that keeps the cached face normals, which then point
+            # inward against the new winding (the renderers saw every face from behind, and no
+            # point landed on the part).
+            faces = np.array(mesh.faces)
+            flip = np.isin(labels, wrong)
+            faces[flip] = np.fliplr(faces[flip])
+            mesh = trimesh.Trimesh(mesh.vertices, faces, process=False)
+            count = int(labels.max()) + 1
+            which = "" if count == 1 else f" ({inverted} of its {count} bodies)"
             notes = (f"the {role} mesh {path.name} was wound inside out{which}, its faces facing inward; it was "
                      "turned right side out, so that inside and outside, and the bias's sign, are the part's",)
     if as_read is not None and mesh.is_winding_consistent:  # one note for the whole repair, counted as read
@@ -414,10 +471,10 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
                  f"bias",)
     pose = np.eye(4) if pose is None else check_transform(pose, f"{path.name} pose")
     mesh.apply_transform(pose)  # before the notes: which piece lies lowest is the posed part's
-    vertex_piece = trimesh.graph.connected_component_labels(mesh.edges, node_count=len(mesh.vertices))
-    labels = np.unique(vertex_piece, return_inverse=True)[1][mesh.faces[:, 0]]  # each face's piece, from 0
+    labels = _body_labels(mesh)
     notes = notes + tuple(n for n in (_loose_pieces_note(mesh, labels, path, role),
-                                      _overlap_note(mesh, labels, path, role)) if n)
+                                      _overlap_note(mesh, labels, path, role),
+                                      _void_note(mesh, labels, path, role)) if n)
     return Workpiece(path.stem, mesh, mesh, str(path), pose, notes)
 
 
