@@ -73,6 +73,15 @@ def test_step_block_mesh_is_a_closed_solid_and_distances_are_exact():
     # Above the middle step's tread, 3 mm up; beside the tallest riser, 2 mm out; inside the base.
     d = block.signed_distance([[0.0, 0.0, 23.0], [-17.0, 0.0, 25.0], [0.0, 0.0, 5.0]])
     np.testing.assert_allclose(d, [3.0, 2.0, -5.0])
+    # Inside, under a tread beside the taller column's riser (the columns' shared face lies
+    # 0.01 mm away inside the part, but the part's surface is the tread, 0.1 mm up), and
+    # points within 0.3 mm of every face, against the mesh's own distance and inside test.
+    np.testing.assert_allclose(block.signed_distance([[-4.99, 0.0, 19.9]]), [-0.1])
+    points, face = trimesh.sample.sample_surface(mesh, 4000, seed=1)
+    points = points + np.random.default_rng(1).uniform(-0.3, 0.3, (len(points), 1)) * mesh.face_normals[face]
+    reference = trimesh.proximity.closest_point(mesh, points)[1]
+    reference[mesh.contains(points)] *= -1
+    np.testing.assert_allclose(block.signed_distance(points), reference, atol=1e-9)
 
 
 @pytest.mark.parametrize("make,fragment", [

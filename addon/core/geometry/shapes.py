@@ -121,9 +121,10 @@ class StepBlock(_Shape):
     ``step_mm`` deep, heights ``heights_mm`` (descending), all ``width_mm`` wide in Y,
     centred on the origin in X and Y, standing on z = 0.
 
-    The exact distance to a union of boxes is the smallest distance to any of them
-    outside; on and just inside the visible faces it is exact too (the boxes only
-    touch along interior faces that a scan never sees).
+    Outside, the exact distance to a union of boxes is the smallest distance to any of
+    them. Inside it is not (that is the distance to the faces the columns share, inside
+    the part): there the block is a prism along Y, and the depth is the nearer of its
+    profile's edges in XZ and its two ends in Y.
     """
 
     heights_mm: tuple = (45.0, 30.0, 15.0)
@@ -155,20 +156,34 @@ class StepBlock(_Shape):
             outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
             inside = np.minimum(q.max(axis=1), 0.0)
             best = np.minimum(best, outside + inside)
+        within = best < 0
+        if within.any():
+            q = p[within]
+            ring = self._profile()
+            a, b = ring, np.roll(ring, -1, axis=0)  # the profile's edges a -> b, in XZ
+            ab = b - a
+            xz = q[:, [0, 2]][:, None, :]
+            t = np.clip(np.einsum("mkj,kj->mk", xz - a, ab) / np.einsum("kj,kj->k", ab, ab), 0.0, 1.0)
+            to_edge = np.linalg.norm(xz - (a + t[..., None] * ab), axis=2).min(axis=1)
+            best[within] = -np.minimum(to_edge, self.width_mm / 2 - np.abs(q[:, 1]))
         return best
+
+    def _profile(self) -> np.ndarray:
+        """(n, 2) the block's outline in XZ, counter-clockwise: along the bottom, then up and
+        left over the stairs."""
+        boxes = self._boxes()
+        x = [b[0][0] for b in boxes] + [boxes[-1][1][0]]
+        h = self.heights_mm
+        profile = [(x[0], 0.0), (x[-1], 0.0)]
+        for i in range(len(h) - 1, -1, -1):
+            profile += [(x[i + 1], h[i]), (x[i], h[i])]
+        return np.array(profile)
 
     def _local_mesh(self) -> trimesh.Trimesh:
         # The XZ profile is star-shaped from its corner (x0, 0) (heights descend), so a
         # fan triangulates each side; risers, treads, ends and bottom are quads.
-        boxes = self._boxes()
-        x = [b[0][0] for b in boxes] + [boxes[-1][1][0]]
-        h = self.heights_mm
-        # Counter-clockwise in XZ: along the bottom, then up and left over the stairs.
-        profile = [(x[0], 0.0), (x[-1], 0.0)]
-        for i in range(len(h) - 1, -1, -1):
-            profile += [(x[i + 1], h[i]), (x[i], h[i])]
         w = self.width_mm / 2
-        ring = np.array(profile)
+        ring = self._profile()
         n = len(ring)
         verts = np.vstack([np.column_stack([ring[:, 0], np.full(n, -w), ring[:, 1]]),
                            np.column_stack([ring[:, 0], np.full(n, w), ring[:, 1]])])
