@@ -309,9 +309,11 @@ class Scanner:
 
     def check_move_to(self, pose, relative_to: str = "table"):
         """What :meth:`move_to` would do, with nothing moved: (the joints it would take, the
-        clearance of the motion there: a PathClearance whose ``nearest`` gives the smallest
+        clearance at the pose moved to: a PathClearance whose ``nearest`` gives its smallest
         distance to the table, the part or a fixture, None where the config turns the checks
-        off). Raises as move_to does where the pose cannot be reached or the motion collides."""
+        off). Raises as move_to does where the pose cannot be reached or the motion there
+        collides or comes nearer than the clearance allows (the motion is checked all along;
+        its own smallest distance on the way is not reported)."""
         q = self._joints_for(pose, relative_to)
         return q, self._check_path(q[None, :], np.array([self._table_rad]), "move")
 
@@ -414,9 +416,9 @@ class Scanner:
               table_deg: float | None = None) -> list[Profile]:
         """``frames`` profiles with the probe moving in a straight line from ``from_mm`` to
         ``to_mm`` (table frame), beam straight down unless given, the laser line across the
-        motion; with ``table_deg``, the table turned to that angle first (the turn is part of
-        the checked motion). Every pose is solved before anything moves or renders; the probe
-        ends at the last one."""
+        motion; with ``table_deg``, the table turned to that angle on the way to the first pose
+        (the robot and the table move together, and that motion is what is checked). Every pose
+        is solved before anything moves or renders; the probe ends at the last one."""
         return self._scan_waypoints(self._sweep_waypoints(from_mm, to_mm, frames, beam, line, table_deg), "sweep")
 
     def plan_sweep(self, from_mm, to_mm, frames: int, *, beam=(0.0, 0.0, -1.0), line=None,

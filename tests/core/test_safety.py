@@ -234,8 +234,10 @@ def test_a_world_fixture_in_the_lasers_way_is_warned_of_and_a_table_fixture_is_n
     from addon.core.scan.plan import fixture_warnings
 
     demo = load_scan_config("demo")
-    post = trimesh.creation.box([40.0, 40.0, 180.0])
-    post.apply_translation([0.0, 0.0, 90.0])  # 0..180 mm over the table: the probe passes 28 mm above it
+    post = trimesh.creation.box([40.0, 40.0, 116.0])
+    # 64..180 mm over the table, 4 mm over the sphere's top (a post down to the table would
+    # stand in the part, which is refused): the probe passes 28 mm above it.
+    post.apply_translation([0.0, 0.0, 122.0])
     axis = demo.cell.table.table2base(0.0)
     world_post = post.copy()
     world_post.apply_transform(axis)
@@ -373,7 +375,9 @@ def test_a_gantrys_frame_is_one_body_per_side_so_its_bounds_still_decide():
     sides = [b for b in model.bodies if b.name.startswith("robot base")]
     assert len(sides) == 2 and all(b.radius < 1100.0 for b in sides)  # each a 1.6 × 1.3 m wall
     names = {(model.bodies[i].name, model.bodies[j].name) for i, j, _ in model.pairs}
-    assert ("probe", sides[0].name) in names and not any("workpiece" in p and "robot base" in " ".join(p) for p in names)
+    assert ("probe", sides[0].name) in names
+    # A table turn swings the part round: it is checked against the frames too (their bounds decide it).
+    assert {(side.name, "workpiece") for side in sides} <= names
     plan = plan_scan(config)
     assert plan.clearance.exact_queries < 500, plan.clearance.exact_queries
 
@@ -528,3 +532,74 @@ def test_a_part_wholly_inside_a_closed_link_mesh_touches_it():
     assert upper.contains(in_link).all()  # the truth, from trimesh
     found = CollisionModel(robot, probe, table, part).clearance_at(q, 0.0)
     assert not found.ok and "link 2" in found.message() and "workpiece" in found.message()
+
+
+def _with_clearance(scanner: Scanner, mm: float) -> None:
+    cfg = scanner.config
+    scanner.config = replace(cfg, safety=replace(cfg.safety, min_clearance_mm=mm))
+
+
+def test_no_clearance_asked_for_still_refuses_touching():
+    """min_clearance_mm = 0: bodies may come as near as they like, but an exact distance of 0
+    (touching, or inside) was not below the limit of 0, and the probe went 10 mm into the part."""
+    scanner = Scanner(workpiece=block_part())
+    _with_clearance(scanner, 0.0)
+    scanner.move_to(((0.0, 0.0, 60.0), (0.0, 180.0, 0.0)))
+    with pytest.raises(CollisionError, match="the probe touches the workpiece; they must not touch"):
+        scanner.move_to(((0.0, 0.0, 20.0), (0.0, 180.0, 0.0)))
+    scanner.move_to(((0.0, 0.0, 30.0 + HEAD_REACH_MM + 0.5), (0.0, 180.0, 0.0)))  # 0.5 mm above: allowed
+    assert scanner.clearance().nearest[0].distance_mm == pytest.approx(0.5, abs=0.01)
+
+
+def test_a_robot_that_stands_too_near_can_back_away_but_come_no_nearer():
+    """The clearance raised while the probe stands 1.5 mm above the part: every move was
+    refused "at the start pose", backing away too. A single move that comes no nearer goes;
+    one that comes nearer, and a sweep from there, do not."""
+    scanner = Scanner(workpiece=block_part())
+    _with_clearance(scanner, 1.0)
+    scanner.move_to(((0.0, 0.0, 60.0), (0.0, 180.0, 0.0)))
+    scanner.move_to(((0.0, 0.0, 30.0 + HEAD_REACH_MM + 1.5), (0.0, 180.0, 0.0)))
+    _with_clearance(scanner, 2.0)
+    with pytest.raises(CollisionError, match="comes within 0.50 mm of the workpiece"):
+        scanner.move_to(((0.0, 0.0, 30.0 + HEAD_REACH_MM + 0.5), (0.0, 180.0, 0.0)))
+    with pytest.raises(CollisionError, match="at the start pose"):
+        scanner.plan_sweep([0.0, -10.0, 100.0], [0.0, 10.0, 100.0], 5)
+    scanner.move_to(((5.0, 0.0, 30.0 + HEAD_REACH_MM + 1.5), (0.0, 180.0, 0.0)))  # along, no nearer
+    scanner.move_to(((0.0, 0.0, 150.0), (0.0, 180.0, 0.0)))  # away
+    assert scanner.pose()[2, 3] == pytest.approx(150.0)
+
+
+def test_a_table_turn_that_swings_the_part_into_a_world_fixture_is_refused():
+    """A 300 mm bar on the table and a post standing in the world where the bar's end comes
+    at a quarter turn: the table's part was checked against the robot only. The post is
+    placed from the table's own pose, 10 mm into the bar's path; clear at the start."""
+    from addon.core.safety import Fixture
+
+    bar = trimesh.creation.box([300.0, 20.0, 20.0])
+    bar.apply_translation([0.0, 0.0, 10.0])
+    cfg = demo_with(Workpiece("bar", bar, bar, "test bar", np.eye(4)))
+    end_at_quarter_turn = (cfg.table.table2base(math.pi / 2) @ np.array([140.0, 0.0, 10.0, 1.0]))[:3]
+    post = trimesh.creation.box([20.0, 20.0, 100.0])
+    post.apply_translation(end_at_quarter_turn + [0.0, 0.0, 40.0])
+    scanner = Scanner(config=replace(cfg, fixtures=(Fixture("post", post, "world"),)))
+    scanner.turn_table_to(30.0)
+    with pytest.raises(CollisionError, match="post touches the workpiece"):
+        scanner.turn_table_to(90.0)
+    assert scanner.table_deg == pytest.approx(30.0)
+    scanner.turn_table_to(-60.0)  # the other way round, clear of the post
+    gantry = load_scan_config("gantry_urdf")
+    model = CollisionModel(gantry.cell.robot, gantry.probe, gantry.table, gantry.workpiece.mesh)
+    names = {(model.bodies[i].name, model.bodies[j].name) for i, j, _ in model.pairs}
+    assert {("robot base (piece 1)", "workpiece"), ("robot base (piece 2)", "workpiece")} <= names
+
+
+def test_a_fixture_made_in_code_keeps_the_clearance_whatever_its_name():
+    """A Fixture named without the config loader's "fixture " prefix was taken for a robot
+    body in the message ("they must not touch" where 2 mm are asked for)."""
+    from addon.core.safety import Fixture
+
+    clamp = trimesh.creation.box([20.0, 20.0, 20.0])
+    clamp.apply_translation([0.0, 60.0, 10.0])
+    scanner = Scanner(config=replace(load_scan_config("demo"), fixtures=(Fixture("clamp", clamp, "table"),)))
+    with pytest.raises(CollisionError, match="of the clamp; at least 2 mm allowed"):
+        scanner.move_to(((0.0, 60.0, 20.0 + HEAD_REACH_MM + 1.0), (0.0, 180.0, 0.0)))

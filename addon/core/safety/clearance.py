@@ -81,6 +81,9 @@ class PathClearance:
     waypoints: int = 0  # of the path checked
     moved_from: bool = False  # the motion onto the path from a start pose was checked too
     labels: dict = field(default_factory=dict)  # a body's name for people where it differs ("link 3 (forearm_link)")
+    # The bodies of the robot (its links, base and probe): a pair of them must not touch; a
+    # pair with anything else keeps the clearance. Empty: told apart by their names.
+    robot_bodies: frozenset = frozenset()
 
     @property
     def ok(self) -> bool:
@@ -118,15 +121,22 @@ class PathClearance:
         nearest_at = ""
         if first.frame != last.frame and worst.frame >= 0:
             nearest_at = f" (worst {'at' if float(worst.position).is_integer() else 'moving to'} frame {worst.frame})"
-        allowed = ("they must not touch" if _robot_pair(first) else
+        robot_pair = self.robot_pair(first)
+        allowed = ("they must not touch" if robot_pair or self.min_clearance_mm == 0 else
                    f"at least {self.min_clearance_mm:g} mm allowed ([safety] min_clearance_mm)")
-        if not _robot_pair(first) and any(b.startswith("link ") for b in (first.body_a, first.body_b)):
+        if not robot_pair and any(b.startswith("link ") for b in (first.body_a, first.body_b)):
             # The arm, not the probe: the clearance is not the knob (a UR5 whose elbow met the
             # table scanned the same path once started elbow up).
             allowed += ("; the arm itself is in the way: another posture may clear it (IK takes the branch nearest "
                         "the joints it starts from: [robot] start_deg in a config)")
         return (f"{where}: {_the(self.label(first.body_a))} {how} {_the(self.label(first.body_b))}{nearest_at}; "
                 f"{allowed}")
+
+    def robot_pair(self, c: Contact) -> bool:
+        """Both bodies are the robot's (links, base, probe)."""
+        if self.robot_bodies:
+            return c.body_a in self.robot_bodies and c.body_b in self.robot_bodies
+        return not any(name in ("table", "workpiece") or name.startswith("fixture") for name in (c.body_a, c.body_b))
 
     def label(self, body: str) -> str:
         """A body's name for people: a URDF link's own name beside its number."""
@@ -137,7 +147,7 @@ class PathClearance:
         """One record of several checks (a scanner's moves): their path entries numbered on, the
         first check's keeping its own numbers (a path scanned from its entry 1, ``--frames``
         picking the sweep, is reported as entry 1, as a farm's merged shards report it)."""
-        out = PathClearance(parts[0].min_clearance_mm)
+        out = PathClearance(parts[0].min_clearance_mm, robot_bodies=parts[0].robot_bodies)
         for p in parts:
             out.labels.update(p.labels)
             if not out.nearest:
@@ -158,10 +168,6 @@ class PathClearance:
                 "nearest": None if overall is None else overall.as_dict(),
                 "per_path": {str(k): v.as_dict() for k, v in sorted(self.nearest.items())},
                 "samples_checked": self.samples}
-
-
-def _robot_pair(c: Contact) -> bool:
-    return not any(name in ("table", "workpiece") or name.startswith("fixture") for name in (c.body_a, c.body_b))
 
 
 HULL_THICKNESS_MM = 1e-3  # a sheet's hull (one flat triangle, a plate of no thickness) is made this thick
@@ -219,6 +225,7 @@ class CollisionModel:
             b.hull = _convex(self.fcl, _hull_points(b))
         self.index = {b.name: i for i, b in enumerate(self.bodies)}
         self.labels = {f"link {k}": robot.link_label(k) for k in range(1, N_JOINTS + 1) if robot.link_names}
+        self.robot_names = frozenset(b.name for b in self.bodies if b.robot)
         self.pairs = self._pairs()
         # Lever arm bound for the motion sampling: the farthest any robot point gets from a joint axis.
         self.arm_mm = robot.reach_bound_mm + max(b.radius + np.linalg.norm(b.centre) for b in self.bodies
@@ -235,9 +242,17 @@ class CollisionModel:
         # The probe first: it is nearest the part on a scan path, so the branch and bound that
         # finds the smallest clearance (shared by all pairs) prunes the links at once.
         robot = sorted(robot, key=lambda i: self.bodies[i].name != "probe")
-        # The base never moves: not against the table, the part or the fixtures (the layout's).
-        pairs = [(i, j, self.min_clearance_mm) for i in robot for j in env
-                 if not self.bodies[i].name.startswith(ROBOT_BASE)]
+        # Touching counts even where no clearance is asked for (an exact distance of 0 is not below 0).
+        limit = max(self.min_clearance_mm, CONTACT_MM)
+        # The base never moves: not against the table (a disc turning into itself) nor what the
+        # table carries here, but below; the robot's moving bodies against all of it.
+        pairs = [(i, j, limit) for i in robot for j in env if not self.bodies[i].name.startswith(ROBOT_BASE)]
+        self.reported = set(pairs)  # the pairs whose smallest clearance the report gives
+        # What the table carries (the part, its fixtures) against what stands still (the robot's
+        # base, the world's fixtures): a table turn swings a long part into them.
+        still = [i for i, b in enumerate(self.bodies) if b.name.startswith(ROBOT_BASE) or b.carrier == "world"]
+        carried = [j for j in env if self.bodies[j].carrier == "table" and self.bodies[j].name != "table"]
+        pairs += [(i, j, limit) for i in still for j in carried]
         q0 = np.zeros((1, 6))
         carriers = carrier_poses(self.robot, self.table, q0, np.zeros(1))
         def place(name: str) -> int:  # in the chain: the base 0, links by their number, the probe 7
@@ -328,10 +343,12 @@ class CollisionModel:
             out_p.append(offset + i - 1 + f)
         return np.vstack(out_q), np.concatenate(out_t), np.concatenate(out_p)
 
-    def check(self, q, table_rad, segment=None, q_start=None, table_start=None, nearest: bool = True
-              ) -> PathClearance:
+    def check(self, q, table_rad, segment=None, q_start=None, table_start=None, nearest: bool = True,
+              relaxed: dict | None = None) -> PathClearance:
         """Check the path (and the move onto it from ``q_start``); see :class:`PathClearance`.
-        ``nearest``: also the smallest clearance per path entry (else only the collisions)."""
+        ``nearest``: also the smallest clearance per path entry (else only the collisions).
+        ``relaxed``: {(body a, body b): mm} a smaller limit for those pairs (a move out of a
+        pose that already breaks the clearance may not come nearer than it is)."""
         qs, ts, pos = self.samples(q, table_rad, q_start, table_start)
         n_way = len(np.asarray(table_rad).reshape(-1))
         seg = np.zeros(n_way, int) if segment is None else np.asarray(segment, int).reshape(-1)
@@ -344,11 +361,13 @@ class CollisionModel:
             support[i] = np.einsum("nij,kj->nki", T[:, :3, :3], b.support) + T[:, None, :3, 3]
         up = carriers["table"][:, :3, 2]
         out = PathClearance(self.min_clearance_mm, samples=len(qs), waypoints=n_way, moved_from=q_start is not None,
-                            labels=self.labels)
+                            labels=self.labels, robot_bodies=self.robot_names)
         closest: dict[int, Contact] = {}
         for i, j, limit in self.pairs:
             bound = self._bound(i, j, centres, support, up)
-            env = limit != CONTACT_MM
+            env = (i, j, limit) in self.reported
+            if relaxed and (self.bodies[i].name, self.bodies[j].name) in relaxed:
+                limit = min(limit, relaxed[self.bodies[i].name, self.bodies[j].name])
             # Collisions: the samples whose bound says they might be too close, in path order;
             # the pair's first run of colliding samples ends at the first sample clear of it.
             run: list[Contact] = []

@@ -141,7 +141,16 @@ def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, t
         t0 = float(np.asarray(table_rad, dtype=np.float64).reshape(-1)[0]) if table_start is None else table_start
         at_start = model.check(start, np.array([t0]), None, start, t0, nearest=False)
         if not at_start.ok:
-            raise CollisionError(at_start.message())
+            # A single move out of a pose that keeps too little clearance without touching (the
+            # clearance raised since it was reached) may go where it comes no nearer, so the
+            # robot can back away; a path must start clear.
+            if len(np.asarray(q).reshape(-1, 6)) != 1 or any(c.distance_mm <= 0 for c in at_start.deepest):
+                raise CollisionError(at_start.message())
+            relaxed = {(c.body_a, c.body_b): c.distance_mm * (1.0 - 1e-9) for c in at_start.deepest}
+            result = model.check(q, table_rad, segment, q_start, table_start, nearest=nearest, relaxed=relaxed)
+            if not result.ok:
+                raise CollisionError(result.message(segment) + f" (it started {at_start.message()})")
+            return result
     result = model.check(q, table_rad, segment, q_start, table_start, nearest=nearest)
     if not result.ok:
         raise CollisionError(result.message(segment))  # a config's path: its entries named too
