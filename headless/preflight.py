@@ -73,7 +73,9 @@ def folder_argument(text: str) -> str:
 
 
 def render_budget(config) -> RenderBudget:
-    probe, r = config.probe, config.render
+    from addon.core.config.render import with_sensor
+
+    probe, r = config.probe, with_sensor(config.render, config.sensor)  # the samples a sensor model asks for
     w, h = probe.cols_px, probe.rows_px
     return RenderBudget(int(w), int(h), len(config.waypoints), 2, int(r.samples), config.leave_out.chunk_frames)
 

@@ -124,6 +124,9 @@ def check_output_folder(folder: str | Path, names=(), what: str = "output folder
     p = Path(folder)
     if p.exists() and not p.is_dir():
         raise InputError(f"{what} {p} is a file; give a folder (it is made when missing)")
+    if p.is_symlink() and not p.exists():
+        raise InputError(f"{what} {p} is a link to {os.readlink(p)}, which does not exist; make that folder first, "
+                         f"or give another")
     existing = p
     while not existing.exists() and existing.parent != existing:
         existing = existing.parent

@@ -275,6 +275,10 @@ class ScanConfig:
         if detect is not None:
             if detect not in DETECT_METHODS:
                 raise InputError(f"--detect (detect) {detect!r} is not one of: {', '.join(DETECT_METHODS)}")
+            if detect == "steger" and cfg.detect.smoothing_px == 0.0:  # as the config's own [detect] method
+                raise InputError(f"--detect (detect) steger: this config's [detect] smoothing_px = 0, which steger "
+                                 f"cannot take (its ridge test works on the smoothed image); pick another method, "
+                                 f"or set smoothing_px in (0, 100] px or leave it out")
             cfg = replace(cfg, detect_method=detect)
         if frames is not None:
             if isinstance(frames, str):
@@ -386,7 +390,7 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
         probe = replace(probe, calibration=replace(probe.calibration, source=f"{resolve_rig('probes', rig)}"
                                                    + (f" ({made})" if made else "")))
     if pt.has("mount"):
-        probe = replace(probe, mount=pt.pose("mount"))
+        probe = replace(probe, mount=pt.pose("mount", base=probe.mount))  # a key left out keeps the rig's
     # Applied once [render] resolution has set the sensor (a calibration is made at one size).
     calibration = _rig_path(base, pt.string("calibration")) if pt.has("calibration") else None
     pt.finish()

@@ -19,7 +19,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..errors import ConfigError
-from ..kinematics.euler import pose_from_xyz_yzz
+from ..kinematics.euler import pose_from_xyz_yzz, pose_to_xyz_yzz
 
 RIGS_DIR = Path(__file__).resolve().parents[3] / "rigs"
 
@@ -61,6 +61,9 @@ def load_toml(path: str | Path) -> "Table":
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
     except tomllib.TOMLDecodeError as exc:
+        if _starts_with_bom(path):
+            raise ConfigError(f"{path}: starts with a byte-order mark (as some Windows editors save UTF-8), which "
+                              f"TOML does not allow; save it as UTF-8 without one") from None
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not UTF-8 text (byte {exc.start} cannot be decoded); TOML files are UTF-8") \
@@ -68,6 +71,14 @@ def load_toml(path: str | Path) -> "Table":
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
     return Table(data, str(path))
+
+
+def _starts_with_bom(path: Path) -> bool:
+    try:
+        with path.open("rb") as fh:
+            return fh.read(3) == b"\xef\xbb\xbf"
+    except OSError:
+        return False
 
 
 def _describe(value: Any) -> str:
@@ -218,16 +229,19 @@ class Table:
             raise self.error(key, f"{_describe(value)}: expected [[{key}]] tables")
         return [Table(v, self.file, f"{self.key_path(key)}[{i + 1}].") for i, v in enumerate(value)]
 
-    def pose(self, key: str, *, max_offset_mm: float = 1e7) -> np.ndarray:
+    def pose(self, key: str, *, max_offset_mm: float = 1e7, base: np.ndarray | None = None) -> np.ndarray:
         """Optional rigid transform table ``{xyz_mm = [x, y, z], yzz_deg = [yaw, pitch, roll]}``.
 
-        Missing table or missing keys mean zero offset / zero angles. Returns (4, 4), mm.
+        A missing table gives ``base`` (default: the identity); a missing key, ``base``'s
+        offset or angles (so a table that overrides one keeps the other). Returns (4, 4), mm.
         """
+        base = np.eye(4) if base is None else np.asarray(base, dtype=np.float64)
         t = self.table(key, default=None)
         if t is None:
-            return np.eye(4)
-        xyz = t.numbers("xyz_mm", 3, default=[0.0, 0.0, 0.0], lo=-max_offset_mm, hi=max_offset_mm)
-        yzz = t.numbers("yzz_deg", 3, default=[0.0, 0.0, 0.0], lo=-720.0, hi=720.0)
+            return base.copy()
+        xyz0, yzz0 = pose_to_xyz_yzz(base)
+        xyz = t.numbers("xyz_mm", 3, default=[float(v) for v in xyz0], lo=-max_offset_mm, hi=max_offset_mm)
+        yzz = t.numbers("yzz_deg", 3, default=[float(v) for v in np.degrees(yzz0)], lo=-720.0, hi=720.0)
         t.finish()
         return pose_from_xyz_yzz(xyz, np.radians(yzz))
 

@@ -106,6 +106,9 @@ def check_mesh(mesh: trimesh.Trimesh, what: str, fix: str = "is it in another un
         raise InputError(f"{what}: the mesh is {extent:g} mm across, larger than {MAX_EXTENT_MM:g} mm: {fix}")
     if extent < MIN_EXTENT_MM:
         raise InputError(f"{what}: the mesh is only {extent:g} mm across (at least {MIN_EXTENT_MM:g} mm): {fix}")
+    if not float(mesh.area) > MIN_EXTENT_MM ** 2:  # every face a line or a point: nothing to light
+        raise InputError(f"{what}: the mesh has no surface ({float(mesh.area):.3g} mm² in all: its faces' corners lie on "
+                         f"lines); a workpiece needs a surface of at least {MIN_EXTENT_MM ** 2:g} mm²")
     return mesh
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..config.render import with_sensor
 from ..config.scan import ScanConfig
 from ..files import png_bytes, write_set
 from ..geometry import metrics
@@ -103,7 +104,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     timing["metrics"] = time.perf_counter() - t
     n = int(len(stats["band_rows"]))
     scan_time = timing.get("render", 0.0) + timing.get("detect", 0.0) + timing.get("triangulate", 0.0)
-    r = config.render
+    r = with_sensor(config.render, config.sensor)  # as rendered: a sensor model may raise the samples
     warnings = list(plan.warnings) + fixture_warnings(plan.fixture_frames, len(plan.q))
     share = quality.get("measurable_share", 0.0)
     if n and not np.any(on_part) and not step_by_step:  # (a planner's poses may see nothing on purpose)
@@ -264,8 +265,9 @@ def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, e
     if report.get("measurable_share"):  # the share of what the path can measure comes first, as in the summary
         # (not the whole part's in brackets: there the summary gives the share the path can measure)
         covered = f"{report['coverage_measurable'] * 100:.0f} % of what the path can measure, {covered}"
-    title = (f"{config.name}: {len(cloud)} points, RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um, "
-             f"covers {covered}")
+    error = ("no point on the part" if e.get("rms_um") is None else
+             f"RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um")
+    title = f"{config.name}: {len(cloud)} points, {error}, covers {covered}"
     if report.get("points_on_fixtures"):
         title += f", {report['points_on_fixtures']} on fixtures"
     picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title, on_fixture=on_fixture)

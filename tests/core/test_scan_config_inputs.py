@@ -1,0 +1,88 @@
+"""Scan config inputs that were taken without a word or refused with the wrong reason: a
+partial probe mount, a byte-order mark, a mesh with no area, step heights, a detector
+picked on the command line, the samples a sensor model renders with, a dangling --out."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from addon.core.config.scan import load_scan_config
+from addon.core.errors import ConfigError, InputError
+
+REPO = Path(__file__).resolve().parents[2]
+DEMO = (REPO / "rigs" / "scenes" / "demo.toml").read_text()
+
+
+def demo_with(tmp_path, extra: str = "", old: str = "", new: str = "", name: str = "scan.toml"):
+    path = tmp_path / name
+    path.write_text(DEMO.replace(old, new, 1) + "\n" + extra)
+    return path
+
+
+def test_a_probe_mount_that_gives_one_key_keeps_the_rigs_other():
+    """[probe.mount] with only its angles set the rig's 100 mm stand-off from the flange to 0."""
+    rig = load_scan_config("demo").probe.mount
+    assert np.linalg.norm(rig[:3, 3]) > 10.0
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        turned = load_scan_config(demo_with(Path(d), "[probe.mount]\nyzz_deg = [0.0, 0.0, 10.0]\n")).probe.mount
+        moved = load_scan_config(demo_with(Path(d), "[probe.mount]\nxyz_mm = [0.0, 0.0, 120.0]\n")).probe.mount
+    np.testing.assert_allclose(turned[:3, 3], rig[:3, 3])
+    assert not np.allclose(turned[:3, :3], rig[:3, :3])
+    np.testing.assert_allclose(moved[:3, :3], rig[:3, :3], atol=1e-12)
+    np.testing.assert_allclose(moved[:3, 3], [0.0, 0.0, 120.0])
+
+
+def test_a_config_saved_with_a_byte_order_mark_is_named_for_it(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + DEMO.encode())
+    with pytest.raises(ConfigError, match="byte-order mark"):
+        load_scan_config(path)
+
+
+def test_a_mesh_with_no_area_is_refused(tmp_path):
+    """Three corners on one line: 0 points on the part and a scan that exited 0."""
+    trimesh.Trimesh([[0.0, 0.0, 5.0], [10.0, 0.0, 5.0], [20.0, 0.0, 5.0]], [[0, 1, 2]],
+                    process=False).export(tmp_path / "line.stl")
+    path = demo_with(tmp_path, old='shape = "sphere"', new='file = "line.stl"')
+    text = path.read_text().replace("radius_mm = 30.0", "")
+    path.write_text(text)
+    with pytest.raises(ConfigError, match="no surface"):
+        load_scan_config(path)
+
+
+def test_step_heights_out_of_order_are_named_by_their_key_in_plain_numbers(tmp_path):
+    path = demo_with(tmp_path, old='shape = "sphere"', new='shape = "step_block"\nheights_mm = [30.0, 40.0]')
+    path.write_text(path.read_text().replace("radius_mm = 30.0", ""))
+    with pytest.raises(ConfigError, match=r"heights_mm: .*got \[30, 40\]") as err:
+        load_scan_config(path)
+    assert "np.float64" not in str(err.value)
+
+
+def test_steger_picked_on_the_command_line_is_refused_where_the_config_smooths_nothing(tmp_path):
+    """The config's own [detect] method = "steger" with smoothing_px = 0 is refused; --detect
+    steger over a config with smoothing_px = 0 rendered and then failed in OpenCV."""
+    cfg = load_scan_config(demo_with(tmp_path, old="[detect]\n", new="[detect]\nsmoothing_px = 0.0\n"))
+    with pytest.raises(InputError, match="smoothing_px = 0"):
+        cfg.with_overrides(detect="steger")
+    assert cfg.with_overrides(detect="cog").detect_method == "cog"
+
+
+def test_the_samples_a_sensor_model_renders_with_are_the_ones_budgeted():
+    """integrate_pixels renders at 16 samples at least; the time check read the config's 1."""
+    from headless.preflight import render_budget
+
+    cfg = load_scan_config("cylinder_realistic")
+    assert cfg.sensor.integrate_pixels and cfg.render.samples < 16
+    assert render_budget(cfg).samples >= 16
+
+
+def test_an_output_folder_that_is_a_dangling_link_is_refused_before_any_work(tmp_path):
+    from addon.core.files import check_output_folder
+
+    (tmp_path / "out").symlink_to(tmp_path / "missing")
+    with pytest.raises(InputError, match="does not exist"):
+        check_output_folder(tmp_path / "out")
