@@ -388,6 +388,9 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_
         raise InputError(f"max_profiles must be a whole number from 1 to {MAX_PROFILES}, got {max_profiles!r}")
     check_min_gain(min_gain)
     check_target_coverage(target_coverage)
+    for name, value in (("progress", progress), ("log", log)):
+        if value is not None and not callable(value):  # found only when first called, after a sweep
+            raise InputError(f"{name} must be a function or None, got {value!r}")
     if planner is None:
         t = time.perf_counter()
         planner = NextBestView(scanner, lo, hi, min_gain=min_gain, voxel_mm=voxel_mm)
@@ -409,7 +412,12 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_
     smallest = planner.smallest_view()
     if max_profiles < smallest:  # no view fits: nothing is scanned, nothing recorded
         raise BudgetBelowView(max_profiles, smallest)
-    while taken < max_profiles:
+    estimate = planner.coverage_estimate()
+    reached = target_coverage is not None and estimate >= target_coverage  # by an earlier run: no view needed
+    if reached and log:
+        log(f"adaptive: stopping before any sweep: the coverage estimate {estimate * 100:.1f} % already reaches the "
+            f"target {target_coverage * 100:.1f} %")
+    while taken < max_profiles and not reached:
         say("adaptive", taken, max_profiles)  # a stop asked for during the last sweep takes effect here
         yield taken
         t = time.perf_counter()

@@ -367,8 +367,8 @@ class Scanner:
     def _check_move(self, q: np.ndarray, table_rad: float) -> None:
         """Collision checks on the motion from the current joints and table angle to these."""
         found = self._check_path(q[None, :], np.array([table_rad]), "move")
-        if found is not None:
-            self._clearances.append(found)
+        if found is not None:  # the pose moved to: where the next frame will be taken
+            self._clearances.append(found.shifted(self.frames_taken))
 
     def _check_path(self, q: np.ndarray, table_rad: np.ndarray, what: str = "sweep", record: bool = True):
         """Collision checks on the motion from the current joints and table angle through q (n, 6):
@@ -485,6 +485,7 @@ class Scanner:
         if memo is not None and memo[0][0] is key[0] and memo[0][1:] == key[1:] and (memo[1] or not record):
             q, table_rad, found = memo[2]
             return q.copy(), table_rad.copy(), found
+        _check_table_deg(float(np.max(np.abs(np.degrees(wp.table_rad)))), f"the {what}'s table angles")
         sol = solve_path(self.config.cell, wp, self._q)
         if not sol.ok.all():
             from .pipeline import frame_ranges
@@ -648,8 +649,8 @@ class Scanner:
         # allowed step by step (a sweep may run past the part), never silent: see _range_warning
         self._empty_frames += [self.frames_taken + int(i) for i in getattr(plan, "empty_frames", ())]
         self._poses.append((np.array(q, dtype=np.float64), np.array(table_rad, dtype=np.float64)))
-        if clearance is not None:
-            self._clearances.append(clearance)
+        if clearance is not None:  # its frames numbered among the scan's
+            self._clearances.append(clearance.shifted(self.frames_taken - len(q)))
         self._warnings += list(warnings)
         self._q = np.array(q[-1], dtype=np.float64)
         self._table_rad = float(table_rad[-1])
@@ -695,6 +696,9 @@ class Scanner:
         # A second call goes on from what the first learnt (and from anything measured since),
         # instead of planning the same views again; a different box or cell size starts afresh.
         setup = 0.0
+        # A call refused before its first sweep (a bad argument, a budget below the smallest
+        # view) or stopped in it keeps the planner that was (a view done is never taken again).
+        kept = (self._planner, self._planner_config)
         # The planner's candidates, probe and table are the config's: a config replaced since
         # (another probe, table or fixtures) gets a new planner, which learns what was measured.
         if self._planner is None or not self._planner.fits(lo, hi, settings.voxel_mm) \
@@ -714,6 +718,8 @@ class Scanner:
             # What the run noticed about the box joins the report's warnings (printed under --quiet too).
             self._warnings += [w for w in self._planner.warnings if w not in self._warnings]
         finally:  # a run dropped or stopped after some sweeps still lists them beside their frames
+            if not (finished or steps):
+                self._planner, self._planner_config = kept
             if finished or steps:
                 # Over every adaptive() call on this Scanner: the sweeps all of them took, within
                 # the budgets all of them were given.

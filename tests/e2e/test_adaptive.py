@@ -276,6 +276,32 @@ def test_a_second_adaptive_run_goes_on_from_what_the_first_learnt():
     assert len(scanner.report().to_dict()["adaptive"]["sweeps"]) == len(first) + len(second)
 
 
+def test_a_refused_call_keeps_the_planner_and_a_target_already_met_takes_no_view():
+    """A call with another box refused before its first sweep (a budget of 0) replaced the
+    planner with an empty one: the next call scanned the views already done again. A call
+    whose target an earlier run met scanned one more view; a log that is no function failed
+    only after a sweep."""
+    from addon import Scanner
+
+    config, _, _ = _raycast_planner("demo")
+    scanner = Scanner(config=config)
+    first = scanner.adaptive(max_profiles=300)
+    planner, estimate = scanner.planner, scanner.planner.coverage_estimate()
+    lo, hi = planner.lo, planner.hi
+    with pytest.raises(InputError, match="max_profiles"):
+        scanner.adaptive((lo - 4.0, hi + 4.0), max_profiles=0)
+    with pytest.raises(InputError, match="log must be a function"):
+        scanner.adaptive(max_profiles=200, log=True)
+    assert scanner.planner is planner and scanner.planner.coverage_estimate() == estimate
+    taken = scanner.frames_taken
+    lines = []
+    assert scanner.adaptive(max_profiles=200, target_coverage=estimate * 0.99, log=lines.append) == []
+    assert scanner.frames_taken == taken and any("before any sweep" in line for line in lines)
+    second = scanner.adaptive(max_profiles=200)
+    views = lambda steps: {(s.sweep.split(" at ")[0], s.table_deg, s.tilt_deg) for s in steps}
+    assert second and not views(first) & views(second)
+
+
 def test_a_planner_joining_a_scan_under_way_learns_what_was_measured_and_skips_the_overview():
     from addon import Scanner
     from addon.adaptive import NextBestView, part_box

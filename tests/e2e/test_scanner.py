@@ -605,3 +605,26 @@ def test_a_path_asked_about_and_then_scanned_is_planned_once(monkeypatch):
     s.plan_path(wp)
     s.scan_path(wp)
     assert len(calls) == 4 and s.result().report["clearance"] is not None
+
+
+def test_a_step_by_step_scans_clearance_names_frames_counted_over_the_whole_scan():
+    """Each sweep's collision check counts its frames from 0: the report named frame 4 for the
+    nearest pose, which was the second sweep's frame 4, the scan's frame 14."""
+    s = Scanner.from_config("demo", engine="raycast")
+    s.sweep([-40.0, 0.0, 230.0], [40.0, 0.0, 230.0], 10)
+    s.sweep([-40.0, 0.0, 140.0], [40.0, 0.0, 140.0], 10)  # nearer the sphere: the nearest pose
+    clearance = s.report().to_dict()["clearance"]
+    assert 10 <= clearance["nearest"]["frame"] <= 19
+    assert 0 <= clearance["per_path"]["0"]["frame"] <= 9 and clearance["per_path"]["1"] == clearance["nearest"]
+    assert clearance["nearest"]["points_mm"][0][2] == pytest.approx(140.0 - 2.0, abs=0.01)  # the probe's heads
+
+
+def test_a_path_whose_table_turns_past_ten_turns_is_refused_before_planning():
+    """plan_path took any finite table angle, and a path to 1e6 rad asked the collision check
+    for a sample per millimetre of the turn (30 GiB)."""
+    from addon.core.kinematics.path import turntable
+
+    s = Scanner.from_config("demo", engine="raycast")
+    wp = turntable(4, s.pose()[:3, 3], [0.0, 0.0, -1.0], start_rad=1e6, table=s.config.table)
+    with pytest.raises(InputError, match="ten turns"):
+        s.plan_path(wp)

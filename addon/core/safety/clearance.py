@@ -19,7 +19,7 @@ waypoints is checked against the allowed clearance, not searched for its minimum
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import trimesh
@@ -141,6 +141,15 @@ class PathClearance:
     def label(self, body: str) -> str:
         """A body's name for people: a URDF link's own name beside its number."""
         return self.labels.get(body, body)
+
+    def shifted(self, frames: int) -> "PathClearance":
+        """This check with its path positions counted ``frames`` on (a step-by-step scan's move
+        or sweep, its frames numbered from 0, placed among the frames taken before it)."""
+        def on(c: Contact) -> Contact:
+            return replace(c, position=c.position + frames)
+
+        return replace(self, nearest={k: on(c) for k, c in self.nearest.items()},
+                       collisions=[(on(a), on(b)) for a, b in self.collisions], deepest=[on(c) for c in self.deepest])
 
     @staticmethod
     def merge(parts: list["PathClearance"]) -> "PathClearance":
