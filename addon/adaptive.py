@@ -449,7 +449,7 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_
         setup_s = 0.0
         if log:
             log(f"adaptive: sweep {numbered_from + len(steps)}: {step.sweep}; it found {step.new_surface_cells} new surface "
-                f"cells (the model learnt {step.new_cells} cells, air and surface), coverage estimate "
+                f"cells (the model learnt {step.new_cells} cells it knew nothing of, air and surface), coverage estimate "
                 f"{estimate * 100:.0f} % (planned in {planning:.2f} s, {step.refused} refused)")
         if progress:
             progress("adaptive", taken, max_profiles)
@@ -468,8 +468,12 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_
                         f"{box}: the part (or something else on the table) reaches beyond the box the planner was "
                         f"told {told}, which plans and estimates coverage inside it only")
     elif steps and not new:
+        z0, z1 = scanner.config.probe.z_range_mm
+        size = float(np.max(planner.hi - planner.lo))
+        why = (f"may not hold the part, or be far larger than it ({size:.0f} mm across, against the probe's "
+               f"{z1 - z0:.0f} mm of range: views aimed at the box miss a small part inside it)")
         warnings.append(f"no point was measured above the table in this run: the part's box {box} the planner was told "
-                        f"{told} may not hold the part")
+                        f"{told} {why}")
     for w in warnings:
         if log:
             log(f"adaptive: warning: {w}")

@@ -513,7 +513,7 @@ def _check_robot_meshes(robot) -> None:
 def surface_key(material: str, roughness: float) -> list:
     """The workpiece's surface as the cell records it: a roughness counts only for the
     surfaces that have one."""
-    return [material, round(float(roughness), 6) if material in ("glossy", "mirror") else None]
+    return [material, round(float(roughness), 6) if material == "glossy" else None]
 
 
 def build_cell(scene: bpy.types.Scene, cell: Cell, probe: Probe, workpiece: Workpiece | None = None,

@@ -47,6 +47,9 @@ def emission(name: str, rgb=(1.0, 1.0, 1.0), strength: float = 1.0) -> bpy.types
     return mat
 
 
+MIRROR_ROUGHNESS = 0.05  # polished metal
+
+
 def surface(kind: str = "grey", roughness: float = 0.2) -> bpy.types.Material:
     """The workpiece's surface: grey (the paper's Lambertian grey), dark (a dull black part),
     glossy (grey with a specular coat of the given roughness: reflections of the line need
@@ -60,6 +63,8 @@ def surface(kind: str = "grey", roughness: float = 0.2) -> bpy.types.Material:
         from ..core.errors import InputError
 
         raise InputError(f"the workpiece's roughness must be a number from 0 to 1, got {roughness!r}")
+    if kind != "glossy":  # a mirror is polished whatever roughness it is given (and named so)
+        roughness = MIRROR_ROUGHNESS
     # Named by the roughness to 4 digits (to 2, 0.004 took 0.001's material), its values set
     # each time (a material of that name may have been edited)
     name = f"{kind.title()} workpiece r{roughness:.4g}"
@@ -68,6 +73,6 @@ def surface(kind: str = "grey", roughness: float = 0.2) -> bpy.types.Material:
         mat = new_material(name)
     bsdf = mat.node_tree.nodes.get("Principled BSDF")
     bsdf.inputs["Base Color"].default_value = (*(0.6,) * 3, 1.0) if kind == "glossy" else (0.9, 0.9, 0.9, 1.0)
-    bsdf.inputs["Roughness"].default_value = roughness if kind == "glossy" else 0.05
+    bsdf.inputs["Roughness"].default_value = roughness
     bsdf.inputs["Metallic"].default_value = 1.0 if kind == "mirror" else 0.0
     return mat

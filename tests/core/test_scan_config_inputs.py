@@ -86,3 +86,46 @@ def test_an_output_folder_that_is_a_dangling_link_is_refused_before_any_work(tmp
     (tmp_path / "out").symlink_to(tmp_path / "missing")
     with pytest.raises(InputError, match="does not exist"):
         check_output_folder(tmp_path / "out")
+
+
+def test_a_roughness_is_refused_for_a_surface_that_has_none(tmp_path):
+    """grey and dark are matt and a mirror polished: a roughness given them did nothing (a mirror
+    at 0.9 and at 0.05 gave the same cloud) and named the material after it."""
+    for material in ("mirror", "grey"):
+        path = demo_with(tmp_path, old="[workpiece]\n", new=f'[workpiece]\nmaterial = "{material}"\nroughness = 0.9\n')
+        with pytest.raises(ConfigError, match='roughness: applies to material = "glossy" only'):
+            load_scan_config(path)
+    path = demo_with(tmp_path, old="[workpiece]\n", new='[workpiece]\nmaterial = "glossy"\nroughness = 0.9\n')
+    assert load_scan_config(path).roughness == 0.9
+
+
+@pytest.mark.parametrize("entry,fragment", [
+    ('kind = "turntable"\nframes = 5\nprobe_mm = [12.0, 0.0, 210.0]\nturn_deg = 1440.0\n', "turn_deg"),
+    ('kind = "sweep"\nframes = 20\nfrom_mm = [0.0, 0.0, 210.0]\nto_mm = [0.0, 0.0, 210.0]\nline = [0.0, 1.0, 0.0]\n',
+     "takes one profile 20 times"),
+])
+def test_a_path_that_takes_the_same_profiles_again_is_refused(tmp_path, entry, fragment):
+    """Four whole turns in 5 frames took one profile 5 times (and counted each in the error);
+    a sweep from a point to itself with its line given, 20 times."""
+    text = DEMO[:DEMO.index("[[path]]")] + "[[path]]\n" + entry
+    path = tmp_path / "again.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=fragment):
+        load_scan_config(path)
+
+
+def test_a_built_in_part_far_too_small_is_named_by_its_size_key(tmp_path):
+    """radius_mm = 1e-20 gave numpy's warnings and 'NaN vertex coordinates'."""
+    path = demo_with(tmp_path, old="radius_mm = 30.0", new="radius_mm = 1e-20")
+    with pytest.raises(ConfigError, match="radius_mm 1e-20 mm is too small"):
+        load_scan_config(path)
+
+
+def test_an_obj_face_naming_vertex_0_is_refused(tmp_path):
+    """OBJ counts vertices from 1: the reader dropped a face naming 0 without a word."""
+    (tmp_path / "zero.obj").write_text("v 0 0 0\nv 20 0 0\nv 20 20 0\nv 0 20 0\nv 10 10 20\n"
+                                       "f 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\nf 1 2 0\n")
+    from addon.core.geometry.workpiece import load_workpiece
+
+    with pytest.raises(InputError, match="line 10 names vertex 0"):
+        load_workpiece(tmp_path / "zero.obj")

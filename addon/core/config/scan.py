@@ -403,6 +403,10 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
     wt = top.table("workpiece")
     material = wt.string("material", default="grey", choices=MATERIALS)
     roughness = wt.number("roughness", default=0.2, lo=0.0, hi=1.0)
+    if wt.has("roughness") and material != "glossy":  # grey and dark are matt, a mirror polished
+        raise wt.error("roughness", f"applies to material = \"glossy\" only (this part's is {material!r}: "
+                                    f"{'polished' if material == 'mirror' else 'matt'}); leave it out, or make "
+                                    f"the material glossy")
     workpiece = _workpiece(wt, base)
     waypoints = _paths(top, table)
     render, resolution = _render(top.table("render", default={}))
@@ -588,7 +592,8 @@ def _paths(top: Table, table: Turntable) -> scanpath.Waypoints:
             else:
                 parts.append(scanpath.turntable(frames, p.numbers("probe_mm", 3, lo=-1e5, hi=1e5), beam, line,
                                                 np.radians(p.number("start_deg", default=0.0, lo=-1e5, hi=1e5)),
-                                                np.radians(p.number("turn_deg", default=360.0, lo=-1e5, hi=1e5)),
+                                                # past a whole turn its profiles measure the first turn's again
+                                                np.radians(p.number("turn_deg", default=360.0, lo=-360.0, hi=360.0)),
                                                 table, i))
         except InputError as exc:
             raise p.table_error(str(exc)) from None  # the message names the key

@@ -84,6 +84,12 @@ def builtin_workpiece(kind: str, pose=None, **params) -> Workpiece:
     unknown = set(params) - set(defaults)
     if unknown:
         raise InputError(f"{kind}: unknown parameter(s) {', '.join(sorted(unknown))}; allowed: {', '.join(defaults)}")
+    for key, value in params.items():  # a size far under the smallest part made NaN vertices (and numpy's warnings)
+        for v in (value if isinstance(value, (tuple, list)) else (value,)):
+            if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) \
+                    and 0 < v < MIN_EXTENT_MM / 2:
+                raise InputError(f"{kind} {key} {v:g} mm is too small: a part is at least {MIN_EXTENT_MM:g} mm across; "
+                                 f"give sizes from {MIN_EXTENT_MM / 2:g} mm")
     shape = make(pose, **{**defaults, **params})
     mesh = shape.mesh()
     check_mesh(mesh, f"the built-in {kind}", f"give it a size from {MIN_EXTENT_MM:g} to {MAX_EXTENT_MM:g} mm "
@@ -122,6 +128,21 @@ def _text_has_non_finite(path: Path, limit: int = 64 << 20) -> bool:
     except (OSError, UnicodeDecodeError):  # binary: its reader's words stand
         return False
     return re.search(r"(?<![\w.])[-+]?(nan|inf(inity)?)(\.\d*)?(?![\w.])", text, re.IGNORECASE) is not None
+
+
+def _obj_zero_index_line(path: Path, limit: int = 64 << 20) -> int | None:
+    """The first line of an OBJ file (at most ``limit`` bytes) whose face names vertex 0, which
+    OBJ does not have (None where none does)."""
+    if path.stat().st_size > limit:
+        return None
+    try:
+        with path.open("r", encoding="utf-8", errors="replace") as fh:
+            for number, line in enumerate(fh, 1):
+                if line.startswith("f ") and any(t.split("/")[0] in ("0", "-0") for t in line.split()[1:]):
+                    return number
+    except OSError:
+        return None
+    return None
 
 
 def _point_count(path: Path) -> int:
@@ -395,6 +416,10 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         if polygons is None:
             raise InputError(_misnamed(path) or f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
         mesh = trimesh.Trimesh(*polygons, process=False)
+    zero = _obj_zero_index_line(path) if path.suffix.lower() == ".obj" else None
+    if zero:  # the reader drops such a face without a word
+        raise InputError(f"{path}: line {zero} names vertex 0, and an OBJ counts its vertices from 1 (or from -1 "
+                         f"back); export it again")
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         points = _point_count(path)
         if points:

@@ -137,6 +137,9 @@ def sweep(frames: int, from_mm, to_mm, beam=DOWN, line=None, table_rad: float = 
     z = _unit(beam, "beam")
     motion = b - a - np.dot(b - a, z) * z  # the probe's travel across the beam
     moves = np.linalg.norm(motion) >= 1e-9
+    if frames > 1 and np.linalg.norm(b - a) < 1e-9:
+        raise InputError(f"a sweep of {frames} frames from and to the same point {a.tolist()} takes one profile "
+                         f"{frames} times; give to_mm apart from from_mm, or 1 frame")
     if line is None:
         if not moves:
             raise InputError("a sweep must move across the beam: from_mm and to_mm differ only along it")

@@ -137,7 +137,8 @@ def candidates(cell, probe: Probe, lo, hi) -> list[Candidate]:
                 beam = -math.cos(t) * up - (0.0 if side is None else math.sin(t)) * (s if side is None else side)
                 aim = centre.copy()
                 low = 0.7 if tilt < 40 else 0.5 if tilt < 60 else 0.2  # the steeper, the lower the aim
-                aim[2] = hi[2] if tilt == 0.0 else lo[2] + (hi[2] - lo[2]) * low
+                bottom = max(lo[2], 0.0)  # a box reaching under the table top: the part stands on it
+                aim[2] = hi[2] if tilt == 0.0 else bottom + (hi[2] - bottom) * low
                 motion = beside if side is None else s
                 signed = tilt if side is None or side @ beside > 0 else -tilt
                 middle = aim - standoff * beam
