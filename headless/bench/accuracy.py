@@ -74,7 +74,6 @@ def factors():
         "samples (box 1 px)": [(f"{n} spp", dict(samples=n, pixel_filter="BOX", filter_width_px=1.0))
                                for n in (1, 2, 4, 16, 64)],
         "pixel filter": [("point, 1 spp", dict()),
-                         ("box 0.5 px, 16 spp", dict(samples=16, pixel_filter="BOX", filter_width_px=0.5)),
                          ("Gaussian 1.5 px, 16 spp", dict(samples=16, pixel_filter="GAUSSIAN", filter_width_px=1.5)),
                          ("Blackman-Harris 1.5 px, 16 spp",
                           dict(samples=16, pixel_filter="BLACKMAN_HARRIS", filter_width_px=1.5))],

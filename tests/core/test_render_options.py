@@ -20,3 +20,47 @@ def test_render_options_of_the_wrong_kind_are_named(kw, words):
     with pytest.raises(InputError) as err:
         RenderOptions(**kw)
     assert words in str(err.value)
+
+
+def test_cycles_box_filter_narrower_than_a_pixel_is_refused_above_one_sample(tmp_path):
+    """Cycles' box is one pixel wide whatever its width: at 16 samples a 0.5 px box (or the
+    default 0.01, "a point sample") rendered the very images of the 1 px box. A config that
+    gives more samples and no width takes the 1 px box, as does --samples on a point-sampled one."""
+    from pathlib import Path
+
+    from addon.core.config.render import RenderOptions
+    from addon.core.config.scan import load_scan_config
+    from addon.core.errors import ConfigError
+
+    with pytest.raises(InputError, match="one pixel wide whatever its width"):
+        RenderOptions(samples=16)
+    assert RenderOptions(samples=16, filter_width_px=1.0).filter_width_px == 1.0
+    assert RenderOptions(samples=1).filter_width_px == 0.01  # one sample: a point whatever the box
+    assert RenderOptions(engine="eevee", samples=16).filter_width_px == 0.01  # Eevee's filter takes its width
+    demo = (Path(__file__).resolve().parents[2] / "rigs" / "scenes" / "demo.toml").read_text()
+    many = tmp_path / "many.toml"
+    assert "samples = 1\nfilter_width_px = 0.01\n" in demo
+    many.write_text(demo.replace("samples = 1\nfilter_width_px = 0.01\n", "samples = 16\n", 1))
+    assert load_scan_config(many).render.filter_width_px == 1.0
+    narrow = tmp_path / "narrow.toml"
+    narrow.write_text(many.read_text().replace("samples = 16\n", "samples = 16\nfilter_width_px = 0.5\n", 1))
+    with pytest.raises(ConfigError, match="filter_width_px: Cycles' box"):
+        load_scan_config(narrow)
+    assert load_scan_config("demo").with_overrides(samples=16).render.filter_width_px == 1.0
+
+
+@pytest.mark.parametrize("keys,fragment", [('pixel_filter = "GAUSSIAN"\n', "pixel_filter: Eevee has a pixel filter"),
+                                            ("bounces = 2\n", "bounces: 2: Eevee traces no bounces")])
+def test_eevee_refuses_the_render_keys_it_would_ignore(tmp_path, keys, fragment):
+    """Eevee rendered a BOX and a GAUSSIAN filter of the same width to the same bits, and 2
+    bounces as none, without a word."""
+    from pathlib import Path
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.errors import ConfigError
+
+    demo = (Path(__file__).resolve().parents[2] / "rigs" / "scenes" / "demo.toml").read_text()
+    path = tmp_path / "eevee.toml"
+    path.write_text(demo.replace('engine = "cycles"\n', 'engine = "eevee"\n' + keys, 1).replace('laser = "gobo"\n', ""))
+    with pytest.raises(ConfigError, match=fragment):
+        load_scan_config(path)

@@ -240,3 +240,28 @@ def test_the_longest_shutter_motion_blur_takes_is_the_one_the_scene_keys():
     assert with_sensor(RenderOptions(), s).motion_blur_shutter == pytest.approx(0.98)
     with pytest.raises(InputError, match="motion blur shutter"):
         RenderOptions(motion_blur_shutter=0.99)
+
+
+def test_a_copy_with_another_seed_or_spread_has_its_own_fixed_pattern():
+    """dataclasses.replace() hands the copy the original's cache: a copy with prnu 0 kept the
+    5 % pattern, and one with another seed the same pattern."""
+    from dataclasses import replace
+
+    probe = load_probe("default")
+    s = SensorModel(noise=True, saturate=True, prnu=0.05, seed=1)
+    first = s._prnu_map(probe, 0)
+    assert np.std(first) == pytest.approx(0.05, rel=0.05)
+    assert np.all(replace(s, prnu=0.0)._prnu_map(probe, 0) == 1.0)
+    other = replace(s, seed=2)._prnu_map(probe, 0)
+    assert not np.allclose(other, first)
+    np.testing.assert_array_equal(other, SensorModel(noise=True, saturate=True, prnu=0.05, seed=2)._prnu_map(probe, 0))
+
+
+def test_auto_exposure_under_motion_blur_never_outlasts_a_frame():
+    """A dark part at 200 Hz took 7.3 ms, 1.46 frames, where exposure_ms = 7.3 is refused."""
+    from addon.core.optics.sensor import MAX_SHUTTER_FRAMES
+
+    s = SensorModel(saturate=True, auto_exposure=True, motion_blur=True, frame_rate_hz=200.0)
+    dim = 1e-6  # a line so faint that the target needs a long exposure
+    assert SensorModel(saturate=True, auto_exposure=True).exposure_for(dim) > 1000.0 / 200.0
+    assert s.exposure_for(dim) == pytest.approx(MAX_SHUTTER_FRAMES * 1000.0 / 200.0)

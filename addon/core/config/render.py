@@ -41,7 +41,8 @@ def laser_engine_mismatch(engine: str, laser: str) -> str | None:
 class RenderOptions:
     """engine: cycles | eevee | raycast (Cycles' image under ideal conditions, by Embree ray
     casting: see addon/core/optics/raycast.py and :func:`raycast_mismatch`); device: CPU, GPU or a GPU backend by name; samples per pixel;
-    pixel filter and its width (px; 0.01 point-samples each pixel's centre); bounces (0 for
+    pixel filter and its width (px; at 1 sample, each pixel is point-sampled whatever the filter;
+    Cycles' BOX is 1 px wide whatever its width, so with more samples it takes width 1); bounces (0 for
     diffuse scenes); ambient: world light strength (0 = dark); laser: gobo (Cycles' smooth
     Gaussian line), spot (the same line from squeezed spot lights, for Eevee) or slit (the
     paper's point light behind an aperture); laser_peak: the
@@ -77,6 +78,13 @@ class RenderOptions:
             raise InputError(f"laser peak must be a number in (0, 1000] (fractions of full scale), got "
                              f"{self.laser_peak!r}")
         check_number(self.motion_blur_shutter, "motion blur shutter (frames)", 0, MAX_SHUTTER_FRAMES)
+        if self.engine == "cycles" and self.pixel_filter == "BOX" and self.samples > 1 and self.filter_width_px != 1.0:
+            # Cycles' box filter is one pixel wide whatever its width says: at 16 samples a width
+            # of 0.5 (or 0.01, "point samples") gave the very images of a 1 px box.
+            raise InputError(f"Cycles' box pixel filter is one pixel wide whatever its width: at {self.samples} samples "
+                             f"it averages each whole pixel, not {self.filter_width_px:g} px of it; give filter width "
+                             f"1 px for that, 1 sample for a point sample, or a GAUSSIAN or BLACKMAN_HARRIS filter for "
+                             f"another width")
         if not isinstance(self.persistent_data, bool):
             raise InputError(f"persistent data must be True or False, got {self.persistent_data!r}")
         if self.threads is not None:
@@ -119,5 +127,7 @@ def with_sensor(settings, sensor):
     shutter = sensor.shutter_fraction if sensor.motion_blur else 0.0
     if shutter > 0:
         samples = max(samples, 16)
+        if settings.engine == "cycles" and pixel_filter == "BOX":  # as Cycles renders it at 16 samples
+            width = 1.0
     return replace(settings, samples=samples, pixel_filter=pixel_filter, filter_width_px=width,
                    motion_blur_shutter=shutter)

@@ -263,6 +263,9 @@ class ScanConfig:
                              f"leave --device out, or add --engine cycles")
         if samples is not None:
             samples = check_whole(samples, "--samples (samples)", 1, 65536)
+            if samples > 1 and render.engine == "cycles" and render.pixel_filter == "BOX" \
+                    and render.filter_width_px != 1.0:
+                render = replace(render, filter_width_px=1.0)  # Cycles' box at more than 1 sample: the whole pixel
             render = replace(render, samples=samples)
         cfg = replace(cfg, render=render)
         if resolution is not None:
@@ -605,17 +608,21 @@ def _paths(top: Table, table: Turntable) -> scanpath.Waypoints:
 
 def _render(t: Table) -> tuple[RenderOptions, tuple[int, int] | None]:
     engine = t.string("engine", default="cycles", choices=ENGINES)
-    opts = RenderOptions(
-        engine=engine,
-        device=t.string("device", default="CPU", choices=DEVICES),  # Cycles' only (checked below)
-        samples=t.integer("samples", default=1, lo=1, hi=65536),
-        pixel_filter=t.string("pixel_filter", default="BOX", choices=PIXEL_FILTERS),
-        filter_width_px=t.number("filter_width_px", default=0.01, lo=0.01, hi=10.0),
-        bounces=t.integer("bounces", default=0, lo=0, hi=64),
-        ambient=t.number("ambient", default=0.0, lo=0.0, hi=100.0),
-        laser=t.string("laser", default=DEFAULT_LASER[engine], choices=LASERS),
-        laser_peak=t.number("laser_peak", default=0.5, lo=0.0, hi=1e3, lo_open=True),
-    )
+    samples = t.integer("samples", default=1, lo=1, hi=65536)
+    pixel_filter = t.string("pixel_filter", default="BOX", choices=PIXEL_FILTERS)
+    # The box's width where none is given: a point at 1 sample, else the whole pixel (Cycles'
+    # box is 1 px wide whatever its width)
+    width = 1.0 if samples > 1 and pixel_filter == "BOX" and engine == "cycles" else 0.01
+    try:
+        opts = _render_options(t, engine, samples, pixel_filter, width)
+    except InputError as exc:
+        raise t.error("filter_width_px" if t.has("filter_width_px") else "samples", str(exc)) from None
+    if engine == "eevee" and t.has("pixel_filter"):  # Eevee has one filter, of which only the width is set
+        raise t.error("pixel_filter", "Eevee has a pixel filter of its own and takes only its width "
+                                      "(filter_width_px); leave pixel_filter out, or set engine = \"cycles\"")
+    if engine == "eevee" and opts.bounces > 0:
+        raise t.error("bounces", f"{opts.bounces}: Eevee traces no bounces (a glossy part's reflections of the line "
+                                 f"need Cycles); leave bounces out, or set engine = \"cycles\"")
     if opts.device != "CPU" and engine != "cycles":  # as the command line's --device
         raise t.error("device", f"{opts.device!r} picks Cycles' render device, and this config renders with {engine}: "
                                 f"leave device out, or set engine = \"cycles\"")
@@ -627,6 +634,20 @@ def _render(t: Table) -> tuple[RenderOptions, tuple[int, int] | None]:
         resolution = (int(w), int(h))
     t.finish()
     return opts, resolution
+
+
+def _render_options(t: Table, engine: str, samples: int, pixel_filter: str, width: float) -> RenderOptions:
+    return RenderOptions(
+        engine=engine,
+        device=t.string("device", default="CPU", choices=DEVICES),  # Cycles' only (checked by the caller)
+        samples=samples,
+        pixel_filter=pixel_filter,
+        filter_width_px=t.number("filter_width_px", default=width, lo=0.01, hi=10.0),
+        bounces=t.integer("bounces", default=0, lo=0, hi=64),
+        ambient=t.number("ambient", default=0.0, lo=0.0, hi=100.0),
+        laser=t.string("laser", default=DEFAULT_LASER[engine], choices=LASERS),
+        laser_peak=t.number("laser_peak", default=0.5, lo=0.0, hi=1e3, lo_open=True),
+    )
 
 
 def _detect(t: Table) -> tuple[str, DetectParams]:

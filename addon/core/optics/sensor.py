@@ -70,7 +70,7 @@ class SensorModel:
 
     exposure_ms: float = 1.0
     auto_exposure: bool = False
-    target_peak: float = 0.7         # auto-exposure: line peak as a fraction of full scale
+    target_peak: float = 0.7         # auto-exposure: line peak as a fraction of the clip level (exposure_for)
     gain: float = 1.0
     bit_depth: int = 12
     full_well_e: float = 10000.0
@@ -199,11 +199,17 @@ class SensorModel:
 
     # -- the model ---------------------------------------------------------------------------
     def exposure_for(self, peak_irradiance: float) -> float:
-        """Exposure (ms) that puts a line of this peak irradiance at ``target_peak`` of full scale."""
+        """Exposure (ms) that puts a line of this peak irradiance at ``target_peak`` of the most
+        the sensor reads (its clip level: the full well, or the ADC's range where a gain above 1
+        reaches it first; with a gain below 1 that is under full scale). With motion blur, at
+        most the longest shutter a frame allows (the blur itself was rendered for exposure_ms)."""
         if peak_irradiance <= 0:
             return self.exposure_ms
         full_scale_e = min(self.full_well_e, (2 ** self.bit_depth - 1) / max(self.gain * self._dn_per_e(), 1e-12))
-        return self.target_peak * full_scale_e / (peak_irradiance * self.electrons_per_unit)
+        exposure = self.target_peak * full_scale_e / (peak_irradiance * self.electrons_per_unit)
+        if self.motion_blur:  # no exposure outlasts the frame it is taken in
+            exposure = min(exposure, MAX_SHUTTER_FRAMES * 1000.0 / self.frame_rate_hz)
+        return exposure
 
     def _dn_per_e(self) -> float:
         # Gain 1 maps the full well onto the ADC's range.
@@ -265,7 +271,8 @@ class SensorModel:
         return float(self.speckle_grain_px(probe, depth))
 
     def _prnu_map(self, probe: Probe, camera: int) -> np.ndarray:
-        key = ("prnu", camera, probe.rows_px, probe.cols_px)
+        # The seed and the spread in the key: dataclasses.replace() hands the copy this cache
+        key = ("prnu", camera, probe.rows_px, probe.cols_px, self.seed, self.prnu)
         if key not in self._cache:
             rng = np.random.default_rng([self.seed, 1000 + camera])
             self._cache[key] = 1.0 + self.prnu * rng.standard_normal((probe.rows_px, probe.cols_px))
