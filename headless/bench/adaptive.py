@@ -437,7 +437,7 @@ def run(args: argparse.Namespace) -> int:
                                       for m, r in methods.items()), flush=True)
     named = args.methods.strip() and methods_run != list(DEFAULT_METHODS)
     command = f"python -m headless bench adaptive --budget {args.budget}" + (
-        f" --methods {','.join(m for m in methods_run if m != 'yours')}" if named else "") + (
+        f" --methods {','.join(methods_run)}" if named else "") + (
         f" --planner {args.planner}" if args.planner else "") + (
         " --engine raycast" if args.engine == "raycast" else "")
     body = (f"Adaptive scanning against fixed paths (`{command}`, 2-core CPU, "

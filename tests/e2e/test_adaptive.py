@@ -606,6 +606,8 @@ def test_the_bench_runs_a_planner_of_ones_own_beside_the_reference():
     rows = {m.group(1): m.group(0).split(" | ") for m in re.finditer(r"^\| sphere \(demo\) \| (\w+) \|.*$",
                                                                     out.stdout, re.M)}
     assert set(rows) == {"planner", "yours"}, out.stdout
+    # The caption's command is the one run (it left "yours" out: "--methods yours" read "--methods ").
+    assert "bench adaptive --budget 100 --methods planner,yours --planner addon.adaptive:NextBestView" in out.stdout
     ref, yours = rows["planner"], rows["yours"]
     # part, method, profiles, sweeps, coverage (whole), coverage (measurable), estimate, path, planning, RMS, ...
     assert ref[2:8] == yours[2:8] and ref[9] == yours[9]
