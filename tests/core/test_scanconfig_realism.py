@@ -96,3 +96,18 @@ def test_eevee_gets_the_spot_laser_unless_a_config_chooses(tmp_path):
         with_render('laser = "spot"\n')
     eevee = with_render('engine = "eevee"\n')
     assert eevee.with_overrides(engine="cycles").render.laser == "gobo"
+
+
+@pytest.mark.parametrize("sensor,key", [
+    ("bit_depth = 8\n", "bit_depth"),
+    ("auto_exposure = true\nexposure_ms = 0.001\n", "auto_exposure"),
+    ("saturate = true\nprnu = 0.05\n", "prnu"),
+    ("noise = true\nframe_rate_hz = 200.0\n", "frame_rate_hz"),
+])
+def test_a_sensor_parameter_whose_effect_is_off_is_refused(tmp_path, sensor, key):
+    """An 8-bit sensor, auto-exposure at 1 µs and a gain of 0.01 with neither saturate nor
+    noise on scanned exactly as the ideal sensor, the report saying "ideal"."""
+    with pytest.raises(ConfigError, match=f"sensor.{key}: acts only with"):
+        config(tmp_path, "[sensor]\n" + sensor)
+    switches = "".join(f"{w} = true\n" for w in ("saturate", "noise", "motion_blur") if f"{w} =" not in sensor)
+    assert config(tmp_path, "[sensor]\n" + switches + sensor).sensor

@@ -692,6 +692,20 @@ def _sensor(t: Table) -> SensorModel:
     kw["seed"] = t.integer("seed", default=d.seed, lo=0, hi=2 ** 31 - 1)
     kw["distortion"] = tuple(float(k) for k in t.number_list("distortion", default=(), lo=-10.0, hi=10.0,
                                                              min_len=4))
+    # A parameter whose effect is off does nothing: said, not ignored (an 8-bit sensor with
+    # neither saturate nor noise on scanned as the ideal one, its report saying "ideal").
+    for keys, switches in (
+            (("auto_exposure", "target_peak", "gain", "bit_depth", "full_well_e", "electrons_per_unit"),
+             ("saturate", "noise")),
+            (("read_noise_e", "dark_offset_dn", "prnu"), ("noise",)),
+            (("exposure_ms",), ("saturate", "noise", "motion_blur")),
+            (("frame_rate_hz",), ("motion_blur",))):
+        given = [k for k in keys if t.has(k) and not (k == "auto_exposure" and not kw[k])]
+        if given and not any(kw[w] for w in switches):
+            raise t.error(given[0], f"acts only with {' or '.join(switches)} = true, and this [sensor] has "
+                                    f"{'neither' if len(switches) == 2 else 'none of them' if len(switches) > 2 else 'it off'}"
+                                    f"; turn {'one of them' if len(switches) > 1 else 'it'} on, or leave "
+                                    f"{given[0]} out")
     try:
         model = SensorModel(**kw)
     except InputError as exc:
