@@ -842,3 +842,15 @@ def test_a_scan_that_measures_nothing_of_the_part_says_so_and_counts_only_the_po
     assert rc == 0 and report["points_dropped"]["uncertain"] > report["points"] > 0
     cloud = load_ply(tmp_path / "coarse" / "cloud.ply")
     assert report["points_fused"] == int(np.sum(cloud.camera == 3)) <= report["points"] == len(cloud)
+
+
+def test_a_scan_saturated_throughout_names_the_exposure(tmp_path):
+    """A second-long exposure clipped every line: the warning blamed "the sensor's settings, the
+    detector's, or the probe's view" and the summary counted "no detection"."""
+    bright = scene(tmp_path, DEMO + "\n[sensor]\nsaturate = true\nexposure_ms = 1000.0\n", "bright.toml")
+    assert main(["scan", bright, "--engine", "raycast", "--frames", "0:180:30", "--out", str(tmp_path / "o"),
+                 "--quiet"]) == 0
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    said = [w for w in report["warnings"] if w.startswith("the scan measured")]
+    assert len(said) == 1 and "were saturated" in said[0] and "exposure_ms" in said[0], report["warnings"]
+    assert report["column_codes"]["SATURATED"] > 0

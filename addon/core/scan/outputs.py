@@ -114,6 +114,11 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
                f"the laser meets {share * 100:.1f} % of the part within the probe's range, and every column there was "
                f"dropped or found no line (see the points dropped after detection): the sensor's settings, the "
                f"detector's, or the probe's view of the part")
+        codes = stats.get("codes", {})
+        saturated = codes.get("SATURATED", 0)
+        if saturated and saturated >= 0.5 * sum(v for k, v in codes.items() if k != "OK"):
+            why += (f"; {saturated} of the columns were saturated, the line clipped at full scale: a shorter "
+                    f"[sensor] exposure_ms or a lower gain (or auto_exposure)")
         warnings.append(f"the scan measured {what}: {why}")
     elif n and 0 < share < SMALL_SHARE and not step_by_step and config.path_frames is None:
         warnings.append(f"the path can measure only {share * 100:.1f} % of the part's surface (whole-part coverage "
