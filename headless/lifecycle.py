@@ -89,7 +89,7 @@ class Interrupted(KeyboardInterrupt):
             return f"interrupted ({what}) after {self.done} profiles of a budget of {self.total}"
         if self.total:
             return f"interrupted ({what}) after {self.done} of {self.total} {self.unit}"
-        return f"interrupted ({what}) before the first frame"
+        return f"interrupted ({what}) before the first {self.unit.rstrip('s')}"  # frame, shard
 
 
 def _importing(frame) -> bool:

@@ -214,6 +214,8 @@ def test_an_adaptive_bar_counts_profiles_against_the_budget_and_log_lines_do_not
     assert text.count("\r\033[K") == 1 and text.endswith("\n") and text.count("\n") == 1
     assert capsys.readouterr().out == "adaptive: sweep 1: a table turn\n"
     assert Interrupted(2, 240, 600, "profiles").describe() == "interrupted (Ctrl-C) after 240 profiles of a budget of 600"
+    # A farm stopped before its first shard came back (its count not yet known) names shards, not frames.
+    assert Interrupted(2, 0, 0, "shards").describe() == "interrupted (Ctrl-C) before the first shard"
 
 
 def test_a_second_ctrl_c_after_the_stop_is_through_still_exits_130():
