@@ -27,9 +27,17 @@ def _matrix(value, name: str) -> np.ndarray:
     return T
 
 
+def _plain(rid) -> bool:
+    """An id the answer can carry: none, or a whole number of at most 64 bits."""
+    return rid is None or (isinstance(rid, int) and not isinstance(rid, bool) and abs(rid) < 2 ** 63)
+
+
 def answer(robot, request) -> dict:
     """The answer to one decoded request (never raises)."""
     rid = request.get("id") if isinstance(request, dict) else None
+    if not _plain(rid):
+        return {"id": None, "success": False, "reason": "malformed request: id must be a whole number that fits "
+                                                         "in 64 bits"}
     try:
         if not isinstance(request, dict):
             raise ValueError("a request is a JSON object")
@@ -43,8 +51,8 @@ def answer(robot, request) -> dict:
         seed = np.asarray(request.get("seed_rad"), dtype=np.float64)
         if seed.shape != (6,) or not np.isfinite(seed).all():
             raise ValueError("seed_rad must be 6 finite numbers")
-    except (ValueError, TypeError) as exc:
-        return {"id": rid, "success": False, "reason": f"malformed request: {exc}"}
+    except (ValueError, TypeError, OverflowError) as exc:  # (an integer of 400 digits overflows a float)
+        return {"id": rid if _plain(rid) else None, "success": False, "reason": f"malformed request: {exc}"}
     try:
         res = robot.with_tool(tool).ik(T, seed)
     except Exception as exc:  # the solver's own refusal of a target (a non-rigid matrix, say)
@@ -53,26 +61,48 @@ def answer(robot, request) -> dict:
     return {"id": rid, "joints_rad": q, "success": bool(res.success), "reason": res.message}
 
 
+MAX_REQUEST_BYTES = 1 << 20  # a request line longer than this is refused (as the client caps its answers)
+IDLE_TIMEOUT_S = 600.0  # a connection that sends nothing for this long is closed (its thread freed)
+
+
 class _Handler(socketserver.StreamRequestHandler):
+    timeout = IDLE_TIMEOUT_S
+
     def handle(self) -> None:
-        for raw in self.rfile:
+        while True:
+            try:
+                raw = self.rfile.readline(MAX_REQUEST_BYTES + 1)
+            except OSError:  # idle past the timeout, or the client went away
+                return
+            if not raw:
+                return
+            if len(raw) > MAX_REQUEST_BYTES and not raw.endswith(b"\n"):
+                self.wfile.write((json.dumps({"id": None, "success": False, "reason": (
+                    f"malformed request: a line longer than {MAX_REQUEST_BYTES} bytes")}) + "\n").encode("utf-8"))
+                return  # the rest of that line cannot be told from the next request
             try:
                 request = json.loads(raw.decode("utf-8"))
             except json.JSONDecodeError as exc:
                 reply = {"id": None, "success": False, "reason": f"malformed request: not JSON ({exc.msg})"}
             except UnicodeDecodeError:
                 reply = {"id": None, "success": False, "reason": "malformed request: not UTF-8 text"}
+            except ValueError:  # a number past Python's 4 300 digits
+                reply = {"id": None, "success": False, "reason": "malformed request: a number too long to read"}
             except RecursionError:
                 reply = {"id": None, "success": False, "reason": "malformed request: JSON nested too deep"}
             else:
                 reply = answer(self.server.robot, request)
-            self.wfile.write((json.dumps(reply) + "\n").encode("utf-8"))
-            self.wfile.flush()
+            try:
+                self.wfile.write((json.dumps(reply) + "\n").encode("utf-8"))
+                self.wfile.flush()
+            except OSError:  # the client went away before its answer
+                return
 
 
 class IKServer(socketserver.ThreadingTCPServer):
     daemon_threads = True
     allow_reuse_address = True
+    request_queue_size = 128  # a burst of clients (a farm's workers) waits in the queue, not a second's retry
 
     def __init__(self, robot, host: str = "127.0.0.1", port: int = DEFAULT_PORT):
         self.robot = robot

@@ -162,6 +162,14 @@ def _fake_server(reply):
     (lambda req: (json.dumps({"id": req["id"]}) + "\n").encode(), "lacks 'success'"),
     (lambda req: None, "no answer within 0.3 s (twice)"),
     (lambda req: b"[" * 200_000 + b"\n", "the answer is not JSON"),  # nested deeper than any parser goes
+    # Numbers Python's float cannot take (an integer of 400 digits; one past its 4 300-digit limit):
+    # a traceback from the scan before.
+    (lambda req: (json.dumps({"id": req["id"], "joints_rad": [10 ** 400, 0, 0, 0, 0, 0], "success": False,
+                              "reason": "x"}) + "\n").encode(), "'joints_rad' must be 6 finite numbers"),
+    (lambda req: b'{"id": ' + str(req["id"]).encode() + b', "success": true, "joints_rad": [' + b"9" * 5000
+     + b', 0, 0, 0, 0, 0], "reason": ""}\n', "the answer is not JSON this client can read"),
+    (lambda req: (json.dumps({"id": req["id"] + 1, "success": True, "reason": ""}) + "\n").encode(),
+     "the answer is for request"),
 ])
 def test_bad_answers_and_silence_are_one_line_naming_host_and_port(reply, message):
     srv, stop = _fake_server(reply)
@@ -218,7 +226,11 @@ def test_a_controller_that_trickles_an_answer_it_never_ends_times_out_as_silence
 
 @pytest.mark.parametrize("line, reason", [(b"\xff\xfe not text\n", "not UTF-8"),
                                           (b"[" * 200_000 + b"\n", "nested too deep"),
-                                          (b"{not json\n", "not JSON")])
+                                          (b"{not json\n", "not JSON"),
+                                          (b'{"id": 1, "op": "ik", "target_mm": [[1' + b"0" * 400 + b', 0, 0, 0], '
+                                           b'[0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], "seed_rad": [0, 0, 0, 0, 0, 0]}\n',
+                                           "malformed request"),
+                                          (b'{"id": 1' + b"0" * 5000 + b', "op": "ping"}\n', "too long to read")])
 def test_the_server_answers_an_unreadable_request_and_goes_on(server, line, reason):
     with socket.create_connection(server.server_address, timeout=5.0) as conn:
         reader = conn.makefile("rb")
@@ -227,3 +239,15 @@ def test_the_server_answers_an_unreadable_request_and_goes_on(server, line, reas
         assert reply["success"] is False and reply["reason"].startswith("malformed request") and reason in reply["reason"]
         conn.sendall((json.dumps({"id": 7, "op": "ping"}) + "\n").encode())  # the same connection still serves
         assert json.loads(reader.readline())["id"] == 7
+
+
+def test_the_server_refuses_a_line_past_its_limit_and_frees_the_connection(server):
+    """A request line without end was kept in memory whole (150 MB held until its newline)."""
+    from headless.ik_server import MAX_REQUEST_BYTES
+
+    with socket.create_connection(server.server_address, timeout=10.0) as conn:
+        reader = conn.makefile("rb")
+        conn.sendall(b"x" * (MAX_REQUEST_BYTES + 10))
+        reply = json.loads(reader.readline())
+        assert reply["success"] is False and "longer than" in reply["reason"]
+        assert reader.readline() == b""  # the connection is closed: the rest cannot be told from a request

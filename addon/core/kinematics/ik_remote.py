@@ -39,6 +39,15 @@ PROTOCOL = 1
 DEFAULT_PORT = 5757
 
 
+
+def _finite(v) -> bool:
+    """A JSON number that is a finite float (an integer of 400 digits is not: math.isfinite
+    overflows on it)."""
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
+
 class ControllerError(ScannerError):
     """The IK controller could not be reached or answered something unreadable."""
 
@@ -144,12 +153,18 @@ class ControllerIK:
                     raise ControllerError(f"IK controller at {where}: {exc.strerror or exc} (twice)") from None
         try:
             answer = json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):  # nested too deep for the parser too
+        except (UnicodeDecodeError, ValueError, RecursionError):  # (JSONDecodeError; a number past
+            # Python's 4 300 digits; nested too deep for the parser)
             self.close()
-            raise ControllerError(f"IK controller at {where}: the answer is not JSON: {raw[:80]!r}") from None
-        if not isinstance(answer, dict) or answer.get("id") != request["id"]:
+            raise ControllerError(f"IK controller at {where}: the answer is not JSON this client can read: "
+                                  f"{raw[:80]!r}") from None
+        if not isinstance(answer, dict):
             self.close()
-            raise ControllerError(f"IK controller at {where}: the answer is not a JSON object for request "
+            raise ControllerError(f"IK controller at {where}: the answer is not a JSON object: {raw[:80]!r}")
+        rid = answer.get("id")
+        if not isinstance(rid, int) or isinstance(rid, bool) or rid != request["id"]:
+            self.close()
+            raise ControllerError(f"IK controller at {where}: the answer is for request {rid!r}, not for request "
                                   f"{request['id']}: {raw[:80]!r}")
         return answer
 
@@ -195,7 +210,7 @@ class ControllerIK:
         q = None
         if joints is not None:
             if not (isinstance(joints, list) and len(joints) == 6 and all(
-                    isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in joints)):
+                    isinstance(v, (int, float)) and not isinstance(v, bool) and _finite(v) for v in joints)):
                 raise ControllerError(f"IK controller at {where}: 'joints_rad' must be 6 finite numbers, got "
                                       f"{json.dumps(joints)[:120]}")
             q = np.array(joints, dtype=np.float64)
