@@ -162,25 +162,69 @@ def _ensure_env(venv_dir: Path, lock: Path, stamp: Path, python: str, python_ver
     if py.exists() and stamp.exists() and stamp.read_text().strip() == digest:
         return
     where = _shown(venv_dir)
-    if not py.exists():
-        print(f"[setup] creating {where} with Python {python_version.split()[0]}", flush=True)
+    why = _unusable(venv_dir, py, python_version)
+    if why is not None:
+        _make_env(venv_dir, python, python_version, why)
+    print(f"[setup] installing the pinned packages of {_shown(lock)} into {where} ({size_hint})",
+          flush=True)
+    try:
+        stamp.unlink(missing_ok=True)
+    except OSError as exc:
+        sys.exit(f"error: cannot write in {where}: {exc.strerror or exc}; run the set-up in a checkout you can "
+                 f"write to")
+    cmd = [str(py), "-m", "pip", "install", "--disable-pip-version-check", "--progress-bar", "off",
+           "-r", str(lock)]
+    rc = subprocess.call(cmd, cwd=REPO)
+    if rc != 0 and not _has_pip(venv_dir):  # a set-up stopped while it made the environment: made again
+        _make_env(venv_dir, python, python_version, " (the one there has no pip: a set-up stopped while making it)")
+        rc = subprocess.call(cmd, cwd=REPO)
+    if rc != 0:
+        sys.exit(f"error: installing {_shown(lock)} into {where} failed (pip exit code {rc}); "
+                 "fix the cause above and run the same command again")
+    try:
+        stamp.write_text(digest + "\n")
+    except OSError as exc:
+        sys.exit(f"error: cannot write {_shown(stamp)}: {exc.strerror or exc}")
+    print("[setup] done", flush=True)
+
+
+def _make_env(venv_dir: Path, python: str, python_version: str, why: str) -> None:
+    """Make the environment afresh (``why``: words for the log)."""
+    where = _shown(venv_dir)
+    print(f"[setup] creating {where} with Python {python_version.split()[0]}{why}", flush=True)
+    try:
         if python == sys.executable:
             venv.EnvBuilder(with_pip=True, clear=True).create(venv_dir)
         else:
             rc = subprocess.call([python, "-m", "venv", "--clear", str(venv_dir)], cwd=REPO)
             if rc != 0:
                 sys.exit(f"error: creating {where} with {python} failed (exit code {rc})")
-    print(f"[setup] installing the pinned packages of {_shown(lock)} into {where} ({size_hint})",
-          flush=True)
-    stamp.unlink(missing_ok=True)
-    cmd = [str(py), "-m", "pip", "install", "--disable-pip-version-check", "--progress-bar", "off",
-           "-r", str(lock)]
-    rc = subprocess.call(cmd, cwd=REPO)
-    if rc != 0:
-        sys.exit(f"error: installing {_shown(lock)} into {where} failed (pip exit code {rc}); "
-                 "fix the cause above and run the same command again")
-    stamp.write_text(digest + "\n")
-    print("[setup] done", flush=True)
+    except OSError as exc:  # a read-only checkout, a full disk
+        sys.exit(f"error: cannot create {where}: {exc.strerror or exc}; run the set-up in a checkout you can "
+                 f"write to")
+
+
+def _unusable(venv_dir: Path, py: Path, python_version: str) -> str | None:
+    """Why the environment must be made afresh (words for the log; None: it can take the
+    packages): none there (""), or made by another Python (its packages would not fit this
+    one's lock, and bpy needs this one)."""
+    if not py.exists():
+        return "" if not venv_dir.exists() else " (the one there has no Python)"
+    want = ".".join(python_version.split()[0].split(".")[:2])
+    made = ""
+    try:
+        for line in (venv_dir / "pyvenv.cfg").read_text().splitlines():
+            key, _, value = line.partition("=")
+            if key.strip() in ("version", "version_info"):
+                made = ".".join(value.strip().split(".")[:2])
+                break
+    except OSError:
+        pass
+    return f" (the one there was made by Python {made})" if made and made != want else None
+
+
+def _has_pip(venv_dir: Path) -> bool:
+    return any(venv_dir.glob("lib/python*/site-packages/pip"))
 
 
 def ensure_blender_env(release: str) -> Path:

@@ -141,3 +141,35 @@ def test_a_missing_module_is_blamed_on_the_set_up_only_outside_the_venv(monkeypa
     line = bootstrap.missing_package_line(ModuleNotFoundError("no", name="cv2"))
     assert "'cv2' (package opencv-contrib-python-headless)" in line
     assert "package python-fcl" in bootstrap.missing_package_line(ModuleNotFoundError("no", name="fcl"))
+
+
+def test_an_environment_made_by_another_python_or_without_pip_is_made_again(tmp_path):
+    """A set-up stopped while it made .venv left one without pip, which every later run failed
+    on ("No module named pip"); a .venv made by another Python took the packages of this one's
+    lock (bpy 5.2 has none for 3.12) and was never named as the cause."""
+    import subprocess
+    import sys
+
+    from headless import bootstrap
+
+    assert bootstrap._unusable(tmp_path / "none", tmp_path / "none" / "bin" / "python", sys.version) == ""
+    other = tmp_path / "other"
+    (other / "bin").mkdir(parents=True)
+    (other / "bin" / "python").write_text("")
+    (other / "pyvenv.cfg").write_text("home = /usr/bin\nversion = 3.11.2\n")
+    assert "made by Python 3.11" in bootstrap._unusable(other, other / "bin" / "python", "3.13.0 (main)")
+    assert bootstrap._unusable(Path(sys.prefix), Path(sys.executable), sys.version) is None  # this very one
+    bare = tmp_path / "bare"
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(bare)], check=True)
+    assert not bootstrap._has_pip(bare) and bootstrap._has_pip(Path(sys.prefix))
+
+
+def test_an_install_that_fails_for_want_of_pip_makes_the_environment_again(fake_repo, monkeypatch):
+    lock, calls = fake_repo
+    made = []
+    monkeypatch.setattr(bootstrap, "_make_env", lambda venv_dir, python, version, why: made.append(why))
+    results = iter([1, 0])  # pip missing the first time, the install through after the environment is made
+    monkeypatch.setattr(bootstrap.subprocess, "call", lambda cmd, cwd=None: calls.append(cmd) or next(results))
+    bootstrap.ensure_venv()
+    assert len(calls) == 2 and made == [" (the one there has no pip: a set-up stopped while making it)"]
+    assert bootstrap.STAMP.exists()

@@ -25,7 +25,8 @@ SCENES = (("tilted_plane", slice(None, None, 3), "plate"), ("demo", slice(None, 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--views", type=whole(1, 1000), nargs="+", default=list(VIEWS), help="board poses per calibration")
+    # (at least 4: a calibration needs them, as the calibrate command says)
+    parser.add_argument("--views", type=whole(4, 1000), nargs="+", default=list(VIEWS), help="board poses per calibration")
     parser.add_argument("--ideal-only", action="store_true", help="leave out the realistic sensor's rows")
     parser.add_argument("--readme", action="store_true", help="put the tables and the plot into docs/calibration.md")
     parser.set_defaults(run=run)

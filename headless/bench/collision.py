@@ -17,7 +17,8 @@ from headless.bench import whole
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=whole(), default=10_000, help="frames in the path (default 10000)")
+    parser.add_argument("--frames", type=whole(2), default=10_000, help="frames in the path (default 10000: half a "
+                                                                          "table turn, half a sweep)")
     parser.add_argument("--repeats", type=whole(), default=3, help="timed repeats; the median is printed")
     parser.add_argument("--readme", action="store_true", help="put the figures into docs/safety.md")
     parser.set_defaults(run=run)

@@ -25,10 +25,10 @@ from headless.bench import whole
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=whole(), default=120,
+    parser.add_argument("--frames", type=whole(8, 180), default=120,
                         help="at least this many frames of the 160x160 scenario: every k-th of the demo's "
                              "path, k = its frames // FRAMES (default 120: all 180)")
-    parser.add_argument("--hires-frames", type=whole(), default=60,
+    parser.add_argument("--hires-frames", type=whole(8, 180), default=60,
                         help="at least this many frames of the 1280x1024 scenario, taken likewise "
                              "(default 60: every third, 60)")
     parser.add_argument("--repeats", type=whole(), default=2,

@@ -26,7 +26,7 @@ from headless.bench import whole
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=whole(), default=60, help="frames per table turn (default 60; the sweep has half)")
+    parser.add_argument("--frames", type=whole(2), default=60, help="frames per table turn (default 60; the sweep has half)")
     parser.add_argument("--only", default="", help="scan only the parts whose name contains this text (several: comma-separated)")
     parser.add_argument("--probe", default="default", help="probe rig (default: default; hires: the 1280-row probe)")
     parser.add_argument("--readme", action="store_true", help="put the table and the picture into the README (the default probe) or docs/accuracy.md (another)")
@@ -144,6 +144,8 @@ def run(args: argparse.Namespace) -> int:
     check_readme_whole(args, only="")
     catalogue = all_parts()
     wanted = [w.strip().lower() for w in args.only.split(",") if w.strip()]
+    if args.only and not wanted:  # "," named none: not every part without a word
+        raise InputError(f"--only {args.only!r} names no part; the parts: {', '.join(catalogue)}")
     picked = {n: m for n, m in catalogue.items() if not wanted or any(w in n.lower() for w in wanted)}
     if not picked:
         raise InputError(f"--only {args.only!r}: no part's name holds it; the parts: {', '.join(catalogue)}")

@@ -101,10 +101,14 @@ def run(args: argparse.Namespace) -> int:
 def scans(args: argparse.Namespace) -> str:
     """Run the scans, print the table; return it as Markdown."""
     from addon.core.config.scan import load_scan_config
+    from addon.core.errors import InputError
     from addon.pipeline import run_scan
 
     scenes = []
-    for name in [n.strip() for n in args.scenes.split(",") if n.strip()]:
+    names = [n.strip() for n in args.scenes.split(",") if n.strip()]
+    if not names:  # an empty table, exit 0, before
+        raise InputError(f"--scenes {args.scenes!r} names no scan config (none given); e.g. --scenes demo,step_block")
+    for name in names:
         base = load_scan_config(name)
         step = max(1, len(base.waypoints) // args.frames)
         scenes.append((name, base.with_overrides(frames=slice(None, None, step))))

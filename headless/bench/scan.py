@@ -28,7 +28,7 @@ from headless.bench import whole
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=whole(), default=2, help="runs of each variant; the median counts (default 2)")
-    parser.add_argument("--hires-frames", type=whole(), default=24, help="frames of the 1280x1024 scenario: every (180 // N)-th of the demo's 180 (default 24: "
+    parser.add_argument("--hires-frames", type=whole(1, 180), default=24, help="frames of the 1280x1024 scenario: every (180 // N)-th of the demo's 180 (default 24: "
                              "every 7th, 26 frames)")
     parser.add_argument("--quick", action="store_true", help="fewer frames everywhere (for a smoke test)")
     parser.add_argument("--readme", action="store_true", help="also put the table into docs/scans.md")

@@ -31,6 +31,12 @@ ROBOT = (REPO / "rigs" / "robots" / "ur5.toml").read_text()
 
 
 # -- making bad files ---------------------------------------------------------------------
+def _a_file(tmp: Path) -> Path:
+    path = tmp / "afile"
+    path.write_text("")
+    return path
+
+
 def scene(tmp: Path, text: str, name: str = "scene.toml") -> str:
     path = tmp / name
     path.write_text(text)
@@ -404,6 +410,20 @@ CASES = [
     ("option: bench metrics --rounds 0", lambda t: ["bench", "metrics", "--rounds", "0"], 2, "--rounds"),
     ("option: bench detect --images 0", lambda t: ["bench", "detect", "--images", "0"], 2, "--images"),
     ("option: bench render --frames 2.5", lambda t: ["bench", "render", "--frames", "2.5"], 2, "--frames"),
+    # Values that ran the bench and then failed or were capped, refused at the option now:
+    ("option: bench calibration --views 3", lambda t: ["bench", "calibration", "--views", "3"], 2,
+     "--views: expected a whole number from 4 to"),
+    ("option: bench parts --frames 1", lambda t: ["bench", "parts", "--frames", "1"], 2, "--frames: expected"),
+    ("option: bench collision --frames 1", lambda t: ["bench", "collision", "--frames", "1"], 2, "--frames: expected"),
+    ("option: bench farm --frames 100000", lambda t: ["bench", "farm", "--frames", "100000"], 2,
+     "--frames: expected a whole number from 8 to 180"),
+    ("option: bench scan --hires-frames 181", lambda t: ["bench", "scan", "--hires-frames", "181"], 2,
+     "--hires-frames: expected a whole number from 1 to 180"),
+    ("option: bench parts --only ,", lambda t: ["bench", "parts", "--only", ","], 2, "names no part"),
+    ("option: bench realism --scenes empty", lambda t: ["bench", "realism", "--scenes", "", "--only", "scans"], 2,
+     "names no scan config"),
+    ("option: bench accuracy --out a file", lambda t: ["bench", "accuracy", "--out", str(_a_file(t))], 2,
+     "is a file; give a folder"),
     ("option: adaptive --max-profiles a billion", lambda t: ["adaptive", "demo", "--max-profiles", "1000000000",
                                                              "--out", str(t / "out")], 2, "from 1 to 100000"),
     ("option: --device with the raycast engine", lambda t: ["scan", "demo", "--engine", "raycast", "--device", "gpu",
