@@ -470,8 +470,9 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_
     elif steps and not new:
         z0, z1 = scanner.config.probe.z_range_mm
         size = float(np.max(planner.hi - planner.lo))
-        why = (f"may not hold the part, or be far larger than it ({size:.0f} mm across, against the probe's "
-               f"{z1 - z0:.0f} mm of range: views aimed at the box miss a small part inside it)")
+        why = "may not hold the part" + (
+            f", or be far larger than it ({size:.0f} mm across, against the probe's {z1 - z0:.0f} mm of range: "
+            f"views aimed at the box miss a small part inside it)" if size > 2.0 * (z1 - z0) else "")
         warnings.append(f"no point was measured above the table in this run: the part's box {box} the planner was told "
                         f"{told} {why}")
     for w in warnings:

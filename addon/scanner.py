@@ -378,7 +378,8 @@ class Scanner:
 
         t = time.perf_counter()
         try:
-            found = check_motion(self.config, q, table_rad, None, self._q, self._table_rad, nearest=record)
+            found = check_motion(self.config, q, table_rad, None, self._q, self._table_rad, nearest=record,
+                                 may_back_away=what == "move")
         except CollisionError as exc:
             raise CollisionError(f"{what} refused, nothing moved: {exc}") from None
         finally:
@@ -485,7 +486,10 @@ class Scanner:
         if memo is not None and memo[0][0] is key[0] and memo[0][1:] == key[1:] and (memo[1] or not record):
             q, table_rad, found = memo[2]
             return q.copy(), table_rad.copy(), found
-        _check_table_deg(float(np.max(np.abs(np.degrees(wp.table_rad)))), f"the {what}'s table angles")
+        # The turn from where the table stands, as turn_table's (a 1e6 rad path asked the collision
+        # check for a sample per millimetre of the turn; a table already turned far may go on)
+        _check_table_deg(float(np.max(np.abs(np.degrees(wp.table_rad - self._table_rad)))),
+                         f"the {what}'s table turn from where the table stands")
         sol = solve_path(self.config.cell, wp, self._q)
         if not sol.ok.all():
             from .pipeline import frame_ranges

@@ -28,6 +28,7 @@ from pathlib import Path
 from headless.bench import whole
 
 SCENES = {"plane": "tilted_plane", "sphere": "demo", "step block": "step_block"}
+OUTPUT_FILES = ("accuracy.csv", "accuracy.md", "accuracy.png")
 BUDGETS_MS = (20.0, 50.0, 200.0, 1000.0)
 
 
@@ -99,9 +100,9 @@ def variant(base, changes: dict):
 
     cfg = base
     render = cfg.render
-    for key in ("samples", "pixel_filter", "filter_width_px", "laser"):
-        if key in changes:
-            render = replace(render, **{key: changes[key]})
+    # in one replace: 16 samples on the scene's point-sampling box would be refused on the way
+    render = replace(render, **{k: changes[k] for k in ("samples", "pixel_filter", "filter_width_px", "laser")
+                                if k in changes})
     cfg = replace(cfg, render=render)
     if "engine" in changes:
         cfg = cfg.with_overrides(engine=changes["engine"])
@@ -148,6 +149,10 @@ def run(args: argparse.Namespace) -> int:
     from headless.bench import check_readme_whole
 
     check_readme_whole(args, scenes=",".join(SCENES), factors="")
+    from addon.core.files import check_output_folder
+
+    # before the measurements, not after them (a file given as --out threw every one away)
+    check_output_folder(args.out, names=OUTPUT_FILES, what="--out")
     scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
     unknown = [s for s in scenes if s not in SCENES]
     if unknown or not scenes:

@@ -223,11 +223,14 @@ def test_the_fan_covers_what_the_cameras_see_of_the_laser_plane():
 
 @pytest.mark.parametrize("change, words", [
     (dict(bounces=2), "bounces"), (dict(ambient=0.1), "ambient"), (dict(samples=16), "samples"),
-    (dict(filter_width_px=1.0), "filter"), (dict(motion_blur_shutter=0.5), "motion"), (dict(laser="slit"), "slit"),
+    (dict(pixel_filter="GAUSSIAN", filter_width_px=1.5), "filter"), (dict(motion_blur_shutter=0.5), "motion"),
+    (dict(laser="slit"), "slit"),
 ])
 def test_raycast_refuses_what_needs_light_transport(change, words):
     why = raycast_mismatch(RenderOptions(engine="raycast", **change), "grey")
     assert why and words in why
+    # One sample through Cycles' box, one pixel wide whatever its width, is the same point sample.
+    assert raycast_mismatch(RenderOptions(engine="raycast", filter_width_px=1.0), "grey") is None
     assert raycast_mismatch(RenderOptions(engine="raycast"), "grey") is None
     assert "glossy" in raycast_mismatch(RenderOptions(engine="raycast"), "glossy")
     assert "robot" in raycast_mismatch(RenderOptions(engine="raycast"), "grey", hide_robot=False)

@@ -64,3 +64,21 @@ def test_eevee_refuses_the_render_keys_it_would_ignore(tmp_path, keys, fragment)
     path.write_text(demo.replace('engine = "cycles"\n', 'engine = "eevee"\n' + keys, 1).replace('laser = "gobo"\n', ""))
     with pytest.raises(ConfigError, match=fragment):
         load_scan_config(path)
+
+
+def test_an_engine_override_follows_the_same_rules(tmp_path):
+    """--engine cycles on an Eevee config of 16 samples failed with the box filter's own
+    message; --engine eevee took a config's bounces and filter without a word."""
+    from dataclasses import replace
+
+    from addon.core.config.scan import load_scan_config
+
+    demo = load_scan_config("demo")
+    eevee = replace(demo, render=replace(demo.render, engine="eevee", laser="spot", samples=16))
+    assert eevee.with_overrides(engine="cycles").render.filter_width_px == 1.0
+    with pytest.raises(InputError, match="--engine eevee: this config's .render. bounces = 2"):
+        load_scan_config("cylinder_realistic").with_overrides(engine="eevee")
+    gauss = replace(demo, render=replace(demo.render, pixel_filter="GAUSSIAN", filter_width_px=1.5))
+    with pytest.raises(InputError, match="pixel_filter = 'GAUSSIAN'"):
+        gauss.with_overrides(engine="eevee")
+    assert demo.with_overrides(engine="eevee").render.engine == "eevee"

@@ -564,6 +564,8 @@ def test_a_robot_that_stands_too_near_can_back_away_but_come_no_nearer():
         scanner.move_to(((0.0, 0.0, 30.0 + HEAD_REACH_MM + 0.5), (0.0, 180.0, 0.0)))
     with pytest.raises(CollisionError, match="at the start pose"):
         scanner.plan_sweep([0.0, -10.0, 100.0], [0.0, 10.0, 100.0], 5)
+    with pytest.raises(CollisionError, match="at the start pose"):  # a sweep of one frame is a sweep
+        scanner.plan_sweep([0.0, 0.0, 100.0], [0.0, 10.0, 100.0], 1)
     scanner.move_to(((5.0, 0.0, 30.0 + HEAD_REACH_MM + 1.5), (0.0, 180.0, 0.0)))  # along, no nearer
     scanner.move_to(((0.0, 0.0, 150.0), (0.0, 180.0, 0.0)))  # away
     assert scanner.pose()[2, 3] == pytest.approx(150.0)

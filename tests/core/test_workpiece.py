@@ -77,6 +77,7 @@ def test_step_block_mesh_is_a_closed_solid_and_distances_are_exact():
     # 0.01 mm away inside the part, but the part's surface is the tread, 0.1 mm up), and
     # points within 0.3 mm of every face, against the mesh's own distance and inside test.
     np.testing.assert_allclose(block.signed_distance([[-4.99, 0.0, 19.9]]), [-0.1])
+    np.testing.assert_allclose(block.signed_distance([[-5.0, 0.0, 5.0]]), [-5.0])  # on the columns' shared face
     points, face = trimesh.sample.sample_surface(mesh, 4000, seed=1)
     points = points + np.random.default_rng(1).uniform(-0.3, 0.3, (len(points), 1)) * mesh.face_normals[face]
     reference = trimesh.proximity.closest_point(mesh, points)[1]
@@ -252,6 +253,12 @@ def test_a_sealed_void_keeps_its_wall_facing_the_void_and_is_noted(tmp_path):
     turned = load_workpiece(tmp_path / "inside_out.stl")
     assert turned.mesh.volume == pytest.approx(wp.mesh.volume)
     assert any("1 of its 2 bodies" in n for n in turned.notes) and any("1 sealed void" in n for n in turned.notes)
+    # Saved inside out throughout (the void's wall then faces out): both turned.
+    trimesh.Trimesh(ball.vertices, np.fliplr(ball.faces), process=False).export(tmp_path / "all_out.stl")
+    both = load_workpiece(tmp_path / "all_out.stl")
+    assert both.mesh.volume == pytest.approx(wp.mesh.volume)
+    assert any("2 of its 2 bodies" in n for n in both.notes) and any("1 sealed void" in n for n in both.notes)
+    assert not any("reach into" in n for n in both.notes)
 
 
 @pytest.mark.parametrize("closed", [False, True])

@@ -628,3 +628,24 @@ def test_a_path_whose_table_turns_past_ten_turns_is_refused_before_planning():
     wp = turntable(4, s.pose()[:3, 3], [0.0, 0.0, -1.0], start_rad=1e6, table=s.config.table)
     with pytest.raises(InputError, match="ten turns"):
         s.plan_path(wp)
+    # It is the turn that counts, not the angle: a table turned eleven times on may sweep where it stands.
+    for _ in range(11):
+        s.turn_table(359.0)
+    assert s.table_deg > 3600.0
+    s.sweep([-20.0, -40.0, 215.0], [-20.0, 40.0, 215.0], 3)
+
+
+def test_the_preview_of_a_scan_with_no_point_on_the_part_says_so_in_its_title(tmp_path):
+    """The error of no point is NaN in the report before it is written (null after): the title
+    read "RMS nan um, p95 nan um"."""
+    from addon.core.scan.outputs import preview_title
+
+    s = Scanner.from_config("demo", engine="raycast")
+    s.sweep([85.0, -10.0, 170.0], [85.0, 10.0, 170.0], 3)  # the table top beside the sphere
+    report = s.result().report
+    assert len(s.cloud) > 0 and report["points_on_part"] == 0
+    title = preview_title("demo", len(s.cloud), report)
+    assert "no point on the part" in title and "nan" not in title
+    s.sweep([-20.0, -40.0, 215.0], [-20.0, 40.0, 215.0], 5)  # over the sphere
+    title = preview_title("demo", len(s.cloud), s.result().report)
+    assert "RMS " in title and "nan" not in title

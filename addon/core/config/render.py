@@ -107,7 +107,8 @@ def raycast_mismatch(settings: RenderOptions, material: str, hide_robot: bool = 
         return f"ambient light {settings.ambient:g} needs light transport: set ambient = 0 or use engine cycles"
     if settings.motion_blur_shutter > 0:  # before the samples: motion blur brings its own
         return "motion during the exposure needs engine cycles"
-    if settings.samples != 1 or settings.filter_width_px > 0.01:
+    # (at one sample Cycles' box, one pixel wide whatever its width, takes the same point)
+    if settings.samples != 1 or (settings.pixel_filter != "BOX" and settings.filter_width_px > 0.01):
         return (f"it samples each pixel once at its centre; {settings.samples} samples with a "
                 f"{settings.filter_width_px:g} px filter (a sensor that integrates its pixels) need engine cycles")
     if material not in DIFFUSE_SURFACES:

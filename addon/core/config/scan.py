@@ -253,7 +253,15 @@ class ScanConfig:
             laser = render.laser
             if laser_engine_mismatch(engine, laser) and laser != "slit":  # each engine's own Gaussian line
                 laser = DEFAULT_LASER[engine]
-            render = replace(render, engine=engine, laser=laser)
+            if engine == "eevee" and (render.bounces > 0 or render.pixel_filter != "BOX"):  # as [render] says
+                what = (f"bounces = {render.bounces}, which Eevee does not trace" if render.bounces > 0 else
+                        f"pixel_filter = {render.pixel_filter!r}, which Eevee does not have (it takes the width only)")
+                raise InputError(f"--engine eevee: this config's [render] {what}; leave it out of the config, or "
+                                 f"render with cycles")
+            width = render.filter_width_px
+            if engine == "cycles" and render.pixel_filter == "BOX" and render.samples > 1:
+                width = 1.0  # Cycles' box at more than one sample: the whole pixel (as --samples takes it)
+            render = replace(render, engine=engine, laser=laser, filter_width_px=width)
             why = replace(cfg, render=render).raycast_refusal()
             if why:
                 raise InputError(f"--engine raycast: {why}")

@@ -158,7 +158,7 @@ class StepBlock(_Shape):
             outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
             inside = np.minimum(q.max(axis=1), 0.0)
             best = np.minimum(best, outside + inside)
-        within = best < 0
+        within = best <= 0  # (0 on a face the columns share, inside the part)
         if within.any():
             q = p[within]
             ring = self._profile()

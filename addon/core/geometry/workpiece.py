@@ -226,27 +226,32 @@ def _body_labels(mesh: trimesh.Trimesh) -> np.ndarray:
 
 
 def _bodies_wound_inward(mesh: trimesh.Trimesh, labels: np.ndarray) -> list[int]:
-    """The bodies of a closed, consistently wound mesh that are wound inside out: those of
-    negative volume, but for a sealed void's wall, which lies wholly inside an odd number of
-    the others and rightly faces the void (turned out, the void read as solid). A body of
-    positive volume inside another is left as it is (a solid within a solid: _overlap_note)."""
+    """The bodies of a closed, consistently wound mesh that are wound inside out. A body lying
+    wholly inside an odd number of the others is a sealed void's wall and rightly faces the
+    void (negative volume; turned out, the void read as solid). So a body of negative volume
+    is inside out unless it lies so; one of positive volume is, where it lies wholly inside a
+    body that is itself inside out (a file saved inside out throughout: the void's wall then
+    faces out); otherwise it is a solid within a solid (_overlap_note)."""
     count = int(labels.max()) + 1
     bodies = [trimesh.Trimesh(mesh.vertices, mesh.faces[labels == k], process=False) for k in range(count)]
     volumes = [b.volume for b in bodies]
-    wrong = []
+    if count == 1 or count > MAX_OVERLAP_BODIES:
+        return [k for k in range(count) if volumes[k] < 0]
+    inside = {}  # body: the bodies it lies wholly inside
     for k, body in enumerate(bodies):
-        if volumes[k] >= 0:
-            continue
         corners = body.vertices[np.unique(body.faces)]
         corners = corners[:: max(1, len(corners) // 64)]
-        depth = 0 if count > MAX_OVERLAP_BODIES else sum(
-            1 for j, other in enumerate(bodies)
-            if j != k and abs(volumes[j]) > abs(volumes[k])
-            and np.all((other.bounds[0] <= corners) & (corners <= other.bounds[1]))
-            and bool(np.all(other.contains(corners))))
-        if depth % 2 == 0:
-            wrong.append(k)
-    return wrong
+        inside[k] = [j for j, other in enumerate(bodies)
+                     if j != k and abs(volumes[j]) > abs(volumes[k])
+                     and np.all((other.bounds[0] <= corners) & (corners <= other.bounds[1]))
+                     and bool(np.all(other.contains(corners)))]
+    wrong = {k for k in range(count) if volumes[k] < 0 and len(inside[k]) % 2 == 0}
+    for k in range(count):
+        if volumes[k] > 0 and len(inside[k]) % 2 == 1:
+            container = min(inside[k], key=lambda j: abs(volumes[j]))  # the body it sits in directly
+            if container in wrong:
+                wrong.add(k)
+    return sorted(wrong)
 
 
 def _overlap_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: str) -> str | None:

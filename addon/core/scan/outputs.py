@@ -260,21 +260,27 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
 OUTPUT_FILES = {"cloud": "cloud.ply", "report": "report.json", "preview": "preview.png"}
 
 
-def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, err, t_start: float,
-                  on_fixture=None) -> dict:
-    """cloud.ply, report.json and preview.png into ``out``, all together or none (files.write_set);
-    the report's time_s gains the time taken to make them ("write") and the total."""
-    t = time.perf_counter()
+def preview_title(name: str, points: int, report: dict) -> str:
+    """The preview picture's title: the points, their error and the coverage."""
     e = report["error_um"]
     covered = f"{report['coverage'] * 100:.0f} % of the whole part"
     if report.get("measurable_share"):  # the share of what the path can measure comes first, as in the summary
         # (not the whole part's in brackets: there the summary gives the share the path can measure)
         covered = f"{report['coverage_measurable'] * 100:.0f} % of what the path can measure, {covered}"
-    error = ("no point on the part" if e.get("rms_um") is None else
-             f"RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um")
-    title = f"{config.name}: {len(cloud)} points, {error}, covers {covered}"
+    # (no point on the part: its statistics are NaN here, null once written)
+    error = (f"RMS {e['rms_um']:.1f} um, p95 {e['p95_um']:.1f} um" if e.get("n") else "no point on the part")
+    title = f"{name}: {points} points, {error}, covers {covered}"
     if report.get("points_on_fixtures"):
         title += f", {report['points_on_fixtures']} on fixtures"
+    return title
+
+
+def write_outputs(out: Path, cloud, report: dict, config: ScanConfig, on_part, err, t_start: float,
+                  on_fixture=None) -> dict:
+    """cloud.ply, report.json and preview.png into ``out``, all together or none (files.write_set);
+    the report's time_s gains the time taken to make them ("write") and the total."""
+    t = time.perf_counter()
+    title = preview_title(config.name, len(cloud), report)
     picture = render_preview(config.workpiece.mesh, cloud.points, err, on_part, title, on_fixture=on_fixture)
     contents = {"cloud.ply": ply_bytes(cloud), "preview.png": png_bytes(picture)}
     report["time_s"]["write"] = round(time.perf_counter() - t, 4)

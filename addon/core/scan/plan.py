@@ -124,12 +124,13 @@ def collision_model(config: ScanConfig) -> CollisionModel:
 
 
 def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, table_start=None,
-                 nearest: bool = True) -> PathClearance | None:
+                 nearest: bool = True, may_back_away: bool = False) -> PathClearance | None:
     """Collision checks along the motion through joints q (n, 6) and table angles (n,), from
     ``q_start`` where given; raises CollisionError naming the first frames and the two bodies.
     ``nearest``: also find the smallest clearance per path entry for the report (a planner
-    asking only whether a motion is allowed leaves it out). None where the config turns the
-    checks off."""
+    asking only whether a motion is allowed leaves it out). ``may_back_away``: a single move (a
+    Scanner's move_to, move_joints or table turn) may leave a start pose that keeps too little
+    clearance, where it comes no nearer. None where the config turns the checks off."""
     if not config.safety.check:
         return None
     model = collision_model(config)
@@ -144,7 +145,8 @@ def check_motion(config: ScanConfig, q, table_rad, segment=None, q_start=None, t
             # A single move out of a pose that keeps too little clearance without touching (the
             # clearance raised since it was reached) may go where it comes no nearer, so the
             # robot can back away; a path must start clear.
-            if len(np.asarray(q).reshape(-1, 6)) != 1 or any(c.distance_mm <= 0 for c in at_start.deepest):
+            if not may_back_away or len(np.asarray(q).reshape(-1, 6)) != 1 \
+                    or any(c.distance_mm <= 0 for c in at_start.deepest):
                 raise CollisionError(at_start.message())
             relaxed = {(c.body_a, c.body_b): c.distance_mm * (1.0 - 1e-9) for c in at_start.deepest}
             result = model.check(q, table_rad, segment, q_start, table_start, nearest=nearest, relaxed=relaxed)
