@@ -489,7 +489,7 @@ def test_a_scans_warnings_reach_the_panel_user(panel, tmp_path, capfd):
     import trimesh
 
     post = trimesh.creation.box([40.0, 40.0, 100.0])
-    post.apply_translation([0.0, 0.0, 50.0])
+    post.apply_translation([0.0, 0.0, 114.0])  # 4 mm over the sphere's top (one through it is refused)
     post.apply_transform(load_scan_config_table2base())
     post.export(tmp_path / "post.stl")
     demo = (Path(__file__).parents[2] / "rigs/scenes/demo.toml").read_text()
