@@ -649,3 +649,22 @@ def test_the_preview_of_a_scan_with_no_point_on_the_part_says_so_in_its_title(tm
     s.sweep([-20.0, -40.0, 215.0], [-20.0, 40.0, 215.0], 5)  # over the sphere
     title = preview_title("demo", len(s.cloud), s.result().report)
     assert "RMS " in title and "nan" not in title
+
+
+def test_the_report_tells_apart_two_sensors_with_the_same_effects():
+    """report.json said ["distortion"] for a lens undistorted (87 µm RMS) and one not (814 µm)."""
+    from dataclasses import replace as changed
+
+    from addon.core.config.scan import load_scan_config
+    from addon.core.optics.sensor import SensorModel
+
+    base = load_scan_config("demo").with_overrides(engine="raycast", frames=slice(0, 4))
+    said = []
+    for undistort in (True, False):
+        cfg = changed(base, sensor=SensorModel(distortion=(-0.05, 0.0, 0.0, 0.0), undistort=undistort))
+        s = Scanner(config=cfg.with_overrides(engine="cycles"))
+        said.append(s.report().to_dict()["config"])
+    assert said[0]["sensor"] == said[1]["sensor"] == ["distortion"]
+    assert said[0]["sensor_settings"] == {"distortion": [-0.05, 0.0, 0.0, 0.0]}
+    assert said[1]["sensor_settings"] == {"distortion": [-0.05, 0.0, 0.0, 0.0], "undistort": False}
+    assert Scanner.from_config("demo", engine="raycast").report().to_dict()["config"]["sensor_settings"] == {}

@@ -133,6 +133,7 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
                    "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
                    "triangulate": config.triangulate_method, "fuse": config.fuse,
                    "sensor": "ideal" if config.sensor.ideal else sensor_effects(config.sensor),
+                   "sensor_settings": sensor_settings(config.sensor),
                    "material": config.material,
                    # The probe model triangulation used: None for the nominal (exact) probe, else
                    # the calibration file it came from.
@@ -202,9 +203,31 @@ def across_the_lines(cloud: Cloud, stats: dict, poses, config: ScanConfig) -> tu
     return out, stats
 
 
+SWITCHES = ("integrate_pixels", "saturate", "noise", "speckle", "defocus", "motion_blur")  # the sensor's effects
+
+
 def sensor_effects(sensor) -> list[str]:
-    names = ("integrate_pixels", "saturate", "noise", "speckle", "defocus", "motion_blur")
-    return [n for n in names if getattr(sensor, n)] + (["distortion"] if sensor.distortion else [])
+    return [n for n in SWITCHES if getattr(sensor, n)] + (["distortion"] if sensor.distortion else [])
+
+
+def sensor_settings(sensor) -> dict:
+    """The sensor model's parameters that differ from its defaults ({} for the ideal sensor):
+    two sensors with the same effects on (undistorted or not, another exposure) read apart."""
+    from dataclasses import fields
+
+    from ..optics.sensor import SensorModel
+
+    if sensor.ideal:
+        return {}
+    default = SensorModel()
+    out = {}
+    for f in fields(sensor):
+        if f.name.startswith("_") or f.name in SWITCHES:
+            continue
+        value, was = getattr(sensor, f.name), getattr(default, f.name)
+        if value != was:
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+    return out
 
 
 def measurable_coverage(config: ScanConfig, probe2table: np.ndarray, part_points: np.ndarray) -> dict:
