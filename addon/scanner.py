@@ -724,7 +724,7 @@ class Scanner:
         finally:  # a run dropped or stopped after some sweeps still lists them beside their frames
             if not (finished or steps):
                 self._planner, self._planner_config = kept
-            if finished or steps:
+            else:
                 # Over every adaptive() call on this Scanner: the sweeps all of them took, within
                 # the budgets all of them were given.
                 earlier = self._extra.get("adaptive", {}).get("max_profiles", 0)

@@ -118,6 +118,12 @@ def raycast_mismatch(settings: RenderOptions, material: str, hide_robot: bool = 
     return None
 
 
+def box_width(engine: str, pixel_filter: str, samples: int, width: float) -> float:
+    """The filter width a render takes: Cycles' box is one pixel wide whatever its width, which
+    shows above one sample (at one, a box of any width takes the same point)."""
+    return 1.0 if engine == "cycles" and pixel_filter == "BOX" and samples > 1 else width
+
+
 def with_sensor(settings, sensor):
     """``settings`` (a RenderOptions) with the sensor model's render-side effects: pixel
     area integration (box filter of one pixel, enough samples to fill it) and motion
@@ -128,7 +134,6 @@ def with_sensor(settings, sensor):
     shutter = sensor.shutter_fraction if sensor.motion_blur else 0.0
     if shutter > 0:
         samples = max(samples, 16)
-        if settings.engine == "cycles" and pixel_filter == "BOX":  # as Cycles renders it at 16 samples
-            width = 1.0
+    width = box_width(settings.engine, pixel_filter, samples, width)
     return replace(settings, samples=samples, pixel_filter=pixel_filter, filter_width_px=width,
                    motion_blur_shutter=shutter)

@@ -67,8 +67,8 @@ from ..errors import ConfigError, InputError, check_number, check_whole, is_whol
 from ..kinematics.robot import Robot
 from ..config.rigs import load_robot
 from ..optics.probe import MAX_PIXELS, MIN_PIXELS, Probe
-from .render import (DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions, laser_engine_mismatch,
-                     raycast_mismatch, with_sensor)
+from .render import (DEFAULT_LASER, DEVICES, ENGINES, LASERS, PIXEL_FILTERS, RenderOptions, box_width,
+                     laser_engine_mismatch, raycast_mismatch, with_sensor)
 from .rigs import URDF_SUFFIXES, load_probe
 from ..optics.sensor import BIT_DEPTHS, SensorModel
 from ..optics.profile_filter import ProfileFilter
@@ -258,9 +258,7 @@ class ScanConfig:
                         f"pixel_filter = {render.pixel_filter!r}, which Eevee does not have (it takes the width only)")
                 raise InputError(f"--engine eevee: this config's [render] {what}; leave it out of the config, or "
                                  f"render with cycles")
-            width = render.filter_width_px
-            if engine == "cycles" and render.pixel_filter == "BOX" and render.samples > 1:
-                width = 1.0  # Cycles' box at more than one sample: the whole pixel (as --samples takes it)
+            width = box_width(engine, render.pixel_filter, render.samples, render.filter_width_px)
             render = replace(render, engine=engine, laser=laser, filter_width_px=width)
             why = replace(cfg, render=render).raycast_refusal()
             if why:
@@ -271,10 +269,9 @@ class ScanConfig:
                              f"leave --device out, or add --engine cycles")
         if samples is not None:
             samples = check_whole(samples, "--samples (samples)", 1, 65536)
-            if samples > 1 and render.engine == "cycles" and render.pixel_filter == "BOX" \
-                    and render.filter_width_px != 1.0:
-                render = replace(render, filter_width_px=1.0)  # Cycles' box at more than 1 sample: the whole pixel
-            render = replace(render, samples=samples)
+            render = replace(render, samples=samples,
+                             filter_width_px=box_width(render.engine, render.pixel_filter, samples,
+                                                       render.filter_width_px))
         cfg = replace(cfg, render=render)
         if resolution is not None:
             size = resolution if isinstance(resolution, (tuple, list)) else ()
@@ -618,9 +615,7 @@ def _render(t: Table) -> tuple[RenderOptions, tuple[int, int] | None]:
     engine = t.string("engine", default="cycles", choices=ENGINES)
     samples = t.integer("samples", default=1, lo=1, hi=65536)
     pixel_filter = t.string("pixel_filter", default="BOX", choices=PIXEL_FILTERS)
-    # The box's width where none is given: a point at 1 sample, else the whole pixel (Cycles'
-    # box is 1 px wide whatever its width)
-    width = 1.0 if samples > 1 and pixel_filter == "BOX" and engine == "cycles" else 0.01
+    width = box_width(engine, pixel_filter, samples, 0.01)  # where none is given
     try:
         opts = _render_options(t, engine, samples, pixel_filter, width)
     except InputError as exc:

@@ -225,6 +225,14 @@ def _body_labels(mesh: trimesh.Trimesh) -> np.ndarray:
     return np.unique(vertex_piece, return_inverse=True)[1][mesh.faces[:, 0]]
 
 
+def _body_volumes(mesh: trimesh.Trimesh, labels: np.ndarray) -> np.ndarray:
+    """Each closed body's signed volume (mm³; negative: wound inward), from its faces' tetrahedra
+    to the origin."""
+    tri = mesh.vertices[mesh.faces]
+    six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    return np.bincount(labels, weights=six, minlength=int(labels.max()) + 1) / 6.0
+
+
 def _bodies_wound_inward(mesh: trimesh.Trimesh, labels: np.ndarray) -> list[int]:
     """The bodies of a closed, consistently wound mesh that are wound inside out. A body lying
     wholly inside an odd number of the others is a sealed void's wall and rightly faces the
@@ -233,10 +241,10 @@ def _bodies_wound_inward(mesh: trimesh.Trimesh, labels: np.ndarray) -> list[int]
     body that is itself inside out (a file saved inside out throughout: the void's wall then
     faces out); otherwise it is a solid within a solid (_overlap_note)."""
     count = int(labels.max()) + 1
-    bodies = [trimesh.Trimesh(mesh.vertices, mesh.faces[labels == k], process=False) for k in range(count)]
-    volumes = [b.volume for b in bodies]
+    volumes = _body_volumes(mesh, labels)
     if count == 1 or count > MAX_OVERLAP_BODIES:
         return [k for k in range(count) if volumes[k] < 0]
+    bodies = [trimesh.Trimesh(mesh.vertices, mesh.faces[labels == k], process=False) for k in range(count)]
     inside = {}  # body: the bodies it lies wholly inside
     for k, body in enumerate(bodies):
         corners = body.vertices[np.unique(body.faces)]
@@ -292,9 +300,8 @@ def _void_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, role: str)
     inward, inside another): their walls are the part's surface, but no laser reaches them."""
     if not (mesh.is_watertight and mesh.is_winding_consistent) or labels.max() < 1:
         return None
-    voids = [k for k in range(int(labels.max()) + 1)
-             if trimesh.Trimesh(mesh.vertices, mesh.faces[labels == k], process=False).volume < 0]
-    if not voids:
+    voids = np.flatnonzero(_body_volumes(mesh, labels) < 0)
+    if not len(voids):
         return None
     share = float(mesh.area_faces[np.isin(labels, voids)].sum()) / mesh.area
     return (f"the {role} mesh {path.name} holds {len(voids)} sealed void{'s' if len(voids) > 1 else ''} "

@@ -53,6 +53,7 @@ BIT_DEPTHS = (8, 10, 12, 16)
 # (scene.render.EXPOSURE_KEY_FRAMES), short of the next frame's keys across a jump between
 # path entries.
 MAX_SHUTTER_FRAMES = 0.98
+EFFECTS = ("integrate_pixels", "saturate", "noise", "speckle", "defocus", "motion_blur")  # the switches (and distortion)
 
 
 @dataclass(frozen=True)
@@ -114,8 +115,7 @@ class SensorModel:
     # -- switches -------------------------------------------------------------------------
     @property
     def ideal(self) -> bool:
-        return not (self.integrate_pixels or self.saturate or self.noise or self.speckle or self.defocus
-                    or self.distortion or self.motion_blur)
+        return not (any(getattr(self, name) for name in EFFECTS) or self.distortion)
 
     @property
     def changes_images(self) -> bool:

@@ -22,6 +22,7 @@ from ..geometry import metrics
 from ..geometry.cloud import Cloud, ply_bytes
 from ..geometry.footprint import measurable_points
 from ..geometry.surface_fit import across_line
+from ..optics.sensor import EFFECTS, SensorModel
 from ..kinematics.turntable import TABLE_RADIUS_MM
 from .plan import Plan, cell_surfaces, fixture_warnings, table_fixtures
 from .preview import render_preview
@@ -203,11 +204,8 @@ def across_the_lines(cloud: Cloud, stats: dict, poses, config: ScanConfig) -> tu
     return out, stats
 
 
-SWITCHES = ("integrate_pixels", "saturate", "noise", "speckle", "defocus", "motion_blur")  # the sensor's effects
-
-
 def sensor_effects(sensor) -> list[str]:
-    return [n for n in SWITCHES if getattr(sensor, n)] + (["distortion"] if sensor.distortion else [])
+    return [n for n in EFFECTS if getattr(sensor, n)] + (["distortion"] if sensor.distortion else [])
 
 
 def sensor_settings(sensor) -> dict:
@@ -215,14 +213,12 @@ def sensor_settings(sensor) -> dict:
     two sensors with the same effects on (undistorted or not, another exposure) read apart."""
     from dataclasses import fields
 
-    from ..optics.sensor import SensorModel
-
     if sensor.ideal:
         return {}
     default = SensorModel()
     out = {}
     for f in fields(sensor):
-        if f.name.startswith("_") or f.name in SWITCHES:
+        if f.name.startswith("_") or f.name in EFFECTS:
             continue
         value, was = getattr(sensor, f.name), getattr(default, f.name)
         if value != was:
