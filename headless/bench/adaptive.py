@@ -53,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "hi) gives an object with choose(scanner, profiles_left) -> view or None and "
                              "scan(scanner, view) (a subclass of addon.adaptive.NextBestView is one; see "
                              "docs/adaptive.md)")
-    parser.add_argument("--methods", default="",
+    parser.add_argument("--methods", default=None,
                         help=f"the methods to run, comma-separated from {', '.join(METHODS)} (default: "
                              f"{','.join(DEFAULT_METHODS)}, and yours with --planner)")
     parser.add_argument("--engine", choices=("cycles", "raycast"), default="cycles",
@@ -376,13 +376,16 @@ def plot(results: dict, path) -> None:
     plt.close(fig)
 
 
-def chosen_methods(text: str, planner: str) -> list[str]:
+def chosen_methods(text: str | None, planner: str) -> list[str]:
     """The methods ``--methods`` names (default: all, yours only with ``--planner``)."""
     from addon.core.errors import InputError
 
-    if not text.strip():
+    if text is None:
         return [m for m in METHODS if m in DEFAULT_METHODS or (m == "yours" and planner)]
     names = [w.strip().lower() for w in text.split(",") if w.strip()]
+    if not names:
+        raise InputError(f"--methods {text!r} names no method; name one or more of {', '.join(METHODS)}, "
+                         "comma-separated (or leave --methods out for the default)")
     unknown = [n for n in names if n not in METHODS]
     if unknown:
         raise InputError(f"--methods: {unknown[0]!r} is not one of {', '.join(METHODS)}")
@@ -435,7 +438,7 @@ def run(args: argparse.Namespace) -> int:
             rows.append(row)
         print(f"{name}: " + "; ".join(f"{m} {r['coverage'] * 100:.1f} % in {r['profiles']} profiles"
                                       for m, r in methods.items()), flush=True)
-    named = args.methods.strip() and methods_run != list(DEFAULT_METHODS)
+    named = args.methods is not None and methods_run != list(DEFAULT_METHODS)
     command = f"python -m headless bench adaptive --budget {args.budget}" + (
         f" --methods {','.join(methods_run)}" if named else "") + (
         f" --planner {args.planner}" if args.planner else "") + (

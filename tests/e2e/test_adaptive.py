@@ -664,8 +664,19 @@ def test_the_sides_yardstick_is_the_turns_own_side_passes_with_60_percent_of_the
     for mine, theirs in zip(sides, full[1:]):
         np.testing.assert_allclose(mine.probe2table, theirs.probe2table, atol=1e-12)
     assert [len(p.table_rad) for p in turns(config, 450, from_above=False, share=SIDES_SHARE)] == [135, 135]
-    assert chosen_methods("", "") == ["planner", "turns", "raster"]
+    assert chosen_methods(None, "") == ["planner", "turns", "raster"]
     assert chosen_methods("sides,turns", "") == ["turns", "sides"]
+
+
+@pytest.mark.parametrize("text", ["", " ", ",", " , "])
+def test_methods_naming_nothing_is_refused_rather_than_running_the_defaults(text):
+    """``--methods ''`` (a script's empty variable) names no method: refused in one line, not
+    read as 'the default three' and run for an hour."""
+    from addon.core.errors import InputError
+    from headless.bench.adaptive import chosen_methods
+
+    with pytest.raises(InputError, match="names no method"):
+        chosen_methods(text, "")
 
 
 def test_the_low_yardstick_spends_60_percent_of_the_budget_on_two_side_turns_and_a_sweep_from_above():
