@@ -160,7 +160,7 @@ def _fake_server(reply):
     (lambda req: (json.dumps({"id": req["id"], "joints_rad": [0, 1], "success": True, "reason": "ok"}) + "\n")
      .encode(), "'joints_rad' must be 6 finite numbers"),
     (lambda req: (json.dumps({"id": req["id"]}) + "\n").encode(), "lacks 'success'"),
-    (lambda req: None, "no answer within 0.3 s (twice)"),
+    (lambda req: None, "no answer within 0.3 s (on a retry over a new connection too)"),
     (lambda req: b"[" * 200_000 + b"\n", "the answer is not JSON"),  # nested deeper than any parser goes
     # Numbers Python's float cannot take (an integer of 400 digits; one past its 4 300-digit limit):
     # a traceback from the scan before.

@@ -141,16 +141,16 @@ class ControllerIK:
                 self.close()
                 if attempt == 2:
                     raise ControllerError(f"IK controller at {where}: no answer within "
-                                          f"{self.controller.timeout_s:g} s (twice)") from None
+                                          f"{self.controller.timeout_s:g} s (on a retry over a new connection too)") from None
             except ConnectionRefusedError:
                 self.close()
                 if attempt == 2:
                     raise ControllerError(f"IK controller at {where}: nothing is listening there (connection "
-                                          "refused twice); start it, e.g. python -m headless ik-server") from None
+                                          "refused, on a retry too); start it, e.g. python -m headless ik-server") from None
             except OSError as exc:
                 self.close()
                 if attempt == 2:
-                    raise ControllerError(f"IK controller at {where}: {exc.strerror or exc} (twice)") from None
+                    raise ControllerError(f"IK controller at {where}: {exc.strerror or exc} (on a retry over a new connection too)") from None
         try:
             answer = json.loads(raw.decode("utf-8"))
         except (UnicodeDecodeError, ValueError, RecursionError):  # (JSONDecodeError; a number past
