@@ -582,7 +582,8 @@ def test_a_table_turn_that_swings_the_part_into_a_world_fixture_is_refused():
     cfg = demo_with(Workpiece("bar", bar, bar, "test bar", np.eye(4)))
     end_at_quarter_turn = (cfg.table.table2base(math.pi / 2) @ np.array([140.0, 0.0, 10.0, 1.0]))[:3]
     post = trimesh.creation.box([20.0, 20.0, 100.0])
-    post.apply_translation(end_at_quarter_turn + [0.0, 0.0, 40.0])
+    post.apply_translation(end_at_quarter_turn + [0.0, 0.0, 45.0])  # 5 mm above the table top, which it
+    # must not touch (a world fixture against the turning disc)
     scanner = Scanner(config=replace(cfg, fixtures=(Fixture("post", post, "world"),)))
     scanner.turn_table_to(30.0)
     with pytest.raises(CollisionError, match="post touches the workpiece"):
@@ -605,3 +606,26 @@ def test_a_fixture_made_in_code_keeps_the_clearance_whatever_its_name():
     scanner = Scanner(config=replace(load_scan_config("demo"), fixtures=(Fixture("clamp", clamp, "table"),)))
     with pytest.raises(CollisionError, match="of the clamp; at least 2 mm allowed"):
         scanner.move_to(((0.0, 60.0, 20.0 + HEAD_REACH_MM + 1.0), (0.0, 180.0, 0.0)))
+
+
+@pytest.mark.parametrize("gap_mm", [-10.0, 5.0])
+def test_a_world_fixture_through_the_tables_disc_is_refused_and_one_beside_it_is_not(gap_mm):
+    """A post standing in the world beside the table, its inner face gap_mm outside the disc's
+    rim (150 mm), reaching from below the disc to above its top: through the rim it would stop
+    the table turning (the disc was checked against the robot's moving bodies only); 5 mm clear
+    of it, a table turn is allowed."""
+    from addon.core.kinematics.turntable import TABLE_RADIUS_MM
+    from addon.core.safety import Fixture
+
+    cfg = load_scan_config("demo")
+    post = trimesh.creation.box([20.0, 20.0, 100.0])
+    post.apply_translation([TABLE_RADIUS_MM + gap_mm + 10.0, 0.0, 0.0])  # z -50..50 in the table frame
+    post.apply_transform(cfg.table.table2base(0.0))  # a world fixture is given in the robot base's frame
+    scanner = Scanner(config=replace(cfg, fixtures=(Fixture("post", post, "world"),)))
+    if gap_mm < 0:
+        with pytest.raises(CollisionError, match="post touches the table"):
+            scanner.turn_table_to(30.0)
+        assert scanner.table_deg == pytest.approx(0.0)
+    else:
+        scanner.turn_table_to(30.0)
+        assert scanner.table_deg == pytest.approx(30.0)

@@ -12,12 +12,14 @@ Bodies and what carries them:
 - ``workpiece``: the part's mesh, in the table frame (it turns with the table);
 - fixtures: meshes from the scan config, on the table or fixed in the world.
 
-Pairs checked: every robot body (links and probe) against the table, the workpiece
-and the fixtures, with the clearance the config asks for; and robot bodies against
-each other (links two or more apart, the probe against links 1–4 and the base), which
-must not touch. The base is not checked against the table, the part or the fixtures:
-it never moves, and where it stands is the cell's layout. Pairs that touch in the rig's
-rest pose (q = 0) are part of its design and are not checked.
+Pairs checked, with the clearance the config asks for: every moving robot body (links
+and probe) against the table, the workpiece and the fixtures; what the table carries
+(the workpiece, table fixtures) against what stands still (the robot's base, world
+fixtures), as a table turn swings it round; and world fixtures against the table's
+disc. Robot bodies against each other (links two or more apart, the probe against
+links 1–4 and the base) must not touch. The base is not checked against the disc (where
+it stands is the cell's layout). Pairs of robot bodies that touch in the rig's rest pose
+(q = 0) are part of its design and are not checked.
 
 A mesh in FCL is a surface: a body wholly inside a closed part would be reported
 as near its surface, not inside it. So where a robot body comes near a closed

@@ -262,6 +262,10 @@ class CollisionModel:
         still = [i for i, b in enumerate(self.bodies) if b.name.startswith(ROBOT_BASE) or b.carrier == "world"]
         carried = [j for j in env if self.bodies[j].carrier == "table" and self.bodies[j].name != "table"]
         pairs += [(i, j, limit) for i in still for j in carried]
+        # The table's disc turns into itself, but a world fixture must keep out of it (a post through
+        # the table top, a clamp on the rim that does not turn with it).
+        disc = [j for j in env if self.bodies[j].name == "table"]
+        pairs += [(i, j, limit) for i in still if self.bodies[i].carrier == "world" for j in disc]
         q0 = np.zeros((1, 6))
         carriers = carrier_poses(self.robot, self.table, q0, np.zeros(1))
         def place(name: str) -> int:  # in the chain: the base 0, links by their number, the probe 7
