@@ -137,14 +137,34 @@ PACKAGE_OF_MODULE = {"cv2": "opencv-contrib-python-headless", "fcl": "python-fcl
                      "yaml": "pyyaml", "PIL": "pillow", "sklearn": "scikit-learn"}
 
 
+def _locked(package: str) -> bool:
+    """Whether the lock (requirements.txt) pins this package."""
+    def norm(text: str) -> str:
+        return text.strip().lower().replace("_", "-")
+
+    try:
+        lines = LOCK.read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return False
+    return any(norm(line.split("==")[0]) == norm(package) for line in lines if "==" in line)
+
+
 def missing_package_line(exc: ModuleNotFoundError) -> str | None:
     """One line for ``python -m headless`` started with a Python that lacks a package of the
-    lock (outside .venv): which one, and the two commands that have it. None where the module
-    missing is the project's own (a bug, shown as one)."""
+    lock: outside .venv, which one and the two commands that have it; inside .venv (a package
+    removed after set-up, which the stamp cannot see), how to install the lock again. None
+    where the module missing is the project's own or one the lock does not pin (a bug, shown
+    as one)."""
     name = (exc.name or "").split(".")[0]
-    if not name or name in ("addon", "headless") or Path(sys.prefix).resolve() == VENV.resolve():
-        return None  # the project's own module, or .venv itself lacks it: a bug or a broken set-up, shown as such
+    if not name or name in ("addon", "headless"):
+        return None  # the project's own module: a bug, shown as one
     package = PACKAGE_OF_MODULE.get(name, name)
+    if Path(sys.prefix).resolve() == VENV.resolve():
+        if not _locked(package):
+            return None
+        return (f"error: .venv has no '{name}' (package {package}), which {_shown(LOCK)} pins: the environment "
+                f"was changed after set-up; delete {_shown(STAMP)} and run 'python3 -m headless.bootstrap ...', "
+                f"which installs the lock again")
     here = _shown(venv_python())
     return (f"error: this Python ({sys.executable}) has no '{name}' (package {package}); the project's "
             f"packages are in .venv: run '{here} -m headless ...', or 'python3 -m headless.bootstrap ...', "

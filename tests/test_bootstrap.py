@@ -133,9 +133,17 @@ def test_python_m_headless_outside_the_venv_says_in_one_line_which_package_is_mi
     assert "-m headless" in lines[0] and "headless.bootstrap" in lines[0]
 
 
-def test_a_missing_module_is_blamed_on_the_set_up_only_outside_the_venv(monkeypatch):
-    # Inside .venv a missing module is a bug or a broken set-up: shown as it is, not as advice.
-    assert bootstrap.missing_package_line(ModuleNotFoundError("no", name="cv2")) is None
+def test_a_missing_module_is_blamed_on_the_set_up_only_where_the_lock_pins_it(monkeypatch):
+    # Inside .venv: a package the lock pins but .venv lacks (removed after set-up, which the
+    # stamp cannot see) is named with how to install the lock again; a module the lock does
+    # not pin, or the project's own, is a bug and shown as one.
+    monkeypatch.setattr(sys, "prefix", str(bootstrap.VENV))
+    line = bootstrap.missing_package_line(ModuleNotFoundError("no", name="cv2"))
+    assert line.startswith("error: .venv has no 'cv2' (package opencv-contrib-python-headless), which "
+                           "requirements.txt pins") and ".installed-lock.sha256" in line, line
+    assert bootstrap.missing_package_line(ModuleNotFoundError("no", name="fcl.collision")) is not None
+    assert bootstrap.missing_package_line(ModuleNotFoundError("no", name="nothing_we_pin")) is None
+    assert bootstrap.missing_package_line(ModuleNotFoundError("no", name="addon.core.nothing")) is None
     monkeypatch.setattr(sys, "prefix", "/usr")
     assert bootstrap.missing_package_line(ModuleNotFoundError("no", name="addon.core.nothing")) is None
     line = bootstrap.missing_package_line(ModuleNotFoundError("no", name="cv2"))
