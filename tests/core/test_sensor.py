@@ -214,6 +214,24 @@ def test_distortion_moves_points_as_opencv_predicts_and_calibration_undoes_it():
     assert abs(back_u[0] - u0) < 0.15 and abs(back_v[0] - v0) < 0.15
 
 
+@pytest.mark.parametrize("coeffs", [(-0.5, 0.0, 0.0, 0.0), (0.3, -0.2, 0.004, -0.003), (-0.8, 0.3, 0.002, -0.004)])
+def test_the_band_spread_covers_how_far_distortion_moves_a_point_along_its_column(coeffs):
+    """A band of rows rendered around where the pinhole puts the line must reach where the lens
+    puts it: the spread is at least the column shift of every sensor pixel's ideal point, found
+    here the other way round (OpenCV's forward projection of the ideal pixels' rays)."""
+    s = SensorModel(distortion=coeffs)
+    K, d = PROBE.K, s.dist_coeffs()
+    v, u = np.mgrid[0:PROBE.rows_px:3, 0:PROBE.cols_px:3].astype(np.float64)
+    rays = np.linalg.solve(K, np.stack([u.ravel(), v.ravel(), np.ones(u.size)]))
+    seen, _ = cv2.projectPoints(rays.T.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, d)
+    seen = seen.reshape(-1, 2)
+    on_sensor = (seen[:, 0] >= 0) & (seen[:, 0] <= PROBE.cols_px - 1) & (seen[:, 1] >= 0) & (seen[:, 1] <= PROBE.rows_px - 1)
+    shift = np.abs(seen[on_sensor, 1] - v.ravel()[on_sensor]).max()
+    assert shift > 1.0  # the effect is there
+    assert shift <= s.spread_px(PROBE) <= shift + 2.0
+    assert SensorModel().spread_px(PROBE) == 0
+
+
 def test_band_renders_get_the_same_noise_as_full_frames():
     s = SensorModel(noise=True, saturate=True, speckle=True)
     img = line_image(160, np.full(160, 80.2), 1.2)

@@ -183,13 +183,33 @@ class SensorModel:
         return c_mm / (self.pitch_um(probe) * 1e-3) / 2.355
 
     def spread_px(self, probe: Probe) -> int:
-        """Rows beyond the rendered line that the optics spread its light over: three σ of the
-        largest defocus blur on the sensor (0 without defocus). A render of a band of rows
-        around the line needs them, or the blur's tail is cut off on one side."""
-        if not self.defocus:
-            return 0
-        sigma = self.blur_sigma_px(probe, self.row_depths_mm(probe, np.array([0.0, probe.rows_px - 1.0])))
-        return int(math.ceil(3.0 * float(np.max(sigma))))
+        """Rows beyond the rendered line that the optics spread or move its light over: three σ
+        of the largest defocus blur on the sensor, plus the most lens distortion moves a pixel
+        along the columns (0 without either). A render of a band of rows around the line needs
+        them, or the blur's tail is cut off on one side and a distorted line falls outside."""
+        rows = 0.0
+        if self.defocus:
+            sigma = self.blur_sigma_px(probe, self.row_depths_mm(probe, np.array([0.0, probe.rows_px - 1.0])))
+            rows += 3.0 * float(np.max(sigma))
+        if self.distortion:
+            rows += self.distortion_shift_px(probe)
+        return int(math.ceil(rows))
+
+    def distortion_shift_px(self, probe: Probe) -> float:
+        """The most lens distortion moves a point along its column where the pinhole and the lens
+        both put it on the sensor (px; 0 without distortion): the most over a grid of pixels 2 px
+        apart and the sensor's edges, plus a pixel for what lies between them (where the ideal
+        point leaves the sensor the grid can miss the most by a fraction of a pixel). A pixel
+        whose ideal point lies off the sensor shows nothing rendered, so its shift does not
+        matter."""
+        if not self.distortion:
+            return 0.0
+        us = np.unique(np.append(np.arange(0.0, probe.cols_px, 2.0), probe.cols_px - 1.0))
+        vs = np.unique(np.append(np.arange(0.0, probe.rows_px, 2.0), probe.rows_px - 1.0))
+        u, v = (a.ravel() for a in np.meshgrid(us, vs))
+        u_ideal, v_ideal = self.undistort_pixels(probe, u, v)
+        seen = (u_ideal >= 0) & (u_ideal <= probe.cols_px - 1) & (v_ideal >= 0) & (v_ideal <= probe.rows_px - 1)
+        return float(np.max(np.abs(v_ideal - v)[seen], initial=0.0)) + 1.0
 
     def speckle_grain_px(self, probe: Probe, depth_mm) -> np.ndarray:
         """Mean speckle grain diameter on the sensor (px) at object distance ``depth_mm``."""
