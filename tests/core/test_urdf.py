@@ -131,6 +131,31 @@ def test_ur5_urdf_matches_its_own_xml_and_gets_the_closed_form():
     assert batch.method == "analytic" and batch.success.all()
 
 
+@pytest.mark.parametrize("tilt", ["0.1", "1e-3", "1e-8"])
+def test_nearly_parallel_axes_load_exactly_or_are_refused_naming_the_joints(tilt, tmp_path):
+    """The UR5's elbow frame turned about x (as a calibrated arm's file has it): axes 2 and 3
+    are then skew, their common normal 4.2 m away at 0.1 rad, which a DH table holds, exactly
+    as the XML says; at 1e-3 rad it is 425 m away (at 1e-8 past computing). The common
+    normal's direction was taken from its two feet, rounding noise for axes nearly parallel:
+    "the chain's DH form does not reproduce it (1.25e+05 mm off); please report this file",
+    or a NaN length."""
+    text = UR5_URDF.read_text().replace('<origin xyz="0 -0.1197 0.425" rpy="0 0 0"/>',
+                                        f'<origin xyz="0 -0.1197 0.425" rpy="{tilt} 0 0"/>')
+    assert f'rpy="{tilt} 0 0"' in text
+    path = tmp_path / "ur5_calibrated.urdf"
+    path.write_text(text)
+    if tilt == "0.1":
+        robot = load_robot(path)
+        assert 1000.0 < np.abs(robot.d_mm).max() < 10_000.0
+        for q in robot.random_q(30, np.random.default_rng(4)):
+            np.testing.assert_allclose(robot.fk(q), xml_fk(path, q, "tool0"), atol=1e-7)
+        return
+    with pytest.raises(ConfigError, match=r"joints 'shoulder_lift_joint' and 'elbow_joint' are [0-9.e-]+° from "
+                                          r"parallel.*Make the two axes parallel") as err:
+        load_robot(path)
+    assert "report" not in str(err.value) and "nan" not in str(err.value)
+
+
 def test_ur5_urdf_links_carry_its_cylinders():
     """Link 2 (the upper arm) is a 425 mm cylinder along the arm from the shoulder joint."""
     robot = load_robot(UR5_URDF)

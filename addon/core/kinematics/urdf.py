@@ -50,6 +50,7 @@ MOVING = ("revolute", "continuous", "prismatic")
 ROS_FLANGE = "tool0"  # ROS-Industrial's name for the flange frame (z out of the flange): the tool link where the chain ends in several
 PARALLEL_TOL = 1e-9  # |u × v| below this: parallel axes
 MEET_TOL_MM = 1e-9   # common normal shorter than this: the axes meet
+FAR_NORMAL_MM = 1e4  # a common normal farther than this from the axes' points (10 m): nearly parallel axes
 
 
 def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -238,9 +239,11 @@ def _perpendicular(z: np.ndarray) -> np.ndarray:
     return x / np.linalg.norm(x)
 
 
-def dh_from_axes(points, dirs, tool_pose: np.ndarray):
+def dh_from_axes(points, dirs, tool_pose: np.ndarray, names=None):
     """Standard DH (a, d, α, θ offset; mm, rad), base and tool transforms for six joint axes
-    (lines through ``points`` along ``dirs``, world, q = 0) and the tool's pose at q = 0."""
+    (lines through ``points`` along ``dirs``, world, q = 0) and the tool's pose at q = 0.
+    Two neighbouring axes nearly parallel, whose common normal lies farther than
+    ``FAR_NORMAL_MM`` away, are an InputError naming them (``names``: the joints')."""
     z = [d / np.linalg.norm(d) for d in dirs]
     p = [np.asarray(v, dtype=np.float64) for v in points]
     n = len(z)
@@ -254,10 +257,24 @@ def dh_from_axes(points, dirs, tool_pose: np.ndarray):
             w = p[i] - p[i + 1]  # the common normal's feet on both axes
             b, du, dv = u @ v, u @ w, v @ w
             den = 1.0 - b * b
-            foot_u = p[i] + (b * dv - du) / den * u
-            foot_v = p[i + 1] + (dv - b * du) / den * v
+            with np.errstate(divide="ignore", invalid="ignore"):  # den 0 in floating point: far, below
+                foot_u = p[i] + (b * dv - du) / den * u
+                foot_v = p[i + 1] + (dv - b * du) / den * v
+            far = max(np.linalg.norm(foot_u - p[i]), np.linalg.norm(foot_v - p[i + 1]))
+            if not far <= FAR_NORMAL_MM:
+                joints = (f"joints {names[i]!r} and {names[i + 1]!r}" if names is not None else
+                          f"joint axes {i + 1} and {i + 2}")
+                angle = np.degrees(np.arctan2(np.linalg.norm(c), abs(b)))
+                raise InputError(f"{joints} are {angle:.2g}° from parallel, so the common normal of their axes "
+                                 f"lies {f'{far / 1000.0:.3g} m away' if np.isfinite(far) else 'too far away to compute'}: a DH table (this simulator's robot model) "
+                                 f"holds such a pair only with lengths of that size. Make the two axes parallel "
+                                 f"in the file, or turn them further apart")
             gap = foot_v - foot_u
-            x_next = gap / np.linalg.norm(gap) if np.linalg.norm(gap) > MEET_TOL_MM else c / np.linalg.norm(c)
+            # The common normal runs along u × v: exact, where the feet's difference is rounding
+            # noise for axes nearly parallel.
+            x_next = c / np.linalg.norm(c)
+            if gap @ x_next < 0.0:
+                x_next = -x_next
         else:  # parallel: the normal through this frame's origin (collinear: none)
             foot_u = p[i] if o[i] is None else o[i]
             foot_v = p[i + 1] + ((foot_u - p[i + 1]) @ v) * v
@@ -298,7 +315,11 @@ def load_urdf_robot(path: str | Path, base_link: str | None = None, tool_link: s
     urdf = _parse(path, package_dirs)
     chain = UrdfChain(urdf, path, base_link, tool_link)
     tool_pose = chain.link_pose[chain.tool_link]
-    a, d, alpha, theta, base, tool = dh_from_axes(chain.axis_point, chain.axis_dir, tool_pose)
+    try:
+        a, d, alpha, theta, base, tool = dh_from_axes(chain.axis_point, chain.axis_dir, tool_pose,
+                                                      [j.name for j in chain.moving])
+    except InputError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
     lo, hi = chain.limits()
     try:
         robot = Robot(name=f"{urdf.robot.name or path.stem} (URDF)", a_mm=a, d_mm=d, alpha_rad=alpha, theta_offset_rad=theta,
