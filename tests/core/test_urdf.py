@@ -269,6 +269,30 @@ def test_the_base_link_and_what_is_fixed_to_it_make_the_robots_base_and_the_prob
         assert (("probe", "robot base") in hits or ("robot base", "probe") in hits) == touches, (gap, hits)
 
 
+def test_a_pedestal_drawn_only_beside_a_base_link_with_a_collision_body_is_still_checked(tmp_path):
+    """Each URDF link fixed to the base has its collision geometry, or without any its visual
+    one, as the arm's links do: a post drawn only (a visual box 100 × 100 × 600 mm, 500 mm out
+    along x) beside the UR5's base link, which has a collision cylinder, was left out of the
+    base's collision body, so nothing stopped the arm driving into it."""
+    from addon.core.kinematics.link_shapes import base_mesh
+
+    post = ('  <link name="post"><visual><origin xyz="0.5 0 0.3"/><geometry><box size="0.1 0.1 0.6"/>'
+            '</geometry></visual></link>\n  <joint name="post_fixed" type="fixed"><parent link="base_link"/>'
+            '<child link="post"/><origin xyz="0 0 0"/></joint>\n')
+    drawn = '<visual><origin xyz="0 0 0.04" rpy="0 0 0"/><geometry><cylinder radius="0.075" length="0.08"/></geometry></visual>'
+    text = UR5_URDF.read_text()
+    assert drawn in text
+    text = text.replace(drawn, drawn + drawn.replace("visual", "collision"), 1)  # the base link gets a collision body
+    path = tmp_path / "ur5_post.urdf"
+    path.write_text(text.replace("</robot>", post + "</robot>"))
+    robot = load_robot(path)
+    base = base_mesh(robot, collision=True)
+    frame0 = robot.link_frames(np.zeros(6))[0]
+    world = base.vertices @ frame0[:3, :3].T + frame0[:3, 3]
+    np.testing.assert_allclose(world.max(axis=0), [550.0, 75.0, 600.0], atol=0.5)  # the post's far corner
+    np.testing.assert_allclose(world.min(axis=0), [-75.0, -75.0, 0.0], atol=0.5)   # the base's cylinder
+
+
 def test_messages_name_a_urdfs_joints_and_links_as_the_file_does():
     """A URDF engineer reads "J3 (elbow_joint)" and "link 3 (forearm_link)", not numbers alone:
     the names are the file's moving joints from the base to the tool and the links they move

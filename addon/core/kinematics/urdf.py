@@ -519,9 +519,9 @@ def _meshes(urdf, chain: UrdfChain, robot: Robot, package_dirs, files_read: list
                 continue  # not on the chain, nor fixed to it
             # Each URDF link's own collision geometry, or without any its visual one (by DH link,
             # a link fixed to another that had some lost its own body: a flange's 10 mm box stood
-            # for the whole wrist)
-            # (the base: its collision geometry alone, as before)
-            items = getattr(link, kind) if kind == "visuals" or k == 0 else (link.collisions or link.visuals)
+            # for the whole wrist; on the base, a pedestal drawn only beside a base link with a
+            # collision body was never checked)
+            items = link.visuals if kind == "visuals" else (link.collisions or link.visuals)
             for item in items:
                 mesh = _geometry_mesh(item.geometry, chain.path, package_dirs, files_read)
                 if mesh is None:
