@@ -459,7 +459,20 @@ def _six(tmp_path, **kw):
     ("geometry origin nan", "link 'l2': the origin of one of its visuals is not finite"),
     ("a cycle", "form a cycle"),
     ("a joint without a parent", "joint 'j2' has no <parent"),
-    ("a visual without geometry", "link 'l2' has a <visual> without a shape"),
+    ("a visual without geometry", "link 'l2' has a <visual> with no shape"),
+    # (a traceback, KeyErrors, "joint 'j3' is None", a second shape dropped without a word, and
+    # "please report this file" for a unit slip)
+    ("a mesh without a filename", "link 'l2': the <mesh> of a <visual> has no filename"),
+    ("a cylinder without a length", "the <cylinder> of a <visual> has no length; a cylinder needs radius and length"),
+    ("two shapes in one geometry", "link 'l2' has a <visual> with 2 shapes in its <geometry>"),
+    ("a joint without a name", "<joint> number 3 has no name"),
+    ("a link without a name", "<link> number 3 has no name"),
+    ("a joint without a type", "joint 'j3' has no type"),
+    ("a robot without a name", "the <robot> has no name"),
+    ("not a robot", "its root element is <foo>"),
+    ("an origin in millimetres", r"joint 'j1' origin xyz: 100000 is beyond ±1000 m"),
+    ("limits in degrees", r"joint 'j0' has limits \[-1000, 1000\]; give them within ±12.57 rad"),
+    ("sliding limits in micrometres", r"joint 'j1' has limits \[-3e\+06, 3e\+06\]; give them within ±1000 m"),
 ])
 def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     kw = {}
@@ -518,6 +531,35 @@ def test_broken_urdf_files_give_one_clear_error(case, words, tmp_path):
     elif case == "a visual without geometry":
         path = _six(tmp_path)
         path.write_text(path.read_text().replace('<link name="l2"/>', '<link name="l2"><visual></visual></link>'))
+    elif case in ("a mesh without a filename", "a cylinder without a length", "two shapes in one geometry"):
+        geometry = {"a mesh without a filename": '<mesh scale="1 1 1"/>',
+                    "a cylinder without a length": '<cylinder radius="0.05"/>',
+                    "two shapes in one geometry": '<box size="0.1 0.1 0.1"/><sphere radius="0.05"/>'}[case]
+        path = _six(tmp_path)
+        path.write_text(path.read_text().replace(
+            '<link name="l2"/>', f'<link name="l2"><visual><geometry>{geometry}</geometry></visual></link>'))
+    elif case in ("a joint without a name", "a link without a name", "a joint without a type", "a robot without a name",
+                  "not a robot", "an origin in millimetres", "limits in degrees", "sliding limits in micrometres"):
+        path = _six(tmp_path, types=["revolute", "prismatic"] + ["revolute"] * 4)
+        text = path.read_text()
+        old, new = {"a joint without a name": ('<joint name="j2" ', "<joint "),
+                    "a link without a name": ('<link name="l2"/>', "<link/>"),
+                    "a joint without a type": ('<joint name="j3" type="revolute"', '<joint name="j3"'),
+                    "a robot without a name": (text[text.index("<robot "):text.index(">", text.index("<robot ")) + 1],
+                                               "<robot>"),
+                    "not a robot": (None, None),
+                    "an origin in millimetres": ('<joint name="j1" type="prismatic"><parent link="l1"/><child link="l2"/>'
+                                                 '<origin xyz="0 0 0.1"',
+                                                 '<joint name="j1" type="prismatic"><parent link="l1"/><child link="l2"/>'
+                                                 '<origin xyz="0 0 100000"'),
+                    "limits in degrees": ('lower="-3.1" upper="3.1"', 'lower="-1000" upper="1000"'),
+                    "sliding limits in micrometres": ('lower="-0.3" upper="0.3"', 'lower="-3e6" upper="3e6"')}[case]
+        if old is None:
+            text = '<?xml version="1.0"?><foo/>'
+        else:
+            assert old in text, (case, old)
+            text = text.replace(old, new, 1)
+        path.write_text(text)
     elif case == "a cycle":
         path = _six(tmp_path)
         text = path.read_text()

@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError, InputError
-from .robot import N_JOINTS, Robot
+from .robot import MAX_JOINT_DEG, MAX_LENGTH_MM, N_JOINTS, Robot
 from .transforms import rigid_inverse
 
 M_TO_MM = 1000.0
@@ -190,6 +190,16 @@ class UrdfChain:
             j = self.moving[int(bad[0])]
             raise ConfigError(f"{self.path}: joint {j.name!r} has limits [{lo[bad[0]]}, {hi[bad[0]]}]; "
                               "lower must be below upper, both finite")
+        # As the DH rigs' tables allow: ±720° for a turning joint, ±1 km for a sliding one.
+        top = np.where(self.prismatic, MAX_LENGTH_MM, np.radians(MAX_JOINT_DEG))
+        bad = np.nonzero(np.maximum(np.abs(lo), np.abs(hi)) > top)[0]
+        if bad.size:
+            i = int(bad[0])
+            j = self.moving[i]
+            allowed = (f"within ±{MAX_LENGTH_MM / M_TO_MM:g} m" if self.prismatic[i] else
+                       f"within ±{np.radians(MAX_JOINT_DEG):.4g} rad (±{MAX_JOINT_DEG:g}°)")
+            raise ConfigError(f"{self.path}: joint {j.name!r} has limits [{float(j.limit.lower):g}, "
+                              f"{float(j.limit.upper):g}]; give them {allowed} (a unit slip?)")
         return lo, hi
 
     @property
@@ -365,6 +375,7 @@ def _parse(path: Path, package_dirs):
     for element in tree.iter():
         if "xacro" in element.tag or any("${" in v or "$(" in v for v in element.attrib.values()):
             raise unexpanded_xacro(path)
+    _check_names(tree.getroot(), path)
     _check_joint_numbers(tree.getroot(), path)
     _check_geometry_elements(tree.getroot(), path)
     try:
@@ -401,20 +412,56 @@ def _check_joint_numbers(root, path: Path) -> None:
                     value = float("nan")
                 if not np.isfinite(value):
                     raise ConfigError(f"{where}: {word!r} is not a finite number; give three finite numbers ({unit})")
+                if attribute == "xyz" and tag == "origin" and abs(value) * M_TO_MM > MAX_LENGTH_MM:
+                    raise ConfigError(f"{where}: {word} is beyond ±{MAX_LENGTH_MM / M_TO_MM:g} m (the DH rigs' limit "
+                                      f"on lengths); give the offset in metres (a unit slip?)")
             if len(words) != 3:
                 raise ConfigError(f"{where}: {text.strip()!r} has {len(words)} numbers; give three ({unit})")
 
 
+# What each shape of a <geometry> must give (the URDF specification's required attributes).
+SHAPE_ATTRIBUTES = {"box": ("size",), "cylinder": ("radius", "length"), "sphere": ("radius",), "mesh": ("filename",)}
+
+
+def _check_names(root, path: Path) -> None:
+    """The root is a named <robot>, every link and joint has a name and every joint a type (a
+    KeyError's or a None's words from yourdfpy otherwise)."""
+    if root.tag != "robot":
+        raise ConfigError(f"{path}: not a URDF file: its root element is <{root.tag}>, where a URDF's is <robot>")
+    if not (root.get("name") or "").strip():
+        raise ConfigError(f"{path}: the <robot> has no name; a URDF's robot needs name=\"...\"")
+    for kind in ("link", "joint"):
+        for i, element in enumerate(root.iter(kind)):
+            if not (element.get("name") or "").strip():
+                raise ConfigError(f"{path}: <{kind}> number {i + 1} has no name; every link and joint needs "
+                                  f"name=\"...\"")
+    for joint in root.iter("joint"):
+        if not joint.get("type"):
+            raise ConfigError(f"{path}: joint {joint.get('name')!r} has no type; give type=\"revolute\", "
+                              f"\"continuous\", \"prismatic\" or \"fixed\"")
+
+
 def _check_geometry_elements(root, path: Path) -> None:
-    """Every visual and collision holds a <geometry> with one shape in it (a TypeError's words
-    from yourdfpy otherwise)."""
+    """Every visual and collision holds a <geometry> with exactly one shape in it, with the
+    attributes that shape needs (a TypeError's or KeyError's words from yourdfpy otherwise, or
+    the second shape dropped without a word)."""
     for link in root.iter("link"):
+        where = f"{path}: link {link.get('name', '?')!r}"
         for kind in ("visual", "collision"):
             for item in link.findall(kind):
                 geometry = item.find("geometry")
-                if geometry is None or len(list(geometry)) == 0:
-                    raise ConfigError(f"{path}: link {link.get('name', '?')!r} has a <{kind}> without a shape in its "
-                                      f"<geometry> (box, cylinder, sphere or mesh)")
+                shapes = [] if geometry is None else list(geometry)
+                if len(shapes) != 1:
+                    raise ConfigError(f"{where} has a <{kind}> with {len(shapes) or 'no'} shape"
+                                      f"{'s' if len(shapes) > 1 else ''} in its <geometry>: give one (box, cylinder, "
+                                      f"sphere or mesh), and a <{kind}> of its own for each further shape")
+                shape = shapes[0]
+                if shape.tag not in SHAPE_ATTRIBUTES:
+                    continue  # yourdfpy's own words name an unknown shape
+                missing = [a for a in SHAPE_ATTRIBUTES[shape.tag] if not (shape.get(a) or "").strip()]
+                if missing:
+                    raise ConfigError(f"{where}: the <{shape.tag}> of a <{kind}> has no {missing[0]}; a {shape.tag} "
+                                      f"needs {' and '.join(SHAPE_ATTRIBUTES[shape.tag])}")
 
 
 def _check_conversion(robot: Robot, chain: UrdfChain) -> None:
