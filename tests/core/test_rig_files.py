@@ -1,6 +1,7 @@
 """Robot rig files: loading by name or path, and one clear error per kind of mistake."""
 
 import textwrap
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,15 @@ def test_load_by_path_and_tool_base_tables(tmp_path):
     np.testing.assert_allclose(robot.tool[:3, 3], [0, 0, 150])
     np.testing.assert_allclose(robot.base[:3, 3], [10, 20, 30])
     np.testing.assert_allclose(robot.base[:3, 0], [0, 1, 0], atol=1e-15)
+    # The tool plate carries what is mounted on it: a probe's mount comes after it (it replaced
+    # the rig's tool, so a scan's probe sat 150 mm nearer the flange than the rig says).
+    mount = np.eye(4)
+    mount[:3, 3] = [5.0, 0.0, 40.0]
+    q = np.radians([10.0, -20.0, 30.0, 40.0, -50.0, 60.0])
+    plain = replace(robot, tool=np.eye(4), flange=np.eye(4))
+    np.testing.assert_allclose(robot.with_tool(mount).fk(q), plain.fk(q) @ robot.tool @ mount, atol=1e-9)
+    np.testing.assert_allclose(robot.with_tool(mount).fk(q)[:3, 3] - plain.fk(q)[:3, 3],
+                               plain.fk(q)[:3, :3] @ [5.0, 0.0, 190.0], atol=1e-9)
 
 
 def test_unknown_name_lists_the_bundled_robots():

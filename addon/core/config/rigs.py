@@ -210,7 +210,10 @@ def _read_robot(path: Path) -> Robot:
             q_max_rad=np.array(cols["hi"]),
             prismatic=tuple(slides),
             base=base,
+            # The rig's tool plate on the flange carries whatever is mounted (the probe's mount
+            # comes after it: Robot.with_tool), as a URDF's tool link does.
             tool=tool,
+            flange=tool,
             source=source,
             link_meshes=tuple(meshes) if any(m for m, _ in meshes) else (),
             # An optional extra is for the eye only: the collision checks keep the procedural
