@@ -203,6 +203,26 @@ def test_a_pose_only_a_joint_limit_keeps_out_of_reach_names_that_limit(tmp_path)
     assert "J3 (j2) = " in sol.messages[0] and all("without the limits" not in m for m in sol.messages[1:])
 
 
+def test_a_chain_of_sliding_joints_only_solves_a_path(tmp_path):
+    """Six sliding joints (an x-y-z slide stack, each axis twice): nothing turns, so no step can
+    be a flip; the path's solver took the largest turn over no joint (numpy's error, a
+    traceback from the scan)."""
+    from addon.core.kinematics.cell import Cell
+    from addon.core.kinematics.path import Waypoints, solve_path
+    from addon.core.kinematics.turntable import Turntable
+
+    origins = [("0 0 0.1", "0 0 0")] * 6
+    path = write_chain(tmp_path / "slides.urdf", origins, ["1 0 0", "0 1 0", "0 0 1"] * 2, types=["prismatic"] * 6)
+    robot = load_robot(path)
+    assert all(robot.prismatic)
+    cell = Cell(robot, Turntable())
+    q = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0], [20.0, 10.0, -5.0, 0.0, 0.0, 0.0], [40.0, 20.0, -10.0, 0.0, 0.0, 0.0]])
+    poses = cell.table.base2table(np.zeros(3)) @ robot.fk(q)
+    sol = solve_path(cell, Waypoints(poses, np.zeros(3), np.zeros(3, int)), np.zeros(6))
+    assert sol.ok.all() and sol.jumps == [] and not sol.max_step_rad.any()
+    np.testing.assert_allclose(robot.fk(sol.q)[:, :3, 3], robot.fk(q)[:, :3, 3], atol=1e-6)
+
+
 def test_a_urdf_under_another_name_is_read_as_urdf_where_a_config_says_urdf(tmp_path):
     """``.xml`` is read as URDF by name; a scan config's ``urdf =`` key reads any name as URDF."""
     from addon.core.config.scan import load_scan_config

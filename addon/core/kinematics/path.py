@@ -299,7 +299,8 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
         i, seed = first_miss
         messages[i] = robot.ik(targets[i], seed).message
     turning = ~np.array(robot.prismatic)  # a flip is a turn; sliding joints just travel
-    step = np.r_[0.0, np.max(np.abs(np.diff(q[:, turning], axis=0)), axis=1)] if n > 1 else np.zeros(n)
+    step = (np.r_[0.0, np.max(np.abs(np.diff(q[:, turning], axis=0)), axis=1)] if n > 1 and turning.any()
+            else np.zeros(n))  # (a chain of sliding joints only: nothing turns, so nothing flips)
     # Between path entries the robot repositions; only steps within one entry can be flips.
     same = np.r_[False, waypoints.segment[1:] == waypoints.segment[:-1]]
     step[~ok | ~same] = 0.0
