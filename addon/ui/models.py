@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import tempfile
 import os
-from dataclasses import replace
 from pathlib import Path
 
 import bpy
@@ -59,7 +58,7 @@ def probe_from(s) -> Probe:
     """The probe rig with the panel's optics (a, b, phi, gamma, sensor size, which its name then
     says); raises InputError when invalid."""
     rig = chosen_probe_rig(s).with_resolution(s.probe_rows, s.probe_cols)
-    return replace(rig, a_mm=s.probe_a, b_mm=s.probe_b, phi_rad=s.probe_phi, gamma_rad=s.probe_gamma)
+    return rig.with_optics(s.probe_a, s.probe_b, s.probe_phi, s.probe_gamma)
 
 
 def sensor_from(s) -> SensorModel:

@@ -417,6 +417,29 @@ def test_parallel_intersecting_and_collinear_axes(tmp_path):
         np.testing.assert_allclose(robot.fk(q), xml_fk(path, q, "l7"), atol=1e-9)
 
 
+@pytest.mark.parametrize("metre, size", [("0.001", 100.0), ("1", 0.1), ("0.0254", 100.0 / 25.4)])
+def test_a_collada_mesh_is_read_in_the_unit_its_file_states(metre, size, tmp_path):
+    """A COLLADA file says what one of its units is in metres (<unit meter="0.001"/>: its numbers
+    are millimetres), as RViz and Gazebo read it: a 100 mm box, however written, is 100 mm (a
+    box written in millimetres came out 100 m)."""
+    import re
+
+    import trimesh
+
+    from addon.core.kinematics.link_shapes import base_mesh
+
+    text = trimesh.exchange.dae.export_collada(trimesh.creation.box((size, size, size)))
+    text = text.decode() if isinstance(text, bytes) else text
+    unit = f'<unit meter="{metre}" name="unit"/>'
+    text = re.sub(r"<unit[^>]*/>", unit, text) if "<unit" in text else text.replace("<asset>", "<asset>" + unit, 1)
+    (tmp_path / "box.dae").write_text(text)
+    drawn = '<visual><origin xyz="0 0 0.04" rpy="0 0 0"/><geometry><cylinder radius="0.075" length="0.08"/></geometry></visual>'
+    urdf = UR5_URDF.read_text()
+    assert drawn in urdf
+    (tmp_path / "ur5.urdf").write_text(urdf.replace(drawn, '<visual><geometry><mesh filename="box.dae"/></geometry></visual>'))
+    np.testing.assert_allclose(base_mesh(load_robot(tmp_path / "ur5.urdf")).extents, 100.0, rtol=1e-6)
+
+
 def test_mesh_file_through_package_path_and_scale(tmp_path):
     import trimesh
 

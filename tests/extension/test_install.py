@@ -62,6 +62,12 @@ try:
     rigs = importlib.import_module(module + ".addon.core.config.rigs")
     gantry = rigs.load_robot(Path(ext.__file__).parent / "rigs" / "robots" / "urdf" / "gantry.urdf")
     out["urdf_prismatic"] = list(gantry.prismatic)
+    # COLLADA meshes (most ROS robots' visual meshes) read through the zip's pycollada.
+    import collada, tempfile
+    out["collada_from_zip"] = Path(collada.__file__).is_relative_to(local)
+    dae = Path(tempfile.mkdtemp()) / "box.dae"
+    dae.write_bytes(trimesh.exchange.dae.export_collada(trimesh.creation.box((0.1, 0.2, 0.3))))
+    out["dae_extents"] = sorted(trimesh.load(dae, force="mesh").extents.tolist())
     out["step"] = "build cell"
     check(bpy.ops.scanner.build_cell() == {"FINISHED"}, "scanner.build_cell did not finish")
     out["step"] = "render probe views"
@@ -185,6 +191,7 @@ def test_install_enable_scan_disable_uninstall(release, linux_zip, tmp_path):
     assert {"trimesh", "cv2", "rtree", "scipy", "embreex"} <= set(out["wheels"]), where
     assert out["trimesh_from_zip"] and out["cv2_from_zip"], f"{where}: the zip's wheels are not what runs"
     assert out["yourdfpy_from_zip"] and out["urdf_prismatic"] == [True] * 3 + [False] * 3, where
+    assert out["collada_from_zip"] and np.allclose(out["dae_extents"], [0.1, 0.2, 0.3]), where
     for view in out["views"]:
         assert view["size"] == [160, 160] and view["max"] > 0.05, f"{where}: probe view {view}"
     # Eevee (4.5's Eevee Next and 5.x's) renders the spots' line as bright as Cycles the gobo's.

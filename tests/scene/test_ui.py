@@ -449,6 +449,16 @@ def test_the_calibrate_operator_writes_a_calibrated_probe_and_keeps_the_scene(pa
     assert np.allclose(cloud_from_object(kept).points, cloud.points, atol=1e-3)
     s.target_frame, s.target_location = "table", (0.0, 0.0, 210.0)
     assert bpy.ops.scanner.go() == {"FINISHED"}  # the cell is the panel's, not a stale one
+    # The calibrated probe chosen in the panel: its optics changed there are refused (the
+    # scan triangulated with the calibration of the other geometry: 46 mm RMS at a = 80 mm).
+    s.probe, s.probe_file = "FILE", str(folder / "probe.toml")
+    calibrated_a = s.probe_a
+    s.probe_a = calibrated_a + 20.0
+    with pytest.raises(RuntimeError, match=r"carries a calibration made on its own optics \(a_mm 60 mm calibrated, "
+                                           r"80 mm asked\)"):
+        bpy.ops.scanner.scan()
+    s.probe_a = calibrated_a
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
 
 
 def test_the_scan_box_sets_engine_frames_and_budget_and_the_operators_own_values_win(panel, tmp_path):

@@ -717,21 +717,6 @@ def _sensor(t: Table) -> SensorModel:
     return model
 
 
-def _geometry_differences(calibrated: Probe, probe: Probe) -> list[str]:
-    """Where the probe a calibration file was made on (its [camera] and [mount], as rendered
-    then) differs from ``probe``: "a_mm 75 there, 60 here", ... (empty: the same probe)."""
-    out = []
-    for key, unit, scale in (("a_mm", " mm", 1.0), ("b_mm", " mm", 1.0), ("phi_rad", "°", 180 / math.pi),
-                             ("gamma_rad", "°", 180 / math.pi)):
-        there, here = getattr(calibrated, key) * scale, getattr(probe, key) * scale
-        if abs(there - here) > 1e-6 * max(1.0, abs(here)):
-            name = key.replace("_rad", "_deg")
-            out.append(f"{name} {there:.6g}{unit} there, {here:.6g}{unit} here")
-    if not np.allclose(calibrated.mount, probe.mount, rtol=0.0, atol=1e-6):
-        out.append("its mount (T_L^6) differs")
-    return out
-
-
 def with_calibration(probe: Probe, calibrated_file, where: str) -> Probe:
     """``probe`` (rendered as it is) triangulating with the calibration in ``calibrated_file``."""
     try:
@@ -744,7 +729,7 @@ def with_calibration(probe: Probe, calibrated_file, where: str) -> Probe:
     if (found.rows_px, found.cols_px) != (probe.rows_px, probe.cols_px):
         raise ConfigError(f"{where}: {calibrated_file} was calibrated on a {found.cols_px}x{found.rows_px} sensor; "
                           f"this probe has {probe.cols_px}x{probe.rows_px}")
-    differ = _geometry_differences(found, probe)
+    differ = found.geometry_differences(probe)
     if differ:
         raise ConfigError(f"{where}: {calibrated_file} was calibrated on another probe ({'; '.join(differ)}): a "
                           f"calibration holds for the probe it was made on; calibrate this one (python -m headless "

@@ -512,6 +512,14 @@ def _geometry_mesh(geometry, urdf_path: Path, package_dirs, files_read: list | N
             raise ConfigError(f"{urdf_path}: mesh {file} is not readable ({type(exc).__name__}: {exc})") from None
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
             raise ConfigError(f"{urdf_path}: mesh {file} holds no usable triangles (empty, or NaN coordinates)")
+        if file.suffix.lower() == ".dae" and mesh.units:
+            # A COLLADA file states its unit (<asset><unit meter="0.001"/>: millimetres), which
+            # RViz and Gazebo apply; the URDF's scale comes on top. (STL and OBJ state none.)
+            try:
+                mesh.convert_units("meters")
+            except Exception as exc:  # a unit trimesh cannot read
+                raise ConfigError(f"{urdf_path}: mesh {file} gives its unit as {mesh.units!r}, which cannot be "
+                                  f"converted to metres ({exc})") from None
         if geometry.mesh.scale is not None:
             factors = _sizes(geometry.mesh.scale, (1, 3), f"mesh {file}'s scale", urdf_path)
             mesh.apply_transform(np.diag(np.r_[np.broadcast_to(factors, 3), 1.0]))

@@ -259,6 +259,34 @@ class Probe:
                 else f"{self.name} at {cols_px}x{rows_px} px")
         return replace(self, rows_px=rows_px, cols_px=cols_px, name=name)
 
+    def geometry_differences(self, other: "Probe") -> list[str]:
+        """Where ``other``'s geometry (a, b, φ, γ and the mount) differs from this probe's, in
+        words: "a_mm 75 there, 60 here" (there: this probe, here: ``other``); empty where they
+        are the same to 1e-6 (relative; a float32 field of Blender's panel holds them so)."""
+        out = []
+        for key, unit, scale in (("a_mm", " mm", 1.0), ("b_mm", " mm", 1.0), ("phi_rad", "°", 180 / math.pi),
+                                 ("gamma_rad", "°", 180 / math.pi)):
+            there, here = getattr(self, key) * scale, getattr(other, key) * scale
+            if abs(there - here) > 1e-6 * max(1.0, abs(here)):
+                name = key.replace("_rad", "_deg")
+                out.append(f"{name} {there:.6g}{unit} there, {here:.6g}{unit} here")
+        if not np.allclose(self.mount, other.mount, rtol=0.0, atol=1e-6):
+            out.append("its mount (T_L^6) differs")
+        return out
+
+    def with_optics(self, a_mm: float, b_mm: float, phi_rad: float, gamma_rad: float) -> "Probe":
+        """The same probe with another geometry (a, b, φ, γ). A calibrated probe refuses one that
+        differs: its calibration holds for the geometry it was made on."""
+        other = replace(self, a_mm=a_mm, b_mm=b_mm, phi_rad=phi_rad, gamma_rad=gamma_rad)
+        if self.calibration is not None:
+            differ = self.geometry_differences(other)
+            if differ:
+                raise InputError(f"probe {self.name!r} carries a calibration made on its own optics "
+                                 f"({'; '.join(differ).replace('there', 'calibrated').replace('here', 'asked')}): it "
+                                 f"cannot measure with others (choose the probe again to restore them, or calibrate "
+                                 f"this geometry)")
+        return other
+
     def measuring_camera(self, camera: int) -> CameraModel:
         """The camera model triangulation uses: the calibration's, else the true one."""
         _check_camera(camera)
