@@ -73,7 +73,11 @@ def plan_views(config: ScanConfig, board: ChArUcoBoard, views: int, poses=None):
     if poses is None:
         targets = board_views(board, config.probe.z_range_mm, views)
     else:
-        targets = np.asarray(poses, dtype=np.float64)
+        try:
+            targets = np.asarray(poses, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise CalibrationError("calibration poses must be (n, 4, 4) probe poses (numbers), got "
+                                   f"{type(poses).__name__} {str(poses)[:60]!r}") from None
         if targets.ndim != 3 or targets.shape[1:] != (4, 4):
             raise CalibrationError(f"calibration poses must be (n, 4, 4) probe poses, got shape {targets.shape}")
         for k, T in enumerate(targets):
@@ -82,7 +86,10 @@ def plan_views(config: ScanConfig, board: ChArUcoBoard, views: int, poses=None):
     if views < MIN_VIEWS:
         raise CalibrationError(f"{views} board view{'s' * (views != 1)} given; a calibration needs at least {MIN_VIEWS}"
                                + (" (give more [[view]] tables)" if poses is not None else ""))
-    cfg = replace(config, workpiece=_board_workpiece(board), fixtures=())
+    # The part and the table's fixtures make way for the board; the world's (a wall, a fence)
+    # stay where they are, and a view that runs the robot into one is left out.
+    cfg = replace(config, workpiece=_board_workpiece(board),
+                  fixtures=tuple(f for f in config.fixtures if f.on != "table"))
     q_prev = np.asarray(config.q_start if config.q_start is not None else
                         np.clip(np.zeros(6), config.robot.q_min_rad, config.robot.q_max_rad), dtype=np.float64)
     kept_q, kept_T, dropped = [], [], []
@@ -134,6 +141,12 @@ def calibrate_steps(config: ScanConfig | str | Path, out_dir: str | Path | None 
         check_output_folder(out_dir, FILES)
     truth = replace(cfg.probe, calibration=None)
     cfg = replace(cfg, probe=truth)
+    if board is not None and not isinstance(board, ChArUcoBoard):
+        raise CalibrationError(f"board must be a ChArUcoBoard (core.calibration.board_for(probe) gives the probe's), "
+                               f"got {type(board).__name__}")
+    if distortion is not None and not isinstance(distortion, (bool, np.bool_)):
+        raise CalibrationError(f"distortion must be True, False or None (the config's sensor decides), got "
+                               f"{distortion!r}")
     board = board or board_for(truth)
     sensor = cfg.sensor
     distortion = bool(sensor.distortion) if distortion is None else bool(distortion)

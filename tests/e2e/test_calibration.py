@@ -9,6 +9,7 @@ does to points on the laser plane, computed from the true and calibrated models 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -163,6 +164,43 @@ def test_views_left_out_as_unreachable_are_named_as_such():
     message = str(info.value)
     assert message.startswith("only 1 of 4 board views can be reached without a collision (3 left out); "
                               "a calibration needs at least 4; first refusal (view 1): unreachable"), message
+
+
+def test_a_view_that_runs_the_probe_into_a_world_fixture_is_left_out():
+    """A 20 mm box standing in the world where the probe's housing is at the first proposed
+    view: calibration checked its moves without the config's fixtures (the world's stay in the
+    cell while the board stands in for the part), kept that view and reported none left out."""
+    import trimesh
+
+    from addon.calibrate import plan_views
+    from addon.core.calibration import board_for
+    from addon.core.safety import Fixture
+
+    cfg = load_scan_config("demo")
+    board = board_for(cfg.probe)
+    q, kept, dropped = plan_views(cfg, board, 8)
+    assert dropped == []
+    probe2base = cfg.cell.robot.fk(q[:1])[0]
+    box = trimesh.creation.box((20.0, 20.0, 20.0))
+    box.apply_translation(probe2base[:3, :3] @ [0.0, 0.0, -40.0] + probe2base[:3, 3])  # in the housing
+    walled = replace(cfg, fixtures=(Fixture("fixture wall", box, "world"),))
+    q2, kept2, dropped2 = plan_views(walled, board, 8)
+    assert 0 in [k for k, _ in dropped2] and all("fixture wall" in why for _, why in dropped2), dropped2
+    assert len(q2) + len(dropped2) == 8
+
+
+@pytest.mark.parametrize("kw, words", [
+    (dict(poses="abc"), "calibration poses must be \\(n, 4, 4\\) probe poses \\(numbers\\), got str"),
+    (dict(board="x"), "board must be a ChArUcoBoard"),
+    (dict(distortion="no"), "distortion must be True, False or None"),
+])
+def test_wrong_kinds_of_api_arguments_are_one_line(kw, words):
+    """A string of poses, a board that is not one (a ValueError's and an AttributeError's words
+    before), and distortion="no" (read as True: the lens fitted) are refused."""
+    from addon.core.errors import CalibrationError
+
+    with pytest.raises(CalibrationError, match=words):
+        calibrate("demo", None, **kw)
 
 
 def test_an_overexposed_board_is_refused_with_an_exposure_hint(tmp_path, capsys):
