@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     from addon.core.errors import InputError
     from addon.core.files import check_output_file, write_png
     from addon.core.config.scan import load_scan_config
-    from headless.bench.realism import ALL, ALL_SCENE, configure
+    from headless.bench.realism import ALL, ALL_SCENE, configure, ideal
 
     check_output_file(args.out, "--out")  # before the two scans, not after
 
@@ -46,7 +46,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--frame must be in [0, {n - 1}] for {args.config}, got {args.frame}")
     first = max(0, args.frame - 1)  # neighbours too: motion blur needs the path around the frame
     base = base.with_overrides(frames=slice(first, min(n, args.frame + 2)))
-    base = replace(base, leave_out=replace(base.leave_out, render_band=False))
+    # Every frame rendered whole, by both cameras: the chosen camera may see no line there.
+    base = ideal(replace(base, leave_out=replace(base.leave_out, render_band=False, skip_blind_cameras=False)))
     shots = []
     for title, cfg in (("Ideal sensor", base), ("Realistic sensor", configure(base, ALL, ALL_SCENE))):
         img, line, report = _frame(cfg, args.frame - first, args.camera)

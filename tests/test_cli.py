@@ -154,6 +154,39 @@ def test_realism_figure_shows_both_sensors(tmp_path):
 
 
 @needs_bpy
+def test_realism_figure_of_a_camera_that_sees_no_line_there_is_drawn_and_its_ideal_is_ideal(tmp_path):
+    """A step block 250 mm wide: at frame 1 camera 0 sees no line, was not rendered (the scan
+    leaves blind cameras out), and the figure failed with a traceback. And the 'ideal' panel of
+    a config with its own realistic sensor (cylinder_realistic) showed that sensor: the same
+    RMS on both sides."""
+    config = tmp_path / "wide.toml"
+    config.write_text((REPO / "rigs" / "scenes" / "step_block.toml").read_text().replace("width_mm = 50.0",
+                                                                                          "width_mm = 250.0"))
+    out = run_cli("realism-figure", "--config", str(config), "--frame", "1", "--camera", "0",
+                  "--out", str(tmp_path / "f.png"))
+    assert out.returncode == 0 and "Traceback" not in out.stderr, out.stderr[-2000:]
+    assert (tmp_path / "f.png").exists()
+    from addon.core.config.scan import load_scan_config
+    from addon.core.optics.sensor import SensorModel
+    from headless.bench.realism import ideal
+
+    realistic = load_scan_config("cylinder_realistic")
+    assert realistic.sensor != SensorModel() and realistic.material == "glossy" and realistic.render.bounces == 2
+    base = ideal(realistic)
+    assert base.sensor == SensorModel() and base.material == "grey" and base.render.ambient == 0.0
+    assert base.render.bounces == 0 and base.detect.saturation == float("inf")
+    demo = load_scan_config("demo")
+    assert ideal(demo).sensor == demo.sensor and ideal(demo).render == demo.render  # the bench's scenes: as loaded
+
+
+def test_bench_realism_readme_refuses_a_partial_run_of_fewer_frames():
+    """--readme --frames 2 rewrote docs/realism.md with a two-frame table (nothing on the part
+    in one row, against the text below it)."""
+    out = run_cli("bench", "realism", "--readme", "--frames", "2")
+    assert out.returncode == 2 and "--readme rewrites the docs' whole table and --frames runs part of it" in out.stderr
+
+
+@needs_bpy
 def test_demo_scan_runs_and_summarises(tmp_path):
     out = run_cli("demo", "--frames", "::15", "--out", str(tmp_path / "demo"), "--quiet")
     assert out.returncode == 0, out.stderr[-2000:]
