@@ -11,6 +11,7 @@ the only part of a scan that touches Blender.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -159,11 +160,18 @@ class ScanRun:
         self.probe2table = config.cell.probe2table(self.plan.q[a:b], self.plan.table_rad[a:b])
         # Rows around the line: the leave-out's margin, and what the sensor's optics spread beyond it.
         self.margin = config.leave_out.band_margin_px + config.sensor.spread_px(probe)
-        self.band = Band(probe.rows_px, self.margin, config.leave_out.chunk_frames, self.plan.predicted_rows[a:b])
+        # A sensor that changes images is read, in each frame, on that frame's own rows (the
+        # plan's prediction and the margin: _own_rows), rendered with the rows its optics reach
+        # beyond them: so a frame's image, and its points, do not depend on the frames rendered
+        # with it (a shard's band, which starts without history, gave 114 of 350 points apart).
+        self.sensor_pad = config.sensor.band_pad_px(probe) if config.sensor.changes_images else 0
+        self.band = Band(probe.rows_px, self.margin + self.sensor_pad, config.leave_out.chunk_frames,
+                         self.plan.predicted_rows[a:b])
         self.stats = new_stats()
         self.t_render = self.t_detect = self.t_tri = 0.0
         self.done = 0
         self.previous_rows: list = [None, None]
+        self.rendered_rows: list | None = None  # the last chunk's rows rendered per frame, where not the rows read
         self.frame_codes: dict[int, dict] = {}  # path index -> {detection code: columns}, for step-by-step callers
 
     @property
@@ -220,14 +228,16 @@ class ScanRun:
         t = time.perf_counter()
         index = self.first + done  # path index of the chunk's first frame
         images = [self._sense(pair, rows, index + i) for i, pair in enumerate(images)]
-        lines = [detect_all(img, rows, config) for img in images]
+        frame_rows = [self._own_rows(index + i, rows) for i in range(size)]
+        self.rendered_rows = [rows] * size  # (the report's rows rendered, beside the rows read)
+        images = [_cropped(pair, rows, own) for pair, own in zip(images, frame_rows)]
+        lines = [detect_all(img, own, config) for img, own in zip(images, frame_rows)]
         self.t_detect += time.perf_counter() - t
-        frame_rows = [rows] * size
         # Frames whose line the band may have cut are rendered again at full height, in one call.
         redo = []
         previous = self.previous_rows
         for i in range(size):
-            if needs_full_frame(lines[i], rows, previous, probe.rows_px, self.margin):
+            if needs_full_frame(lines[i], frame_rows[i], previous, probe.rows_px, self.margin):
                 redo.append(i)
             previous = [None if ln is None else ln.row for ln in lines[i]]
         if redo:
@@ -239,7 +249,7 @@ class ScanRun:
             for i in redo:
                 images[i] = self._sense(full[i - redo[0]], None, index + i)
                 lines[i] = detect_all(images[i], None, config)
-                frame_rows[i] = None
+                frame_rows[i] = self.rendered_rows[i] = None
             self.t_detect += time.perf_counter() - t
         return images, lines, frame_rows
 
@@ -258,7 +268,8 @@ class ScanRun:
             codes = merged_counts(*(ln.counts() for ln in lines[i] if ln is not None))
             add_counts(stats["codes"], codes)
             self.frame_codes[index + i] = codes
-            stats["band_rows"].append(probe.rows_px if rows[i] is None else rows[i][1] - rows[i][0])
+            rendered = self.rendered_rows[i] if self.rendered_rows is not None else rows[i]
+            stats["band_rows"].append(probe.rows_px if rendered is None else rendered[1] - rendered[0])
             self.band.update(line_extent(lines[i]))
         self.previous_rows = [None if ln is None else ln.row for ln in lines[size - 1]]
         self.done += size
@@ -285,6 +296,23 @@ class ScanRun:
             height = self.config.probe.rows_px if rows is None else rows[1] - rows[0]
             per_frame = self.config.probe.cols_px * height * len(self.plan.cameras) / PIXELS_PER_SECOND
         return max(1, min(chunk, int(CHUNK_SECONDS / max(per_frame, 1e-9))))
+
+    def _own_rows(self, index: int, rows):
+        """The rows a frame's sensor image is read on: for a sensor that changes images, the
+        frame's own band (its predicted rows and the margin), wherever the render call's band
+        (``rows``, None: the full frame) holds those rows and the pad its optics need beyond
+        them; otherwise, and where the plan predicts no rows, the call's band as rendered."""
+        if not self.config.sensor.changes_images or not self.config.leave_out.render_band:
+            return rows
+        pred = self.plan.predicted_rows[index]
+        if not np.isfinite(pred).all():
+            return rows
+        H = self.config.probe.rows_px
+        own = (max(0, int(math.floor(pred[0])) - self.margin), min(H, int(math.ceil(pred[1])) + self.margin + 1))
+        r0, r1 = (0, H) if rows is None else rows
+        exact = ((own[0] - self.sensor_pad >= r0 or r0 == 0) and (own[1] + self.sensor_pad <= r1 or r1 == H)
+                 and own[0] >= r0 and own[1] <= r1 and own[1] > own[0])
+        return own if exact else rows
 
     def _sense(self, pair, rows, index: int):
         """What the real sensor makes of each camera's rendered light (unchanged for the ideal sensor)."""
@@ -319,6 +347,14 @@ def render_device(raycaster, scene_cell) -> str | None:
     """The report's render device: the raycast engine's, or the Blender cell's last one (None
     before it rendered)."""
     return RAYCAST_DEVICE if raycaster is not None else getattr(scene_cell, "device_used", None)
+
+
+def _cropped(pair, rows, own):
+    """Band images (rows ``rows``, None: the full frame) cut to the rows ``own``."""
+    if own == rows:
+        return pair
+    r0 = 0 if rows is None else rows[0]
+    return [None if img is None else img[own[0] - r0:own[1] - r0] for img in pair]
 
 
 def _padded(pair, band: tuple[int, int], pad: int, rows_px: int):

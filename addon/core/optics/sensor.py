@@ -195,6 +195,19 @@ class SensorModel:
             rows += self.distortion_shift_px(probe)
         return int(math.ceil(rows))
 
+    def band_pad_px(self, probe: Probe) -> int:
+        """Rows a band render must hold beyond the rows read from it for those rows to be what
+        a full frame gives them: the reach of the defocus blur's kernel (OpenCV's, 4 σ of the
+        largest blur, for float images) and then of the lens distortion's resampling (0 for a
+        sensor with neither)."""
+        rows = 0
+        if self.defocus:
+            sigma = self.blur_sigma_px(probe, self.row_depths_mm(probe, np.array([0.0, probe.rows_px - 1.0])))
+            rows += int(math.ceil(4.0 * float(np.max(sigma)))) + 1
+        if self.distortion:
+            rows += int(math.ceil(self.distortion_shift_px(probe))) + 1
+        return rows
+
     def distortion_shift_px(self, probe: Probe) -> float:
         """The most lens distortion moves a point along its column where the pinhole and the lens
         both put it on the sensor (px; 0 without distortion): the most over a grid of pixels 2 px
@@ -306,7 +319,10 @@ class SensorModel:
         gathered line came out lopsided and every point 290 µm deep; spread, a line at one
         depth stays symmetric and its light is kept."""
         sigma = self.blur_sigma_px(probe, self.row_depths_mm(probe, rows))
-        levels = np.unique(np.round(np.linspace(sigma.min(), sigma.max(), 6), 3))
+        # The levels from the whole sensor's blur, so that a row is blurred alike whichever band
+        # of rows was rendered (from the band's own, two bands gave a row different shares).
+        every = self.blur_sigma_px(probe, self.row_depths_mm(probe, np.arange(probe.rows_px, dtype=np.float64)))
+        levels = np.unique(np.round(np.linspace(float(np.min(every)), float(np.max(every)), 6), 3))
         if len(levels) == 1:
             return img if levels[0] < 0.05 else cv2.GaussianBlur(img, (0, 0), float(levels[0]),
                                                                  borderType=cv2.BORDER_REPLICATE)
