@@ -86,6 +86,21 @@ def calibrated_on_another_probe(tmp: Path):
     return ["scan", scene(tmp, DEMO.replace('rig = "default"', 'rig = "default"\ncalibration = "cal.toml"', 1))]
 
 
+def calibrated_rig_mounted_otherwise(tmp: Path):
+    """A probe rig that carries its own calibration, mounted 20 mm farther out by the config's
+    [probe.mount] (loaded before, where calibration = FILE refuses the same)."""
+    from dataclasses import replace
+
+    from addon.core.config.rigs import load_probe, probe_toml
+    from addon.core.optics.calibrated import ProbeCalibration
+
+    probe = load_probe("default")
+    (tmp / "cal.toml").write_text(probe_toml(replace(probe, calibration=ProbeCalibration.of(probe))))
+    z = float(probe.mount[2, 3]) + 20.0
+    return ["scan", scene(tmp, DEMO.replace('rig = "default"', f'rig = "cal.toml"\n[probe.mount]\nxyz_mm = [0, 0, {z}]',
+                                            1))]
+
+
 def robot_with(old: str, new: str, count: int = 1):
     def make(tmp: Path):
         assert old in ROBOT, old
@@ -593,6 +608,8 @@ CASES = [
     ("config: calibration for another sensor", calibrated_on_another_sensor, 2, "sensor"),
     ("config: calibration of another probe", calibrated_on_another_probe, 2,
      "was calibrated on another probe (a_mm 75 mm there, 60 mm here"),
+    ("config: a calibrated rig mounted otherwise", calibrated_rig_mounted_otherwise, 2,
+     "probe.mount: moves the probe on the flange, and the rig"),
     ("calibrate: too few views", lambda t: ["calibrate", "demo", "--views", "3", "--out", str(t / "out")], 2,
      "--views"),
     ("calibrate: poses file missing", lambda t: ["calibrate", "demo", "--poses", str(t / "none.toml"), "--out",

@@ -398,7 +398,15 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
         probe = replace(probe, calibration=replace(probe.calibration, source=f"{resolve_rig('probes', rig)}"
                                                    + (f" ({made})" if made else "")))
     if pt.has("mount"):
-        probe = replace(probe, mount=pt.pose("mount", base=probe.mount))  # a key left out keeps the rig's
+        mounted = replace(probe, mount=pt.pose("mount", base=probe.mount))  # a key left out keeps the rig's
+        if probe.calibration is not None and probe.geometry_differences(mounted):
+            # (as calibration = FILE refuses a probe mounted otherwise: the calibration's laser
+            # plane and cameras are in the flange's frame through this mount)
+            raise pt.error("mount", f"moves the probe on the flange, and the rig {rig} carries a calibration made "
+                                    f"with the rig's own mount: a calibration holds for the mount it was made "
+                                    f"on; leave [probe.mount] out, or calibrate the probe so mounted (python -m "
+                                    f"headless calibrate CONFIG --out DIR)")
+        probe = mounted
     # Applied once [render] resolution has set the sensor (a calibration is made at one size).
     calibration = _rig_path(base, pt.string("calibration")) if pt.has("calibration") else None
     pt.finish()
