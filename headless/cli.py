@@ -258,12 +258,14 @@ def _exit_code(args: argparse.Namespace, stops) -> int:
 
 
 def _shards_kept(args) -> str:
-    """"; N finished shards kept in OUT/shards" where a farm's shard files are there, else ""."""
+    """"; N shard files kept in OUT/shards ..." where a farm's shard files are there, else ""
+    (files only: which of them a later run can reuse, it checks then)."""
     out = getattr(args, "out", None)
     if not out:
         return ""
     try:
-        n = sum(1 for _ in (Path(out) / "shards").glob("shard_*.npz"))
+        n = sum(1 for p in (Path(out) / "shards").glob("shard_*.npz") if p.is_file())
     except OSError:
         return ""
-    return f"; {n} finished shard{'s' if n != 1 else ''} kept in {Path(out) / 'shards'}" if n else ""
+    return (f"; {n} shard file{'s' if n != 1 else ''} kept in {Path(out) / 'shards'}, which the next run reuses "
+            f"where valid") if n else ""

@@ -19,11 +19,13 @@ task at a time (bpy is process-global) and renders with cores / N threads.
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 import re
 import shlex
 import tempfile
+import threading
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -39,6 +41,10 @@ MAX_WORKERS = 1024  # --workers at most
 
 # A worker process's cell, kept between shards of the same scan: {fingerprint: SceneCell}.
 _WORKER_CELL: dict = {}
+# One shard at a time in a worker process: a worker started with more than one thread (Dask's
+# default on a many-core node) ran two Cycles shards in one Blender, which crashed it (signal
+# 11, again and again, and the scan ended blaming dying workers).
+_SHARD_LOCK = threading.Lock()
 
 
 def scan_fingerprint(config, plan) -> str:
@@ -64,6 +70,12 @@ def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, th
     ``owner``: the output folder's lock as the scan that asked for the shard holds it; a shard
     that finishes once that scan has stopped (the lock gone, or another scan's) writes
     nothing: a cluster cannot stop a task that is running, and the folder is no longer its."""
+    with _SHARD_LOCK:
+        return _run_shard(config, plan, shard, path, fingerprint, threads, owner)
+
+
+def _run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, threads: int | None,
+               owner: str | None) -> dict:
     _clean_sys_path()
     from addon.core.scan.outputs import blender_version
     from addon.pipeline import ScanRun
@@ -84,6 +96,14 @@ def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, th
                      blender_version() if run.raycaster is None else None)
     return {"shard": shard.index, "points": len(cloud), "seconds": time.perf_counter() - t, "pid": os.getpid(),
             "reused_cell": cell is not None, "written": written}
+
+
+def shard_key(fingerprint: str, folder: Path, owner: str | None, index: int, tries: int) -> str:
+    """The cluster's task key for a shard: this scan's (its fingerprint), this run's (its shards'
+    folder and the lock it holds), the shard's and its try's. Two scans of one config on one
+    scheduler into two folders shared keys, and Dask handed one scan's shards to the other."""
+    run = hashlib.sha1(f"{Path(folder).resolve()}|{owner}".encode()).hexdigest()[:10]
+    return f"scan-shard-{fingerprint[:12]}-{run}-{index}-{tries}"
 
 
 def lock_holder(folder: Path) -> str | None:
@@ -261,6 +281,7 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
             exc.shards_finished = (sum(1 for s in parts if _not_ready(folder, s, fp) is None), len(parts))
             raise
     wall = time.perf_counter() - t_farm
+    computed_frames = sum(len(s.frames) for s, _ in todo)
     if measured is not None:
         measured()
     results = []
@@ -295,7 +316,9 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
              # where none ran (every shard was there already: a merge).
              "farm": {"workers": len(worker_addresses) if todo else None, "scheduler": address or scheduler,
                       "worker_addresses": worker_addresses, "shards": len(parts), "shard_frames": size, "computed": len(todo), "reused": reused,
-                      "wall_s": round(wall, 4), "profiles_per_s_wall": n / wall if wall > 0 and todo else None}}
+                      "wall_s": round(wall, 4),
+                      # the frames computed here (a resumed run's reused shards took no time)
+                      "profiles_per_s_wall": computed_frames / wall if wall > 0 and todo else None}}
     return assemble(config, plan, cloud, stats, timing, out_dir, t_all, extra)
 
 
@@ -348,6 +371,7 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
             + ("" if worker_addresses else " (none yet: the shards wait for workers to join it)"))
         if not worker_addresses:
             _wait_for_workers(client, where, todo, progress)
+            worker_addresses = sorted(client.scheduler_info()["workers"])  # those that joined
 
         def send_inputs():
             """The config (with its meshes) and the plan, to every worker once, not with every task."""
@@ -361,10 +385,9 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
         shared = send_inputs()
         tries = {s.index: 0 for s, _ in todo}
         owner = lock_holder(Path(out_dir))  # the command's lock: shards finishing after a stop write nothing
-
         def submit(s):
             return client.submit(run_shard, *shared, s, str(folder / s.file_name()), fp, threads, owner,
-                                 key=f"scan-shard-{fp[:12]}-{s.index}-{tries[s.index]}", pure=False)
+                                 key=shard_key(fp, folder, owner, s.index, tries[s.index]), pure=False)
 
         shard_of = {}
         for s, _ in todo:
@@ -400,6 +423,7 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
                 log(f"  {s.describe()} cancelled by the cluster (a worker died); submitting it again")
                 if not client.scheduler_info()["workers"]:
                     _wait_for_workers(client, where, todo, progress, done)
+                worker_addresses = sorted(set(worker_addresses) | set(client.scheduler_info()["workers"]))
                 shared = send_inputs()
                 again = submit(s)
                 shard_of[again] = s

@@ -182,8 +182,8 @@ class StopRequests:
             said = ("stopped at once while the results were being written (the output folder may hold them)"
                     if self.finishing else
                     # a farm's shards finished so far stay on disk for the next run to keep
-                    f"stopped at once, no cloud or report written; the {self.done} shards finished stay in the "
-                    f"output folder's shards/, for the next run to keep" if self.unit == "shards" and self.done else
+                    f"stopped at once, no cloud or report written; the shards finished (at least {self.done}: others "
+                    f"may have finished since) stay in the output folder's shards/, for the next run to keep" if self.unit == "shards" and self.done else
                     "stopped at once, nothing written")
             print(f"\n{self.interrupted().describe()}: {said}", file=self.stream, flush=True)
             for undo in reversed(self.cleanups):

@@ -660,6 +660,7 @@ def test_a_failed_write_says_no_results_were_written_and_which_shards_stay(tmp_p
     (tmp_path / "shards").mkdir()
     for k in range(2):
         (tmp_path / "shards" / f"shard_{10 * k:06d}_{10 * k + 9:06d}.npz").write_bytes(b"x")
+    (tmp_path / "shards" / "shard_000020_000029.npz").mkdir()  # a folder of that name is no shard (counted before)
 
     def full(args):
         raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "cloud.ply"))
@@ -667,8 +668,8 @@ def test_a_failed_write_says_no_results_were_written_and_which_shards_stay(tmp_p
     code = _exit_code(argparse.Namespace(run=full, out=str(tmp_path)), StopRequests(exiting=False))
     line = capsys.readouterr().err.strip()
     assert code == 2
-    assert line == (f"error: {tmp_path / 'cloud.ply'}: No space left on device (no results written; 2 finished "
-                    f"shards kept in {tmp_path / 'shards'})")
+    assert line == (f"error: {tmp_path / 'cloud.ply'}: No space left on device (no results written; 2 shard "
+                    f"files kept in {tmp_path / 'shards'}, which the next run reuses where valid)")
     code = _exit_code(argparse.Namespace(run=full, out=str(tmp_path / "elsewhere")), StopRequests(exiting=False))
     assert capsys.readouterr().err.strip().endswith("No space left on device (no results written)")
 

@@ -215,6 +215,42 @@ def test_a_cluster_lacking_a_package_or_the_code_is_told_which_and_a_local_one_i
         farm._compute_shards(None, None, [], None, "", None, 1, None, None, None, None)
 
 
+def test_shard_task_keys_are_this_runs_and_a_worker_runs_one_shard_at_a_time(tmp_path, monkeypatch):
+    """Two scans of one config on one scheduler into two folders shared task keys (Dask gave one
+    scan's shards to the other, whose folder then lacked them); a worker with two threads ran
+    two Cycles shards in one Blender at once, which crashed it."""
+    import threading
+
+    key = farm.shard_key("f" * 40, tmp_path / "a" / "shards", "pid 1 on host", 3, 0)
+    assert key == farm.shard_key("f" * 40, tmp_path / "a" / "shards", "pid 1 on host", 3, 0)
+    others = {farm.shard_key("f" * 40, tmp_path / "b" / "shards", "pid 1 on host", 3, 0),
+              farm.shard_key("f" * 40, tmp_path / "a" / "shards", "pid 2 on host", 3, 0),
+              farm.shard_key("f" * 40, tmp_path / "a" / "shards", "pid 1 on host", 4, 0),
+              farm.shard_key("f" * 40, tmp_path / "a" / "shards", "pid 1 on host", 3, 1),
+              farm.shard_key("e" * 40, tmp_path / "a" / "shards", "pid 1 on host", 3, 0)}
+    assert key not in others and len(others) == 5
+
+    inside, most = [0], [0]
+    gate = threading.Lock()
+
+    def slow(*args):
+        with gate:
+            inside[0] += 1
+            most[0] = max(most[0], inside[0])
+        threading.Event().wait(0.2)
+        with gate:
+            inside[0] -= 1
+        return {}
+
+    monkeypatch.setattr(farm, "_run_shard", slow)
+    threads = [threading.Thread(target=farm.run_shard, args=(None, None, None, "", "")) for _ in range(3)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert most[0] == 1
+
+
 def test_the_memory_check_counts_a_frame_and_a_blender_process_per_local_worker():
     from headless.preflight import WORKER_PROCESS_BYTES, RenderBudget, check_render_size
 
@@ -395,6 +431,9 @@ def test_damaged_shards_are_found_and_recomputed(config, single, tmp_path):
     assert "recomputing shard 2 (frames 10-14)" in text
     assert "computing shard 3 (frames 15-19): missing" in text
     same_cloud(res.cloud, single.cloud)
+    # The farm's rate counts the 15 frames computed, not the 5 reused (which took no time).
+    f = res.report["farm"]
+    assert f["profiles_per_s_wall"] == pytest.approx(15 / f["wall_s"], rel=1e-3)
     # Everything valid now: a third run computes nothing and starts no cluster; a shard file of
     # another split (another --shard-frames) is named, not read and not removed.
     (out / "shards" / "shard_000000_000009.npz").write_bytes(b"another split")
@@ -600,3 +639,6 @@ def test_a_scheduler_without_workers_waits_for_one_to_join(config, single, tmp_p
             joins.cancel()
     assert any("none yet" in line for line in lines), lines
     same_cloud(res.cloud, single.cloud)
+    # The report counts the worker that joined and computed the shards (0 and [] before: read
+    # before the wait).
+    assert res.report["farm"]["workers"] == 1 and len(res.report["farm"]["worker_addresses"]) == 1
