@@ -59,7 +59,6 @@ whole sweep (seconds on a CPU): this is a test bench, not a fast simulator of vi
 
 from __future__ import annotations
 
-import sys
 import os
 
 import gymnasium as gym
@@ -75,6 +74,9 @@ from addon.core.scan import next_view
 
 PROBE_REACH_MM = 5000.0  # bounds of the probe's position in the observation (table frame)
 ENV_ID = "ScanPlanning-v0"
+
+
+MAX_COST = 1e6  # time_cost and refusal_cost at most (the reward stays finite)
 
 
 class ScanPlanningEnv(gym.Env):
@@ -95,7 +97,9 @@ class ScanPlanningEnv(gym.Env):
         grid = check_whole(grid, "grid (cells per side of the observation)", 2, 256)
         max_steps = check_whole(max_steps, "max_steps (sweeps per episode)", 1, 10**5)
         for value, what in ((time_cost, "time_cost"), (refusal_cost, "refusal_cost")):
-            check_number(value, what, 0.0, sys.float_info.max)  # finite (a 400-digit integer too), ≥ 0
+            # ≥ 0 and at most a million per second or refusal (1e308 passed as finite and made
+            # the reward −inf)
+            check_number(value, what, 0.0, MAX_COST)
         if not isinstance(turn_part, (bool, np.bool_)):
             raise InputError(f"turn_part must be True or False, got {turn_part!r}")
         if isinstance(config, (str, os.PathLike)):
@@ -132,6 +136,21 @@ class ScanPlanningEnv(gym.Env):
         self.scanner = None
         self.planner = None
 
+    def _smallest_at_any_turn(self) -> int:
+        """The smallest view's profiles for the box that holds the part at every turn (its box's
+        corners' circle, squared): no turned part's box is larger. Worked out once."""
+        if "_any_turn" not in self.__dict__:
+            lo, hi = part_box(self.config)
+            if self.config.adaptive.cylinder:
+                wide_lo, wide_hi = lo, hi
+            else:
+                r = float(np.hypot(max(abs(lo[0]), abs(hi[0])), max(abs(lo[1]), abs(hi[1]))))
+                wide_lo, wide_hi = np.array([-r, -r, lo[2]]), np.array([r, r, hi[2]])
+            settings = self.config.adaptive
+            wide = NextBestView(self.scanner, wide_lo, wide_hi, min_gain=settings.min_gain, voxel_mm=settings.voxel_mm)
+            self.__dict__["_any_turn"] = wide.smallest_view()
+        return self.__dict__["_any_turn"]
+
     # -- the episode ------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -147,10 +166,16 @@ class ScanPlanningEnv(gym.Env):
         settings = config.adaptive  # the model's cell and the gain a view must promise, as the command's
         self.planner = NextBestView(self.scanner, lo, hi, min_gain=settings.min_gain, voxel_mm=settings.voxel_mm)
         smallest = self.planner.smallest_view()
+        if self.turn_part:
+            # A turned part's box, and with it the views, grow and shrink with the angle: a budget
+            # is held to the largest of them, so that every seed's reset takes it (one seed's
+            # angle refused a budget another's took, in the middle of a training run).
+            smallest = max(smallest, self._smallest_at_any_turn())
         if smallest > self.max_profiles:
             self.__dict__.pop("_by_key", None)  # no step, mask or reference action until a reset that works
+            at_any = " at every angle turn_part may put the part down at" if self.turn_part else ""
             raise InputError(f"max_profiles {self.max_profiles} is below the smallest view's {smallest} profiles on "
-                             f"{self.config.name}: every action would be refused (give at least {smallest})")
+                             f"{self.config.name}{at_any}: every action would be refused (give at least {smallest})")
         self._by_key = {c.key: c for c in self.planner.pool}
         # Views scanned this episode, by key, as they were scanned: one asked for again is
         # scanned the same way (a table turn first scanned before the part's radius was known,
@@ -208,7 +233,10 @@ class ScanPlanningEnv(gym.Env):
     def step(self, action):
         if not hasattr(self, "_by_key"):
             raise RuntimeError("call reset() before step()")
-        a = np.asarray(action)
+        try:
+            a = np.asarray(action)
+        except (ValueError, TypeError):  # ragged ([[1, 2], [3]]): numpy's own words before
+            a = np.zeros(0)
         if a.shape != (3,) or a.dtype.kind not in "iu" or not self.action_space.contains(a.astype(np.int64)):
             raise InputError(f"action {_short(action)} is not in the action space {self.action_space}: three integers "
                              f"(an integer array, as action_space.sample() gives; floats are not taken, whole ones "
@@ -302,7 +330,8 @@ def _short(value) -> str:
 
 
 if ENV_ID not in gym.registry:  # a module imported twice (by path and by name) registers once
-    gym.register(id=ENV_ID, entry_point=ScanPlanningEnv)
+    # (by name, not the class: a spec with a callable cannot be written out, spec.to_json())
+    gym.register(id=ENV_ID, entry_point="headless.scan_env:ScanPlanningEnv")
 
 
 # Pooling order: a grid cell shows the most telling state of the model cells in it.
@@ -324,7 +353,7 @@ def turned_part(config, deg: float):
 
     R = rot_z(np.radians(deg))
     adaptive = config.adaptive
-    if adaptive.box is not None:
+    if adaptive.box is not None and not adaptive.cylinder:  # (a cylinder on the axis is the same turned)
         corners = trimesh.bounds.corners(np.asarray(adaptive.box, dtype=np.float64)) @ R[:3, :3].T
         adaptive = replace(adaptive, box=(corners.min(axis=0), corners.max(axis=0)))  # the box's bounds once turned
     fixtures = tuple(replace(f, mesh=f.mesh.copy().apply_transform(R)) if f.on == "table" else f
@@ -405,7 +434,11 @@ def run(args) -> int:
     check_whole(args.seed, "--seed", 0, 2 ** 63 - 1)  # Gymnasium's seeds are whole numbers from 0
     check_whole(args.max_profiles, "--max-profiles", 1, MAX_PROFILES)
     env = ScanPlanningEnv(args.config, max_profiles=args.max_profiles, engine=args.engine)
-    env.reset(seed=args.seed)  # a budget below the smallest view is refused before anything is printed
+    try:
+        env.reset(seed=args.seed)  # a budget below the smallest view is refused before anything is printed
+    except InputError as exc:  # in the command's words (the option, not the constructor's argument)
+        raise InputError(str(exc).replace(f"max_profiles {args.max_profiles} ", f"--max-profiles {args.max_profiles} ",
+                                          1)) from None
     seeds = list(range(args.seed, args.seed + args.seeds))
     print(f"ScanPlanningEnv on {env.config.name}: {args.max_profiles} profiles per episode, "
           f"seed{'s' if len(seeds) > 1 else ''} {seeds[0]}{f'-{seeds[-1]}' if len(seeds) > 1 else ''}")

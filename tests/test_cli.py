@@ -516,6 +516,7 @@ def test_gym_baselines_refuses_a_negative_seed_in_one_line():
     assert out.returncode == 2 and out.stderr.strip().splitlines()[-1].startswith("error: --max-profiles must be")
     out = run_cli("gym-baselines", "--engine", "raycast", "--max-profiles", "10")  # below the smallest view
     assert out.returncode == 2 and "smallest view" in out.stderr and out.stdout == ""
+    assert "error: --max-profiles 10 is below" in out.stderr  # the option's name, not the constructor's
 
 
 @needs_bpy

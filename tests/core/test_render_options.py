@@ -76,7 +76,7 @@ def test_an_engine_override_follows_the_same_rules(tmp_path):
     demo = load_scan_config("demo")
     eevee = replace(demo, render=replace(demo.render, engine="eevee", laser="spot", samples=16))
     assert eevee.with_overrides(engine="cycles").render.filter_width_px == 1.0
-    with pytest.raises(InputError, match="--engine eevee: this config's .render. bounces = 2"):
+    with pytest.raises(InputError, match="--engine .engine. eevee: this config's .render. bounces = 2"):
         load_scan_config("cylinder_realistic").with_overrides(engine="eevee")
     gauss = replace(demo, render=replace(demo.render, pixel_filter="GAUSSIAN", filter_width_px=1.5))
     with pytest.raises(InputError, match="pixel_filter = 'GAUSSIAN'"):

@@ -1,6 +1,8 @@
 """The Gymnasium environment over the Scanner: Gymnasium's own checker, reproducibility, and the
 reference planner as a policy beating random choices on the same budget."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -139,7 +141,8 @@ def test_an_action_outside_the_action_space_is_refused_in_one_line():
         env.step([0, 0, 0])
     env.reset(seed=0)
     for bad in ([8, 0, 0], [-1, 0, 0], [0, 7, 0], [0, 0, 2], [1.7, 0.2, 0], [0, 0], [10 ** 20, 0, 0],
-                np.zeros((50, 3), int), np.array([2 ** 64 - 1, 0, 0], dtype=np.uint64)):
+                np.zeros((50, 3), int), np.array([2 ** 64 - 1, 0, 0], dtype=np.uint64),
+                [[1, 2], [3]], [1, [2], 0]):  # (ragged: numpy's own words before)
         with pytest.raises(ValueError, match="not in the action space") as info:
             env.step(bad)
         assert "\n" not in str(info.value) and len(str(info.value)) < 400, str(info.value)
@@ -157,6 +160,8 @@ def test_a_reset_that_was_refused_leaves_no_episode_to_step_and_huge_costs_are_n
             call()
     with pytest.raises(InputError, match="time_cost"):
         ScanPlanningEnv("demo", time_cost=10 ** 400)
+    with pytest.raises(InputError, match="time_cost"):  # finite, but the reward came out -inf
+        ScanPlanningEnv("demo", time_cost=1e308)
 
 
 def test_a_view_scanned_again_is_scanned_as_it_was_and_finds_nothing():
@@ -287,6 +292,41 @@ def test_a_turned_part_is_drawn_from_the_seed_and_scanned_where_it_was_put():
     near_original = np.abs(trimesh.proximity.closest_point(original, points)[1])
     assert np.percentile(near_turned, 95) < 0.05 and np.median(near_original) > 1.0
     assert result.report["error_um"]["rms_um"] < 50  # measured against the turned block's exact shape
+
+
+def test_a_budget_a_turned_part_takes_at_one_seed_it_takes_at_every_seed():
+    """turn_part: the box the planner is told, and with it the smallest view, grow and shrink
+    with the angle (79 profiles unturned on the step block, 107 at 45°): a budget of 90 was
+    taken at seeds 1 and 2 and refused at 0 and 3, with "give at least" sizes that did not hold
+    for the next seed. A budget is held to the worst angle, the same at every seed; an
+    [adaptive] cylinder on the axis is the same box turned."""
+    from addon.core.config.scan import load_scan_config
+    from headless.scan_env import turned_part
+
+    env = ScanPlanningEnv("step_block", max_profiles=90, engine="raycast", turn_part=True)
+    said = set()
+    for seed in range(4):
+        with pytest.raises(InputError, match="at every angle turn_part may put the part down at") as info:
+            env.reset(seed=seed)
+        said.add(str(info.value))
+    (line,) = said
+    enough = int(line.split("give at least ")[1].split(")")[0])
+    assert enough >= 107
+    env = ScanPlanningEnv("step_block", max_profiles=enough, engine="raycast", turn_part=True)
+    for seed in range(4):
+        env.reset(seed=seed)
+    demo = load_scan_config("demo")
+    cylinder = replace(demo, adaptive=replace(demo.adaptive, box=(np.array([-40.0, -40.0, 0.0]),
+                                                                  np.array([40.0, 40.0, 70.0])), cylinder=True))
+    for deg in (0.0, 45.0, 229.0):
+        np.testing.assert_allclose(turned_part(cylinder, deg).adaptive.box, cylinder.adaptive.box)
+    box = replace(cylinder, adaptive=replace(cylinder.adaptive, cylinder=False))
+    assert turned_part(box, 45.0).adaptive.box[1][0] == pytest.approx(40.0 * np.sqrt(2.0))
+
+
+def test_the_registered_environment_writes_its_spec_out():
+    spec = gym.make("headless.scan_env:ScanPlanning-v0", config="demo", engine="raycast").spec
+    assert "ScanPlanningEnv" in spec.to_json()
 
 
 def test_rgb_array_renders_the_cloud_so_far_and_a_step_after_the_end_is_refused():

@@ -141,6 +141,9 @@ class AdaptiveSettings:
     min_gain: int = 15
     voxel_mm: float = 2.0
     target_coverage: float | None = None
+    # The box is a cylinder's on the table's axis (radius_mm, height_mm): the same at any turn
+    # of the part (a box is the bounds of what it holds, and those of a turned box grow).
+    cylinder: bool = False
 
 
 @dataclass(frozen=True)
@@ -256,13 +259,13 @@ class ScanConfig:
             if engine == "eevee" and (render.bounces > 0 or render.pixel_filter != "BOX"):  # as [render] says
                 what = (f"bounces = {render.bounces}, which Eevee does not trace" if render.bounces > 0 else
                         f"pixel_filter = {render.pixel_filter!r}, which Eevee does not have (it takes the width only)")
-                raise InputError(f"--engine eevee: this config's [render] {what}; leave it out of the config, or "
+                raise InputError(f"--engine (engine) eevee: this config's [render] {what}; leave it out of the config, or "
                                  f"render with cycles")
             width = box_width(engine, render.pixel_filter, render.samples, render.filter_width_px)
             render = replace(render, engine=engine, laser=laser, filter_width_px=width)
             why = replace(cfg, render=render).raycast_refusal()
             if why:
-                raise InputError(f"--engine raycast: {why}")
+                raise InputError(f"--engine (engine) raycast: {why}")
         if device is not None and render.engine != "cycles":
             raise InputError(f"--device {device} picks Cycles' render device, and this scan renders with "
                              f"{render.engine} ({'OpenGL' if render.engine == 'eevee' else 'Embree on the CPU'}): "
@@ -521,7 +524,8 @@ def _adaptive(t: Table) -> AdaptiveSettings:
     target = t.number("target_coverage", default=None, lo=0.0, hi=1.0, lo_open=True)
     out = AdaptiveSettings(box, t.integer("max_profiles", default=AdaptiveSettings.max_profiles, lo=1, hi=MAX_PROFILES),
                            t.integer("min_gain", default=AdaptiveSettings.min_gain, lo=1, hi=MAX_MIN_GAIN),
-                           t.number("voxel_mm", default=AdaptiveSettings.voxel_mm, lo=0.1, hi=100.0), target)
+                           t.number("voxel_mm", default=AdaptiveSettings.voxel_mm, lo=0.1, hi=100.0), target,
+                           cylinder=t.has("radius_mm"))
     t.finish()
     return out
 
