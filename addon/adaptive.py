@@ -74,6 +74,9 @@ class AdaptiveStep:
         return out
 
 
+FLAT_BOX_MM = 5.0  # the height of the box a flat part is told (part_box)
+
+
 def part_box(config, grow: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """The bounding box the planner is told: the config's [adaptive] box, else the workpiece's
     box grown by ``grow`` of its size on each side (what a cell would roughly know)."""
@@ -83,6 +86,9 @@ def part_box(config, grow: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     pad = grow * (hi - lo)
     lo, hi = lo - pad, hi + pad
     lo[2] = max(lo[2], 0.0)  # the table top
+    # A flat part (a plate of no thickness) still gets a box the model can hold: a few cells high
+    # (its box had no height, and the planner refused it with numpy's words).
+    hi[2] = max(hi[2], lo[2] + FLAT_BOX_MM)
     return lo, hi
 
 
@@ -106,7 +112,11 @@ def checked_box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
         lo_a = hi_a = np.full(0, np.nan)
     if lo_a.shape != (3,) or hi_a.shape != (3,) or not (np.isfinite(lo_a).all() and np.isfinite(hi_a).all()
                                                         and (hi_a > lo_a).all()):
-        raise InputError(f"the part's bounding box needs lo < hi, three finite numbers (mm) each, got {lo!r}, {hi!r}")
+        def shown(v):
+            return v.tolist() if isinstance(v, np.ndarray) else v
+
+        raise InputError(f"the part's bounding box needs lo < hi in x, y and z, three finite numbers (mm) each, got "
+                         f"{shown(lo)!r} .. {shown(hi)!r}")
     if hi_a[2] <= 0.0:
         raise InputError(f"the part's bounding box {lo_a.tolist()} .. {hi_a.tolist()} mm lies under the table top "
                          f"(z = 0 in the table frame): its top must be above 0")
@@ -405,7 +415,7 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_
     steps = [] if steps is None else steps
 
     def sweeps(n: int) -> str:
-        return f"{n} sweeps" + (f" ({numbered_from + n} in all)" if numbered_from else "")
+        return f"{n} sweep{'s' if n != 1 else ''}" + (f" ({numbered_from + n} in all)" if numbered_from else "")
 
     taken = 0
     say = progress or (lambda stage, done, total: None)

@@ -132,7 +132,11 @@ def import_cloud(collection, cloud: Cloud, parent: bpy.types.Object | None, erro
 
 
 def cloud_from_object(obj: bpy.types.Object) -> Cloud:
-    """Read an imported cloud back (table frame, mm), e.g. for PLY export."""
+    """Read an imported cloud back (table frame, mm), e.g. for PLY export: as the user sees it,
+    points deleted in Edit Mode included (the mesh's data there is the edit's, which Blender
+    writes back only on leaving it: an export in Edit Mode failed with a traceback)."""
+    if obj.mode == "EDIT":
+        return _cloud_in_edit_mode(obj)
     me = obj.data
     n = len(me.vertices)
     co = np.empty(n * 3, np.float32)
@@ -141,9 +145,27 @@ def cloud_from_object(obj: bpy.types.Object) -> Cloud:
     def attr(name, dtype):
         a = me.attributes.get(name)
         out = np.zeros(n, dtype)
-        if a is not None:
+        if a is not None and a.domain == "POINT" and len(a.data) == n:
             a.data.foreach_get("value", out)
         return out
 
     return Cloud(co.reshape(-1, 3).astype(np.float64) / M_PER_MM, attr("frame", np.int32), attr("camera", np.int32),
                  attr("quality", np.float32))
+
+
+def _cloud_in_edit_mode(obj: bpy.types.Object) -> Cloud:
+    """The cloud of an object in Edit Mode, from its edit mesh (the mesh's own attributes read
+    empty there until Blender leaves the mode)."""
+    import bmesh
+
+    bm = bmesh.from_edit_mesh(obj.data)
+    n = len(bm.verts)
+    co = np.array([v.co[:] for v in bm.verts], dtype=np.float64).reshape(n, 3)
+
+    def attr(layers, name, dtype):
+        layer = layers.get(name)
+        return (np.array([v[layer] for v in bm.verts], dtype=dtype) if layer is not None
+                else np.zeros(n, dtype))
+
+    return Cloud(co / M_PER_MM, attr(bm.verts.layers.int, "frame", np.int32),
+                 attr(bm.verts.layers.int, "camera", np.int32), attr(bm.verts.layers.float, "quality", np.float32))

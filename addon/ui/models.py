@@ -182,6 +182,75 @@ def cell_mismatch(context) -> str | None:
     return "; ".join(differ) or None
 
 
+def placement_mismatch(context) -> str | None:
+    """Where the built cell's robot or table object was moved in the viewport away from where
+    the cell puts it (the robot's base at its rig's pose, the table at its a_R and d_R), in
+    words; None where they stand where built, or no cell is built. Go, the IK and the collision
+    checks work in the cell's placement, so a moved object made Go say "Reached" 100 mm off."""
+    import numpy as np
+
+    from ..scene.units import from_blender
+
+    s = context.scene.scanner
+    out = []
+    robot_obj, table_obj = cell_object("Robot"), cell_object("Turntable")
+    if robot_obj is not None:
+        off = from_blender(robot_obj.matrix_world) @ np.linalg.inv(robot_from(s).base)
+        moved = float(np.linalg.norm(off[:3, 3]))
+        turned = math.degrees(math.acos(max(-1.0, min(1.0, (float(np.trace(off[:3, :3])) - 1.0) / 2.0))))
+        if moved > 0.01 or turned > 0.01:
+            out.append(f"the Robot object was moved in the viewport ({moved:.1f} mm, {turned:.1f}° from where the "
+                       f"cell puts the robot's base)")
+    if table_obj is not None:
+        expected = cell_from(s).table.table2base(0.0)[:3, 3]
+        moved = float(np.linalg.norm(from_blender(table_obj.matrix_world)[:3, 3] - expected))
+        if moved > 0.01:
+            out.append(f"the Turntable object was moved in the viewport ({moved:.1f} mm from the table's a_R and "
+                       f"d_R)")
+    return "; ".join(out) or None
+
+
+def hidden_from_render(context, objects) -> str | None:
+    """The first of ``objects`` (the cell's laser, table, part) that a render would leave out,
+    and why, in words; None where all render. The probe views rendered without the laser and
+    said they had rendered (the artist's visibility is kept on the cell's own objects)."""
+    def path_to(layer, collection):
+        if layer.collection == collection:
+            return [layer]
+        for child in layer.children:
+            found = path_to(child, collection)
+            if found:
+                return [layer] + found
+        return []
+
+    for obj in objects:
+        if obj is None:
+            continue
+        if obj.hide_render:
+            return f"the cell's {obj.name} is hidden from renders (its Disable in Renders)"
+        for collection in obj.users_collection:
+            for layer in path_to(context.view_layer.layer_collection, collection):
+                if layer.exclude:
+                    return (f"the cell's {obj.name} is left out of the view layer (collection "
+                            f"{layer.collection.name} excluded)")
+                if layer.collection.hide_render:
+                    return (f"the cell's {obj.name} is hidden from renders (collection {layer.collection.name}'s "
+                            f"Disable in Renders)")
+    return None
+
+
+def missing_cell_objects(context) -> list[str]:
+    """The cell's objects that Go and the probe views need and that are gone from the built
+    cell (deleted by hand), by role; empty where none is built or all are there."""
+    from ..scene.ownership import own_objects, role_of
+
+    root = bpy.data.collections.get(CELL_NAME)
+    if root is None or not in_scene(root, context.scene):
+        return []
+    roles = {role_of(o) for o in own_objects(root)}
+    return [k for k in ("Robot", "Probe frame", "ProbeCam_L", "ProbeCam_R", "Laser", "Turntable") if k not in roles]
+
+
 def _name_of(entry) -> str:
     """A built_from entry in words: the name it leads with."""
     if entry is None:

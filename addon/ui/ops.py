@@ -120,6 +120,10 @@ class SCANNER_OT_go(bpy.types.Operator):
             mismatch = models.cell_mismatch(context)
             if mismatch is not None:  # the IK and the checks would be the panel's robot's, the arm another's
                 raise InputError(models.stale_cell_message(mismatch))
+            moved = models.placement_mismatch(context)
+            if moved is not None:
+                raise InputError(f"{moved[:1].upper()}{moved[1:]}: Go works where the cell puts them; put it back "
+                                 f"(undo, or Build Cell)")
             cell = models.cell_from(s)
             probe = models.probe_from(s)
             robot = cell.robot.with_tool(probe.mount)
@@ -176,8 +180,14 @@ class SCANNER_OT_render_views(bpy.types.Operator):
                 raise InputError(models.stale_cell_message(mismatch))
             sc = models.scene_cell(context)
             if sc is None:
-                raise InputError("Build the cell first (the probe settings may be invalid)")
+                gone = models.missing_cell_objects(context)
+                raise InputError(f"The built cell lacks {', '.join(gone)} (deleted?): press Build Cell to build it "
+                                 f"again" if gone else "Build the cell first (the probe settings may be invalid)")
             models.check_table_angle(s)
+            hidden = models.hidden_from_render(context, [*sc.laser, sc.table, sc.workpiece_object])
+            if hidden is not None:
+                raise InputError(f"{hidden[:1].upper()}{hidden[1:]}: the probe views would not show what a scan "
+                                 f"sees; show it for renders")
         except ScannerError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -358,6 +368,12 @@ class _SteppedScan:
         # A cell built here that the scan's config will stand in for: the message says so.
         self._swapped = robot is not None and (bool(getattr(self, "config", "")) or s.scan_config != models.CELL)
         self._built_before = _built_from_of_scene(context.scene) if self._swapped else None
+        # Calibrate keeps the scan cloud through its rebuild (a scan replaces it with its own).
+        from ..scene.cell import cell_object
+        from ..scene.cloud_object import CLOUD_ROLE
+
+        self._cloud_before = (self._swapped and isinstance(self, SCANNER_OT_calibrate)
+                              and cell_object(CLOUD_ROLE, scene=context.scene) is not None)
         try:
             models.check_table_angle(s)
             self._scanner, self._steps = self._open(context)
@@ -549,8 +565,9 @@ def _swapped_text(op, report: dict, config=None) -> str:
         now = built_from(cfg.robot, cfg.probe, cfg.workpiece, cfg.table)
         if all(before.get(k) == now[k] for k in ("robot", "robot_poses", "probe", "workpiece", "table")):
             return ""
-    return (f"; the cell is the scan config's ({report['config']['name']}): choose The Cell Built Here to scan the "
-            f"Scanner Cell's own")
+    kept = " (the scan cloud there is the earlier cell's)" if getattr(op, "_cloud_before", False) else ""
+    return (f"; the cell is the scan config's ({report['config']['name']}){kept}: choose The Cell Built Here to scan "
+            f"the Scanner Cell's own")
 
 
 class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
@@ -653,7 +670,7 @@ class SCANNER_OT_export_ply(bpy.types.Operator, ExportHelper):
 
 
 class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
-    """Calibrate the probe of the chosen scan config from rendered ChArUco boards and laser lines; writes probe.toml, calibration.json and calibration.png (rebuilds the cell, keeping its part and the scan cloud; Esc cancels)"""
+    """Calibrate the probe of the chosen scan config from rendered ChArUco boards and laser lines; writes probe.toml, calibration.json and calibration.png (builds the chosen config's cell, keeping the scan cloud; Esc cancels)"""
 
     bl_idname = "scanner.calibrate"
     bl_label = "Calibrate Probe"
@@ -676,6 +693,7 @@ class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
         # Checked as a scan's folder is (a //-folder of a .blend never saved wrote into
         # wherever Blender was started)
         self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, f"{cfg.name} calibration")
+        self._cfg = cfg
         return None, calibrate_steps(cfg, self._folder, views=self.views, scene=context.scene)
 
     @staticmethod
@@ -687,7 +705,8 @@ class SCANNER_OT_calibrate(_SteppedScan, bpy.types.Operator):
         err = run.summary["triangulation_error"]["all"]["rms_mm"] * 1e3
         self.report({"INFO"}, f"Calibrated from {run.summary['views']} poses: reprojection "
                               f"{c0['reprojection_error_px']:.3f}/{c1['reprojection_error_px']:.3f} px, "
-                              f"{err:.0f} µm RMS on the laser plane; files in {self._folder}")
+                              f"{err:.0f} µm RMS on the laser plane; files in {self._folder}"
+                              f"{_swapped_text(self, {'config': {'name': self._cfg.name}}, self._cfg)}")
         return {"FINISHED"}
 
 

@@ -155,20 +155,23 @@ class ScannerSettings(bpy.types.PropertyGroup):
                                      description="The probe keeps moving while the shutter is open (scans)")
     sensor_distortion: BoolProperty(name="Lens distortion", default=False,
                                     description="Brown-Conrady radial distortion (removed by calibration)")
-    sensor_k1: FloatProperty(name="k1", default=-0.1, soft_min=-1.0, soft_max=1.0, description="Radial k1")
-    sensor_k2: FloatProperty(name="k2", default=0.0, soft_min=-1.0, soft_max=1.0, description="Radial k2")
+    sensor_k1: FloatProperty(name="k1", default=-0.1, min=-10.0, max=10.0, soft_min=-1.0, soft_max=1.0,
+                             description="Radial k1 (within ±10, as a config's)")
+    sensor_k2: FloatProperty(name="k2", default=0.0, min=-10.0, max=10.0, soft_min=-1.0, soft_max=1.0,
+                             description="Radial k2 (within ±10, as a config's)")
     sensor_undistort: BoolProperty(name="Calibrated", default=True,
                                    description="Detections are undistorted before triangulation")
-    sensor_exposure_ms: FloatProperty(name="Exposure (ms)", default=_SENSOR.exposure_ms, min=1e-4, soft_max=20.0)
+    sensor_exposure_ms: FloatProperty(name="Exposure (ms)", default=_SENSOR.exposure_ms, min=1e-4, max=1e7,
+                                      soft_max=20.0)
     sensor_auto_exposure: BoolProperty(name="Auto-exposure", default=_SENSOR.auto_exposure,
                                        description="Set the exposure so the line peak sits at the target level")
     sensor_target_peak: FloatProperty(name="Target peak", default=_SENSOR.target_peak, min=0.01, max=1.0,
                                       subtype="FACTOR", description="Auto-exposure: peak as a fraction of full scale")
-    sensor_gain: FloatProperty(name="Gain", default=_SENSOR.gain, min=1e-3, soft_max=16.0)
+    sensor_gain: FloatProperty(name="Gain", default=_SENSOR.gain, min=1e-3, max=1e7, soft_max=16.0)
     sensor_bit_depth: EnumProperty(name="Bit depth", items=BIT_DEPTH_ITEMS, default=str(_SENSOR.bit_depth))
-    sensor_f_number: FloatProperty(name="f-number", default=_SENSOR.f_number, min=0.5, soft_max=32.0,
+    sensor_f_number: FloatProperty(name="f-number", default=_SENSOR.f_number, min=0.5, max=1e7, soft_max=32.0,
                                    description="Lens aperture: sets defocus and speckle grain")
-    sensor_focus_mm: FloatProperty(name="Focus (mm)", default=0.0, min=0.0, soft_max=1000.0,
+    sensor_focus_mm: FloatProperty(name="Focus (mm)", default=0.0, min=0.0, max=1e7, soft_max=1000.0,
                                    description="Depth in focus along the camera axis (0: balanced over the "
                                                "probe's range)")
     sensor_seed: IntProperty(name="Seed", default=_SENSOR.seed, min=0, description="Noise and speckle seed")

@@ -2,6 +2,7 @@
 what its rays have taught it, given only a box around the part, and writes what a scan writes."""
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -697,3 +698,22 @@ def test_the_low_yardstick_spends_60_percent_of_the_budget_on_two_side_turns_and
     t = (0.2 * 60.0 - origin[2]) / beam[2]
     assert 0 < t and abs(np.hypot(*(origin + t * beam)[:2]) - 0.5 * np.hypot(30.0, 30.0)) < 1e-6
     assert chosen_methods("low,turns", "") == ["turns", "low"]
+
+
+def test_a_flat_part_gets_a_box_the_planner_takes_and_a_bad_box_is_said_in_plain_numbers():
+    """The built-in plane has no height: its box had none, and the planner refused it with
+    numpy's reprs ("array([-72., -72., 0.])"), nothing a panel user could change."""
+    from addon import Scanner
+    from addon.adaptive import FLAT_BOX_MM, NextBestView, checked_box, part_box
+    from addon.core.errors import InputError
+    from addon.core.geometry.workpiece import builtin_workpiece
+
+    demo = load_scan_config("demo")
+    plane = replace(demo, workpiece=builtin_workpiece("plane"))
+    assert np.ptp(plane.workpiece.mesh.bounds[:, 2]) == 0.0
+    lo, hi = part_box(plane)
+    assert hi[2] - lo[2] == pytest.approx(FLAT_BOX_MM)
+    assert NextBestView(Scanner(config=plane), lo, hi).smallest_view() > 0
+    with pytest.raises(InputError) as info:
+        checked_box(np.array([-1.0, -1.0, 0.0]), np.array([1.0, 1.0, 0.0]))
+    assert "array(" not in str(info.value) and "[-1.0, -1.0, 0.0] .. [1.0, 1.0, 0.0]" in str(info.value)

@@ -4,6 +4,7 @@ import json
 import math
 
 import bpy
+from mathutils import Vector
 import numpy as np
 import pytest
 
@@ -52,6 +53,26 @@ def test_go_reaches_the_cartesian_target_relative_to_the_table(panel):
     np.testing.assert_allclose(probe2world, target, atol=1e-3)
 
 
+def test_go_refuses_while_the_robot_or_the_table_object_stands_moved_in_the_viewport(panel):
+    """Go solves the IK in the cell's placement: with the Robot object moved 100 mm in the
+    viewport it said "Reached" with the probe 100 mm from the target. It refuses, naming the
+    object and how far; put back, it goes."""
+    bpy.ops.scanner.build_cell()
+    s = panel.scanner
+    s.target_frame, s.target_location = "table", (0.0, 0.0, 150.0)
+    for name, shift in (("Robot", (0.1, 0.0, 0.0)), ("Turntable", (0.0, 0.05, 0.0))):
+        obj = bpy.data.objects[name] if name == "Turntable" else robot_obj()
+        before = obj.location.copy()
+        obj.location = before + Vector(shift)
+        bpy.context.view_layer.update()
+        with pytest.raises(RuntimeError, match=f"The {name} object was moved in the viewport "
+                                               f"\\({1000 * max(shift):.1f} mm"):
+            bpy.ops.scanner.go()
+        obj.location = before
+        bpy.context.view_layer.update()
+    assert bpy.ops.scanner.go() == {"FINISHED"}
+
+
 def test_unreachable_target_reports_and_leaves_the_robot_still(panel):
     bpy.ops.scanner.build_cell()
     before = rig.get_joints(robot_obj()).copy()
@@ -93,6 +114,60 @@ def test_probe_views_render_into_images(panel, laser):
         img.pixels.foreach_get(px)
         px = px.reshape(160, 160, 4)
         assert (px[..., 0] - px[..., 1]).max() > 0.2  # the red line is there
+
+
+def test_probe_views_refuse_a_cell_whose_laser_or_part_a_render_would_leave_out(panel):
+    """The views rendered without the laser (hidden from renders, or its collection excluded
+    from the view layer) and said they had; a deleted laser was "Build the cell first". Each is
+    refused naming the object and why; shown again, the views render."""
+    bpy.ops.scanner.build_cell()
+    panel.scanner.target_location = (0.0, 0.0, 210.0)
+    bpy.ops.scanner.go()
+    laser, part = bpy.data.objects["Laser"], bpy.data.objects["Workpiece sphere"]
+    layer = bpy.context.view_layer.layer_collection.children["Scanner Cell"]
+    for hide, show, words in (
+            (lambda: setattr(laser, "hide_render", True), lambda: setattr(laser, "hide_render", False),
+             "The cell's Laser is hidden from renders"),
+            (lambda: setattr(part, "hide_render", True), lambda: setattr(part, "hide_render", False),
+             "The cell's Workpiece sphere is hidden from renders"),
+            (lambda: setattr(layer, "exclude", True), lambda: setattr(layer, "exclude", False),
+             "left out of the view layer \\(collection Scanner Cell excluded\\)")):
+        hide()
+        with pytest.raises(RuntimeError, match=words):
+            bpy.ops.scanner.render_views()
+        show()
+    assert bpy.ops.scanner.render_views() == {"FINISHED"}
+    bpy.data.objects.remove(laser)
+    with pytest.raises(RuntimeError, match="The built cell lacks Laser"):
+        bpy.ops.scanner.render_views()
+
+
+def test_calibrating_another_configs_probe_says_the_cell_was_swapped_and_the_cloud_kept(panel, tmp_path, capfd):
+    """Calibrate with another config's probe builds that config's cell (its sphere for the
+    panel's cylinder) and keeps the scan cloud: the message said nothing of either (Scan's
+    says so), and the help text said the part was kept."""
+    s = panel.scanner
+    s.workpiece, s.output_dir = "cylinder", str(tmp_path)
+    assert bpy.ops.scanner.build_cell() == {"FINISHED"}
+    s.scan_config, s.scan_engine, s.scan_frames = "CELL", "raycast", "0:60:20"
+    assert bpy.ops.scanner.scan() == {"FINISHED"}
+    capfd.readouterr()
+    assert bpy.ops.scanner.calibrate(config="demo", views=4) == {"FINISHED"}
+    said = "".join(capfd.readouterr())
+    assert "the cell is the scan config's (Demo: sphere on the turntable) (the scan cloud there is the earlier " \
+           "cell's)" in said, said
+    assert "keeping its part" not in bpy.ops.scanner.calibrate.get_rna_type().description
+
+
+def test_sensor_fields_keep_to_the_ranges_a_config_allows(panel):
+    """k1 = 50 scanned (1 mm RMS) and a gain of inf (3.4e38) saturated every column, where a
+    config's [sensor] refuses them: the fields stop at the config's limits."""
+    s = panel.scanner
+    for name, value, top in (("sensor_k1", 50.0, 10.0), ("sensor_k2", -50.0, -10.0), ("sensor_gain", math.inf, 1e7),
+                             ("sensor_exposure_ms", 1e30, 1e7), ("sensor_f_number", 1e30, 1e7),
+                             ("sensor_focus_mm", 1e30, 1e7)):
+        setattr(s, name, value)
+        assert getattr(s, name) == pytest.approx(top), name
 
 
 def test_probe_views_are_saved_with_the_blend_file(panel, tmp_path):
@@ -571,6 +646,27 @@ def test_export_ply_where_it_cannot_be_written_says_so_in_one_line(panel, tmp_pa
     assert not bpy.data.filepath
     with pytest.raises(RuntimeError, match="relative to the .blend file, which is not saved yet"):
         bpy.ops.scanner.export_ply(filepath="//beside.ply")  # it would land wherever Blender started
+    # In Edit Mode, with half the points deleted there: what the user sees is written (a
+    # traceback before: the mesh's data is the edit's until Blender writes it back).
+    import bmesh
+
+    from addon.core.geometry.cloud import load_ply
+
+    from addon.scene.cloud_object import cloud_from_object
+
+    cloud = bpy.data.objects["Scan cloud"]
+    whole = cloud_from_object(cloud)
+    bpy.context.view_layer.objects.active = cloud
+    bpy.ops.object.mode_set(mode="EDIT")
+    bm = bmesh.from_edit_mesh(cloud.data)
+    bmesh.ops.delete(bm, geom=[v for v in bm.verts if v.index % 2], context="VERTS")
+    bmesh.update_edit_mesh(cloud.data)
+    assert bpy.ops.scanner.export_ply(filepath=str(tmp_path / "edited.ply")) == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    edited = load_ply(tmp_path / "edited.ply")
+    np.testing.assert_allclose(edited.points, whole.points[::2], atol=1e-4)
+    for name in ("frame", "camera", "quality"):  # each point keeps its own attributes
+        np.testing.assert_array_equal(getattr(edited, name), getattr(whole, name)[::2])
 
 
 def _world_position(obj):
