@@ -26,7 +26,8 @@ CROP_PX = 24  # rows shown above and below the detected line
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", default="step_block", help="scan config (default step_block)")
-    parser.add_argument("--frame", type=int, default=5, help="frame of the path to show (default 5)")
+    parser.add_argument("--frame", type=int, default=12, help="frame of the path to show (default 12: the laser on "
+                                                              "both treads, clear of the block's edges)")
     parser.add_argument("--camera", type=int, default=0, choices=(0, 1))
     parser.add_argument("--out", default="out/realism_frame.png", help="PNG to write")
     parser.set_defaults(run=run)
