@@ -227,31 +227,57 @@ class ScanRun:
         self.t_render += time.perf_counter() - t
         t = time.perf_counter()
         index = self.first + done  # path index of the chunk's first frame
-        images = [self._sense(pair, rows, index + i) for i, pair in enumerate(images)]
+        rendered = images
         frame_rows = [self._own_rows(index + i, rows) for i in range(size)]
+        own_rows = self._reads_own_rows()
         self.rendered_rows = [rows] * size  # (the report's rows rendered, beside the rows read)
-        images = [_cropped(pair, rows, own) for pair, own in zip(images, frame_rows)]
+        # A sensor that changes images is applied to each frame's own rows and the pad its
+        # optics need (its auto-exposure then meters those rows alone, not a glint elsewhere in
+        # the chunk's band), and the frame is read on its own rows.
+        images = [self._sense_rows(pair, rows, own, index + i) for i, (pair, own) in enumerate(zip(images, frame_rows))]
         lines = [detect_all(img, own, config) for img, own in zip(images, frame_rows)]
         self.t_detect += time.perf_counter() - t
-        # Frames whose line the band may have cut are rendered again at full height, in one call.
+        # Frames whose line the band may have cut are read again at full height: rendered again
+        # in one call, or, where the call rendered them whole, read off that render.
         redo = []
-        previous = self.previous_rows
+        # (A frame read on its own rows decides from itself alone, not from the frame before:
+        # a shard's first frame has none.)
+        previous = [None, None] if own_rows else self.previous_rows
         for i in range(size):
             if needs_full_frame(lines[i], frame_rows[i], previous, probe.rows_px, self.margin):
                 redo.append(i)
-            previous = [None if ln is None else ln.row for ln in lines[i]]
-        if redo:
+            if not own_rows:
+                previous = [None if ln is None else ln.row for ln in lines[i]]
+        again = [i for i in redo if rows is not None]
+        full = {}
+        if again:
             t = time.perf_counter()
-            full = sc.render(first + redo[0], first + redo[-1], self.settings, plan.cameras, leave_out_robot=hide)
+            calls = sc.render(first + again[0], first + again[-1], self.settings, plan.cameras, leave_out_robot=hide)
             self.t_render += time.perf_counter() - t
-            self.stats["rerendered"] += len(full)
-            t = time.perf_counter()
-            for i in redo:
-                images[i] = self._sense(full[i - redo[0]], None, index + i)
-                lines[i] = detect_all(images[i], None, config)
-                frame_rows[i] = self.rendered_rows[i] = None
-            self.t_detect += time.perf_counter() - t
+            self.stats["rerendered"] += len(calls)
+            full = {i: calls[i - again[0]] for i in again}
+        t = time.perf_counter()
+        for i in redo:
+            images[i] = self._sense(full[i] if i in full else rendered[i], None, index + i)
+            lines[i] = detect_all(images[i], None, config)
+            frame_rows[i] = self.rendered_rows[i] = None
+        self.t_detect += time.perf_counter() - t
         return images, lines, frame_rows
+
+    def _reads_own_rows(self) -> bool:
+        """Whether frames are read on their own rows (see _own_rows)."""
+        return self.config.sensor.changes_images and self.config.leave_out.render_band
+
+    def _sense_rows(self, pair, rows, own, index: int):
+        """The sensor's images of a frame rendered on ``rows`` (None: whole), read on ``own``:
+        the sensor applied to ``own`` and the rows its optics reach beyond them, then cut to
+        ``own`` (as rendered where the frame is not read on its own rows)."""
+        if own == rows:
+            return self._sense(pair, rows, index)
+        H = self.config.probe.rows_px
+        window = (max(0, own[0] - self.sensor_pad), min(H, own[1] + self.sensor_pad))
+        sensed = self._sense(_cropped(pair, rows, window), window, index)
+        return _cropped(sensed, window, own)
 
     def _accumulate(self, size: int, lines, rows) -> None:
         """Triangulate the chunk's lines into the cloud and count what was found."""
@@ -302,7 +328,7 @@ class ScanRun:
         frame's own band (its predicted rows and the margin), wherever the render call's band
         (``rows``, None: the full frame) holds those rows and the pad its optics need beyond
         them; otherwise, and where the plan predicts no rows, the call's band as rendered."""
-        if not self.config.sensor.changes_images or not self.config.leave_out.render_band:
+        if not self._reads_own_rows():
             return rows
         pred = self.plan.predicted_rows[index]
         if not np.isfinite(pred).all():

@@ -490,13 +490,14 @@ class Scanner:
         # check for a sample per millimetre of the turn; a table already turned far may go on)
         _check_table_deg(float(np.max(np.abs(np.degrees(wp.table_rad - self._table_rad)))),
                          f"the {what}'s table turn from where the table stands")
-        sol = solve_path(self.config.cell, wp, self._q)
+        # Stopped at the first pose out of reach: the refusal names that one (a numeric IK's
+        # failure costs its restarts at every pose after it: a planner asking whether a view on
+        # the URDF gantry can be done waited 14-64 s for each one it could not).
+        sol = solve_path(self.config.cell, wp, self._q, stop_at_miss=True)
         if not sol.ok.all():
-            from .pipeline import frame_ranges
-
-            bad = sol.unreachable
-            raise UnreachablePose(f"{len(bad)} of {len(wp.table_rad)} poses of the {what} cannot be reached "
-                                  f"(steps {frame_ranges(bad)}): {sol.messages[bad[0]]}")
+            first = sol.unreachable[0]
+            raise UnreachablePose(f"the {what} cannot be reached at its pose {first} of {len(wp.table_rad)} (the "
+                                  f"poses after it were not tried): {sol.messages[first]}")
         found = self._check_path(sol.q, wp.table_rad, what, record=record)
         q, table_rad = np.array(sol.q, dtype=np.float64), np.array(wp.table_rad, dtype=np.float64)
         self._last_plan = (key, record, (q.copy(), table_rad.copy(), found))

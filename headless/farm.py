@@ -49,9 +49,12 @@ _SHARD_LOCK = threading.Lock()
 
 def scan_fingerprint(config, plan) -> str:
     """What decides the scan's result: the plan and the whole config, field by field (every
-    field of ScanConfig counts but its name, file and description)."""
-    return shards.fingerprint([shards.FORMAT, plan.q, plan.table_rad, plan.predicted_rows, tuple(plan.cameras),
-                               config, config.detect_params])
+    field of ScanConfig counts but its name, file and description), and this simulator's
+    release (shards another release made are computed again, not merged with this one's)."""
+    from addon.core.scan.outputs import simulator_version
+
+    return shards.fingerprint([shards.FORMAT, simulator_version(), plan.q, plan.table_rad, plan.predicted_rows,
+                               tuple(plan.cameras), config, config.detect_params])
 
 
 def _clean_sys_path() -> None:

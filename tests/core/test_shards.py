@@ -99,3 +99,19 @@ def test_the_scan_fingerprint_comes_from_every_field_of_the_config():
     for name, value in changed.items():
         assert shards.fingerprint([replace(a, **{name: value})]) != shards.fingerprint([a]), name
     assert {f.name for f in fields(ScanConfig)} > set(changed) | NOT_IN_FINGERPRINT
+
+
+def test_shards_of_another_release_are_not_merged(monkeypatch):
+    """The scan's fingerprint holds the simulator's release: shards made by another one (whose
+    detection or triangulation may differ) are computed again instead of merged with this one's."""
+    from addon.core.config.scan import load_scan_config
+    from addon.core.scan import outputs
+    from addon.pipeline import plan_scan
+    from headless import farm
+
+    config = load_scan_config("demo").with_overrides(frames=slice(0, 3), engine="raycast")
+    plan = plan_scan(config)
+    here = farm.scan_fingerprint(config, plan)
+    assert farm.scan_fingerprint(config, plan) == here
+    monkeypatch.setattr(outputs, "simulator_version", lambda: "0.0.1")
+    assert farm.scan_fingerprint(config, plan) != here

@@ -745,3 +745,37 @@ def test_each_urdf_link_without_collision_geometry_keeps_its_visual_one_within_a
     original = link_mesh(load_robot(UR5_URDF), 5, collision=True)
     body = link_mesh(load_robot(edited), 5, collision=True)
     assert body.extents.max() >= original.extents.max() - 1e-6 > 50.0
+
+
+def test_a_path_solve_can_stop_at_its_first_pose_out_of_reach(tmp_path):
+    """Asked only whether a path can be done, the solve stops at the first pose out of reach
+    (a numeric IK's failure costs its restarts at every pose after it: 14-64 s for each view
+    of the URDF gantry's that the planner could not do); the poses after it are 'not tried'."""
+    from addon.core.kinematics.cell import Cell
+    from addon.core.kinematics.path import Waypoints, solve_path
+    from addon.core.kinematics.turntable import Turntable
+
+    gantry = load_robot(REPO / "rigs" / "robots" / "urdf" / "gantry.urdf")
+    cell = Cell(gantry, Turntable())
+    q = gantry.random_q(6, np.random.default_rng(1))
+    poses = cell.table.base2table(np.zeros(6)) @ gantry.fk(q)
+    poses[2, :3, 3] += [0.0, 0.0, 10_000.0]  # ten metres up: out of the slides' reach
+    wp = Waypoints(poses, np.zeros(6), np.zeros(6, int))
+    whole, first = solve_path(cell, wp, q[0]), solve_path(cell, wp, q[0], stop_at_miss=True)
+    assert whole.unreachable == [2] and whole.ok[3:].all()
+    assert first.unreachable == [2, 3, 4, 5] and first.ok[:2].all()
+    assert all(m.startswith("not tried") for m in first.messages[3:]) and first.messages[2] == whole.messages[2]
+
+
+def test_a_urdf_with_transmissions_loads(tmp_path):
+    """ROS descriptions (ros_control, ur_description) carry <transmission> blocks whose <joint>
+    elements name a joint and have no type, origin or parent: the checks took them for the
+    robot's joints ("joint 'shoulder_pan_joint' has no type"; before, "has no <parent link>")."""
+    transmission = ('  <transmission name="shoulder_pan_trans"><type>transmission_interface/SimpleTransmission</type>'
+                    '<joint name="shoulder_pan_joint"><hardwareInterface>hardware_interface/PositionJointInterface'
+                    '</hardwareInterface></joint><actuator name="shoulder_pan_motor"><mechanicalReduction>1'
+                    '</mechanicalReduction></actuator></transmission>\n')
+    path = tmp_path / "ur5_ros.urdf"
+    path.write_text(UR5_URDF.read_text().replace("</robot>", transmission + "</robot>"))
+    q = np.radians([10.0, -40.0, 60.0, 20.0, 30.0, 40.0])
+    np.testing.assert_allclose(load_robot(path).fk(q), load_robot(UR5_URDF).fk(q), atol=1e-12)

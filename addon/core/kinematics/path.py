@@ -257,8 +257,11 @@ def around_part(mesh, table, frames: int = 60, standoff_mm: float = AROUND_PART_
     ])
 
 
-def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
-    """Joint vectors for every waypoint, each nearest the previous one (no flips between neighbours)."""
+def solve_path(cell: Cell, waypoints: Waypoints, q_start=None, stop_at_miss: bool = False) -> PathSolution:
+    """Joint vectors for every waypoint, each nearest the previous one (no flips between neighbours).
+    ``stop_at_miss``: stop at the first waypoint that cannot be reached (those after it are left
+    unsolved, not ok, "not tried"): for callers that only ask whether the whole path can be done
+    (a numeric IK's failure costs its restarts, per waypoint: tens of seconds for a sweep)."""
     robot = cell.robot
     targets = cell.table.table2base(waypoints.table_rad) @ waypoints.probe2table
     n = len(waypoints)
@@ -287,6 +290,8 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
                     q_prev = res.q
                 elif first_miss is None:
                     first_miss = (i, q_prev)
+                    if stop_at_miss:
+                        break
     else:
         for i in range(n):
             res = robot.ik(targets[i], q_prev, **quiet)
@@ -295,6 +300,11 @@ def solve_path(cell: Cell, waypoints: Waypoints, q_start=None) -> PathSolution:
                 q_prev = res.q
             elif first_miss is None:
                 first_miss = (i, q_prev)
+                if stop_at_miss:
+                    break
+    if first_miss is not None and stop_at_miss:
+        q[first_miss[0] + 1:] = q[first_miss[0]]
+        messages[first_miss[0] + 1:] = ["not tried: an earlier waypoint cannot be reached"] * (n - first_miss[0] - 1)
     if first_miss is not None and quiet:  # the first miss, which a refusal quotes, names a limit in the way
         i, seed = first_miss
         messages[i] = robot.ik(targets[i], seed).message

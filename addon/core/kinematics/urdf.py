@@ -391,7 +391,7 @@ JOINT_VECTORS = (("origin", "xyz", "metres"), ("origin", "rpy", "radians"), ("ax
 def _check_joint_numbers(root, path: Path) -> None:
     """Every joint's origin xyz and rpy and its axis as written: three finite numbers each,
     so that a NaN is named where the user wrote it, not in the DH table derived from it."""
-    for joint in root.iter("joint"):
+    for joint in root.findall("joint"):
         name = joint.get("name", "?")
         for tag in ("parent", "child"):  # (yourdfpy's own words for these were an AttributeError's)
             element = joint.find(tag)
@@ -430,12 +430,13 @@ def _check_names(root, path: Path) -> None:
         raise ConfigError(f"{path}: not a URDF file: its root element is <{root.tag}>, where a URDF's is <robot>")
     if not (root.get("name") or "").strip():
         raise ConfigError(f"{path}: the <robot> has no name; a URDF's robot needs name=\"...\"")
+    # (The robot's own links and joints: a <transmission> names joints too, without a type.)
     for kind in ("link", "joint"):
-        for i, element in enumerate(root.iter(kind)):
+        for i, element in enumerate(root.findall(kind)):
             if not (element.get("name") or "").strip():
                 raise ConfigError(f"{path}: <{kind}> number {i + 1} has no name; every link and joint needs "
                                   f"name=\"...\"")
-    for joint in root.iter("joint"):
+    for joint in root.findall("joint"):
         if not joint.get("type"):
             raise ConfigError(f"{path}: joint {joint.get('name')!r} has no type; give type=\"revolute\", "
                               f"\"continuous\", \"prismatic\" or \"fixed\"")
@@ -445,7 +446,7 @@ def _check_geometry_elements(root, path: Path) -> None:
     """Every visual and collision holds a <geometry> with exactly one shape in it, with the
     attributes that shape needs (a TypeError's or KeyError's words from yourdfpy otherwise, or
     the second shape dropped without a word)."""
-    for link in root.iter("link"):
+    for link in root.findall("link"):
         where = f"{path}: link {link.get('name', '?')!r}"
         for kind in ("visual", "collision"):
             for item in link.findall(kind):
