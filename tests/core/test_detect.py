@@ -322,3 +322,22 @@ def test_a_line_cut_on_one_side_at_any_depth_and_phase_states_a_sigma_that_cover
     assert at.sum() >= 0.4 * cut.sum()  # the shallowest cuts leave a neighbour dark: coded EDGE
     err = np.abs(line.row - centre)
     assert np.all(err[at] <= 2.0 * line.sigma_px[at]), (err[at], line.sigma_px[at])
+
+
+@pytest.mark.parametrize("fwhm, accepted", [(10.0, True), (17.0, True), (24.0, True), (30.0, False)])
+def test_lines_up_to_the_width_limit_are_measured_and_wider_ones_refused(fwhm, accepted):
+    """max_width_px (25) is the limit: the half-level search looked only 8 rows from the peak,
+    so a line over 16 px wide read infinitely wide and every column was refused as too wide
+    (a probe with a 17-23 px line measured nothing, filed under 'no detection')."""
+    from addon.core.optics.detect import DetectParams, LineCode, detect_line
+
+    rows = np.arange(200.0)[:, None]
+    rgb = np.zeros((200, 16, 3), np.float32)
+    rgb[..., 0] = 0.8 * np.exp(-0.5 * ((rows - 100.3) / (fwhm / 2.355)) ** 2)
+    found = detect_line(rgb, "gauss", DetectParams(smoothing_px=0.0))
+    if accepted:
+        assert (found.code == LineCode.OK).all()
+        np.testing.assert_allclose(found.width, fwhm, rtol=0.01)
+        np.testing.assert_allclose(found.row, 100.3, atol=0.02)
+    else:
+        assert (found.code == LineCode.TOO_WIDE).all()

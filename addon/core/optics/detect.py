@@ -47,6 +47,7 @@ fit make up the centre's uncertainty ``sigma_px``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -249,7 +250,7 @@ def detect_line(image, method: str = "gauss", params: DetectParams | None = None
     code[(code == 0) & (peak < p.min_peak)] = LineCode.NO_LINE
     code[(code == 0) & ((r == 0) | (r == H - 1))] = LineCode.EDGE
 
-    width = _fwhm(C, r, peak, p.window_px)
+    width = _fwhm(C, r, peak, _width_reach(p, H))
     code[(code == 0) & ~(width <= p.max_width_px)] = LineCode.TOO_WIDE
     code[(code == 0) & _wider_than_the_line(width, code, p)] = LineCode.TOO_WIDE
     shape = width / 2.355 if p.flat_top else _profile_sigma(S, r, cols)
@@ -295,6 +296,14 @@ def _window(C: np.ndarray, r: np.ndarray, half: int) -> np.ndarray:
     H, W = C.shape
     rows = _clamp(r[None, :] + np.arange(-half, half + 1)[:, None], 0, H - 1)
     return C[rows, np.arange(W)[None, :]]
+
+
+def _width_reach(p: DetectParams, rows: int) -> int:
+    """Rows either side of the peak that the width's half-level search looks at: the fitting
+    window, or as far as a line of max_width_px reaches (a line 17-25 px wide had no half-level
+    crossing within the 8-row window, read infinitely wide, and was rejected as too wide)."""
+    reach = p.max_width_px / 2.0 + 1.0 if math.isfinite(p.max_width_px) else rows
+    return int(min(rows, max(p.window_px, math.ceil(reach))))
 
 
 def _fwhm(C, r, peak, half) -> np.ndarray:
@@ -562,7 +571,7 @@ def _smoothing(C: np.ndarray, p: DetectParams) -> float:
     lit = peak >= p.min_peak
     if not lit.any():
         return 0.8
-    w = _fwhm(C[:, lit], r[lit], peak[lit], p.window_px)
+    w = _fwhm(C[:, lit], r[lit], peak[lit], _width_reach(p, C.shape[0]))
     w = w[np.isfinite(w)]
     if not w.size:
         return 0.8
