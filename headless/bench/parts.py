@@ -142,6 +142,15 @@ def run(args: argparse.Namespace) -> int:
     from headless.bench import check_readme_whole
 
     check_readme_whole(args, only="")
+    section = "parts" if args.probe == "default" else f"parts-{args.probe}"
+    if args.readme:  # the page before the scans (a probe given by its file has no section: refused at the end)
+        from headless.bench import readme
+
+        try:
+            readme.page_with(section)
+        except Exception as exc:
+            raise InputError(f"--readme --probe {args.probe}: {exc} (the docs have one for the default and the hires "
+                             f"probe, given by name)") from None
     catalogue = all_parts()
     wanted = [w.strip().lower() for w in args.only.split(",") if w.strip()]
     if args.only and not wanted:  # "," named none: not every part without a word
@@ -161,14 +170,13 @@ def run(args: argparse.Namespace) -> int:
     body = (f"Real parts ({command}; each part's own path: a table turn from above, two at 45° from the side, "
             f"a sweep; {args.probe} probe, Cycles on the CPU). Floor: the RMS a perfect detector of this "
             f"probe gets on the same points (the line's width alone); > 0.2 mm: points farther than that "
-            f"from the part, in brackets those the floor does not put there too; within 2σ: points within "
-            f"twice their stated σ; ceiling: the coverage of the measurable surface by every point whose "
+            f"from the part, in brackets those whose floor (a perfect detector's point) lies within 0.1 mm "
+            f"of the part; within 2σ: points within twice their stated σ; ceiling: the coverage of the measurable surface by every point whose "
             f"floor lies within 50 µm (the σ limit) of the part, what the line's width leaves coverable "
             f"(addon.core.geometry.line_floor.coverage_ceiling).\n\n" + table(rows))
     print("\n" + body)
     if args.readme:
         from headless.bench import readme
 
-        name = "parts" if args.probe == "default" else f"parts-{args.probe}"
-        readme.update_with_picture(name, body, lambda png: picture(rows, png), "Where the error sits on each part")
+        readme.update_with_picture(section, body, lambda png: picture(rows, png), "Where the error sits on each part")
     return 0

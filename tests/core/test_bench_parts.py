@@ -26,3 +26,18 @@ def test_the_hole_and_the_pocket_are_cut():
     pocket = 16.0 * 24.0 * 13.0  # the pocket box (z 2..16 about the block's centre) is 13 mm deep
     # A 96-sided hole is slightly smaller than the circle: allow its polygon's deficit.
     assert block.volume == pytest.approx(solid - hole - pocket, rel=2e-3)
+
+
+def test_parts_readme_with_a_probe_file_is_refused_before_the_scans():
+    """A probe given by its file has no docs section: the run scanned every part (minutes with
+    the 1280-row probe) and only then failed to find one."""
+    import argparse
+
+    import pytest
+
+    from addon.core.errors import InputError
+    from headless.bench import parts
+
+    args = argparse.Namespace(readme=True, probe="rigs/probes/hires.toml", only="", frames=60)
+    with pytest.raises(InputError, match="no page .* has the section"):
+        parts.run(args)

@@ -77,3 +77,23 @@ def test_coverage_ceiling_is_whole_on_a_plate_and_lower_across_ridges():
     tight = coverage_ceiling(probe, poses, SurfaceCaster([ridges]), ridges, 65.0, 0.05, 0.3)
     loose = coverage_ceiling(probe, poses, SurfaceCaster([ridges]), ridges, 65.0, 0.5, 0.3)
     assert 0.1 < tight < 0.9 and loose > tight + 0.05, (tight, loose)
+
+
+def test_a_line_wide_on_the_sensor_still_has_a_floor():
+    """The 1280-row probe with a 2.4 mm line images the strip so wide that the 41 rays lay more
+    than a pixel apart on the sensor: no pixel lay between two of them, and every floor was NaN
+    (a bench printed '+nan' and carried on). Those points are cast again, denser: on a flat
+    plate the floor lies on the plate (perspective moves it a micrometre or so)."""
+    from dataclasses import replace
+
+    plate = trimesh.creation.box(extents=[200.0, 200.0, 10.0])  # its top at z = 5
+    surfaces = SurfaceCaster([plate])
+    ys = np.linspace(-20.0, 20.0, 5)
+    points = np.column_stack([np.zeros(5), ys, np.full(5, 5.0)])
+    for width in (2.4, 4.8):
+        probe = replace(load_probe("hires"), line_width_mm=width)
+        for height in (165.0, 250.0):
+            pose = make_pose(probe_orientation(DOWN, (0.0, 1.0, 0.0)), [0.0, 0.0, height])[None]
+            floor = line_width_floor(probe, pose, points, np.zeros(5, int), np.full(5, 1), surfaces)
+            assert np.isfinite(floor).all(), (width, height)
+            assert np.abs(floor[:, 2] - 5.0).max() < 0.002, (width, height, floor[:, 2])

@@ -608,24 +608,29 @@ def test_a_fixture_made_in_code_keeps_the_clearance_whatever_its_name():
         scanner.move_to(((0.0, 60.0, 20.0 + HEAD_REACH_MM + 1.0), (0.0, 180.0, 0.0)))
 
 
-@pytest.mark.parametrize("gap_mm", [-10.0, 5.0])
-def test_a_world_fixture_through_the_tables_disc_is_refused_and_one_beside_it_is_not(gap_mm):
-    """A post standing in the world beside the table, its inner face gap_mm outside the disc's
-    rim (150 mm), reaching from below the disc to above its top: through the rim it would stop
-    the table turning (the disc was checked against the robot's moving bodies only); 5 mm clear
-    of it, a table turn is allowed."""
-    from addon.core.kinematics.turntable import TABLE_RADIUS_MM
+@pytest.mark.parametrize("case", ["through the rim", "beside", "pedestal under it"])
+def test_a_world_fixture_through_the_tables_disc_is_refused_and_one_beside_or_under_it_is_not(case):
+    """A post standing in the world, reaching from below the disc to above its top: through the
+    rim (10 mm in) it would stop the table turning, and was checked against the robot's moving
+    bodies only; 5 mm beside the rim, or a pedestal touching the disc's underside (a user
+    modelling the table's stand), the table turns."""
+    from addon.core.kinematics.turntable import TABLE_RADIUS_MM, TABLE_THICKNESS_MM
     from addon.core.safety import Fixture
 
     cfg = load_scan_config("demo")
-    post = trimesh.creation.box([20.0, 20.0, 100.0])
-    post.apply_translation([TABLE_RADIUS_MM + gap_mm + 10.0, 0.0, 0.0])  # z -50..50 in the table frame
-    post.apply_transform(cfg.table.table2base(0.0))  # a world fixture is given in the robot base's frame
-    scanner = Scanner(config=replace(cfg, fixtures=(Fixture("post", post, "world"),)))
-    if gap_mm < 0:
-        with pytest.raises(CollisionError, match="post touches the table"):
-            scanner.turn_table_to(30.0)
-        assert scanner.table_deg == pytest.approx(0.0)
+    if case == "pedestal under it":
+        post = trimesh.creation.cylinder(radius=40.0, height=300.0, sections=48)
+        post.apply_translation([0.0, 0.0, -TABLE_THICKNESS_MM - 150.0])  # its top on the disc's underside
     else:
-        scanner.turn_table_to(30.0)
-        assert scanner.table_deg == pytest.approx(30.0)
+        gap_mm = -10.0 if case == "through the rim" else 5.0
+        post = trimesh.creation.box([20.0, 20.0, 100.0])
+        post.apply_translation([TABLE_RADIUS_MM + gap_mm + 10.0, 0.0, 0.0])  # z -50..50 in the table frame
+    post.apply_transform(cfg.table.table2base(0.0))  # a world fixture is given in the robot base's frame
+    fixtures = (Fixture("fixture post", post, "world"),)
+    if case == "through the rim":
+        with pytest.raises(CollisionError, match=r"fixture post reaches (9\.9|10\.0) mm into the rotary table's disc"):
+            Scanner(config=replace(cfg, fixtures=fixtures)).turn_table_to(30.0)
+        return
+    scanner = Scanner(config=replace(cfg, fixtures=fixtures))
+    scanner.turn_table_to(30.0)
+    assert scanner.table_deg == pytest.approx(30.0)

@@ -37,7 +37,8 @@ from ..optics.probe import Probe
 from .footprint import SurfaceCaster, measurable_hits
 from .metrics import coverage_of_measurable, distances
 
-FLOOR_SAMPLES = 41         # rays across the beam
+FLOOR_SAMPLES = 41         # rays across the beam (more where a strip images wider: see line_width_floor)
+FLOOR_MAX_SAMPLES = 801    # at most
 FLOOR_SPAN_SIGMAS = 4.0    # the rays cover ±this many beam σ
 OCCLUSION_EPS_MM = 0.01
 
@@ -107,7 +108,9 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
     """Floor points (n, 3), table frame: where a perfect detector of this probe would put
     each measured point (``points`` (n, 3) table frame, ``frame`` (n,) index into
     ``probe2table`` (m, 4, 4), ``camera`` (n,) 1, 2 or 3 = both). NaN where the camera
-    sees none of the strip."""
+    sees none of the strip. Where the rays image more than a pixel apart (a line wide on the
+    sensor: the hires probe with a 1.8 mm line), so that no pixel lies between two of them on
+    one piece of surface, the point is cast again with rays as close as a quarter pixel."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     n = len(points)
     T = np.asarray(probe2table, dtype=np.float64)[np.asarray(frame, dtype=int)]
@@ -138,6 +141,7 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
     lit = np.nan_to_num(lit)
 
     floors = []
+    spread = np.zeros(n)  # the widest step on the sensor between two lit neighbouring rays, per point
     for cam in (0, 1):
         centre_local = probe.cam2probe(cam)[:3, 3]
         centre = t + np.einsum("nij,j->ni", R, centre_local)
@@ -155,6 +159,8 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
         uv = probe.project(hit_local, cam).reshape(n, samples, 2)
         w = np.where(np.isfinite(uv).all(axis=2), w, 0.0)
         v, u = np.nan_to_num(uv[:, :, 1]), np.nan_to_num(uv[:, :, 0])
+        steps = np.where((w[:, :-1] > 0) & (w[:, 1:] > 0), np.abs(np.diff(v, axis=1)), 0.0)
+        spread = np.maximum(spread, steps.max(axis=1, initial=0.0))
         row = _fitted_rows(v, w)
         best = np.argmax(w, axis=1)
         col = u[np.arange(n), best]
@@ -169,7 +175,15 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
     chosen = np.where((cam == 1)[:, None], floors[0], floors[1])
     both = 0.5 * (floors[0] + floors[1])
     chosen = np.where((cam == 3)[:, None], both, chosen)
-    return np.einsum("nij,nj->ni", R, chosen) + t
+    out = np.einsum("nij,nj->ni", R, chosen) + t
+    # No floor because the rays lie a pixel or more apart on the sensor (none joined): cast
+    # those points again, denser.
+    again = ~np.isfinite(out).all(axis=1) & (spread >= 1.0)
+    if again.any() and samples < FLOOR_MAX_SAMPLES:
+        more = int(min(FLOOR_MAX_SAMPLES, np.ceil(samples * float(spread[again].max()) / 0.25)) // 2 * 2 + 1)
+        out[again] = line_width_floor(probe, probe2table, points[again], np.asarray(frame)[again],
+                                      cam[again], surfaces, samples=max(more, samples + 2))
+    return out
 
 
 def coverage_ceiling(probe: Probe, probe2table: np.ndarray, surfaces: SurfaceCaster, mesh,

@@ -15,10 +15,11 @@ Bodies and what carries them:
 Pairs checked, with the clearance the config asks for: every moving robot body (links
 and probe) against the table, the workpiece and the fixtures; what the table carries
 (the workpiece, table fixtures) against what stands still (the robot's base, world
-fixtures), as a table turn swings it round; and world fixtures against the table's
-disc. Robot bodies against each other (links two or more apart, the probe against
-links 1–4 and the base) must not touch. The base is not checked against the disc (where
-it stands is the cell's layout). Pairs of robot bodies that touch in the rig's rest pose
+fixtures), as a table turn swings it round. Robot bodies against each other (links two
+or more apart, the probe against links 1–4 and the base) must not touch. The disc turns
+into itself, so neither the base nor a world fixture comes nearer it as it turns: a world
+fixture reaching into it is refused once, when the model is made (clearance.py), and the
+base is not checked against it (where it stands is the cell's layout). Pairs of robot bodies that touch in the rig's rest pose
 (q = 0) are part of its design and are not checked.
 
 A mesh in FCL is a surface: a body wholly inside a closed part would be reported

@@ -218,6 +218,36 @@ def _hull_points(body: Body) -> np.ndarray:
     return np.vstack(pts)
 
 
+DISC_OVERLAP_MM = 0.05  # a world fixture may touch the table's disc (a pedestal under it), not reach into it
+
+
+def _refuse_world_fixtures_in_the_disc(fixtures, table: Turntable) -> None:
+    """A CollisionError for a world fixture that reaches into the table's disc by more than
+    DISC_OVERLAP_MM: the disc turns into itself, so the distance never changes as it turns and
+    is a matter of the cell's layout, checked once (a post through the table top, a clamp on
+    its rim that does not turn with it). Touching it (a pedestal under it) is allowed. Judged
+    on the fixture's vertices and points spread over its surface (a rod through the disc has
+    no vertex in it)."""
+    from ..errors import CollisionError
+    from ..kinematics.turntable import TABLE_RADIUS_MM, TABLE_THICKNESS_MM
+    from ..kinematics.transforms import rigid_inverse
+
+    to_table = rigid_inverse(table.table2base(0.0))
+    for name, mesh, on in fixtures:
+        if on == "table" or not len(mesh.faces):
+            continue
+        spread, _ = trimesh.sample.sample_surface(mesh, 4000, seed=0)
+        P = np.vstack([mesh.vertices, spread]) @ to_table[:3, :3].T + to_table[:3, 3]
+        inside = np.minimum.reduce([TABLE_RADIUS_MM - np.hypot(P[:, 0], P[:, 1]), -P[:, 2],
+                                    P[:, 2] + TABLE_THICKNESS_MM])
+        depth = float(inside.max(initial=0.0))
+        if depth > DISC_OVERLAP_MM:
+            raise CollisionError(f"{name} reaches {depth:.1f} mm into the rotary table's disc ({TABLE_RADIUS_MM:g} mm "
+                                 f"radius, {TABLE_THICKNESS_MM:g} mm thick, its top at z = 0 in the table frame), "
+                                 f"which turns: a fixture in the world may touch the table (a pedestal under it), not "
+                                 f"stand in it; move it out, or put it on the table (on = \"table\")")
+
+
 class CollisionModel:
     """The cell's bodies and the pairs to check; see the module and :mod:`.bodies`."""
 
@@ -230,6 +260,7 @@ class CollisionModel:
         self.robot, self.probe, self.table = robot, probe, table
         self.min_clearance_mm = float(min_clearance_mm)
         self.bodies = robot_bodies(robot, probe) + environment_bodies(workpiece_mesh, fixtures)
+        _refuse_world_fixtures_in_the_disc(fixtures, table)
         for b in self.bodies:
             b.hull = _convex(self.fcl, _hull_points(b))
         self.index = {b.name: i for i, b in enumerate(self.bodies)}
@@ -262,10 +293,6 @@ class CollisionModel:
         still = [i for i, b in enumerate(self.bodies) if b.name.startswith(ROBOT_BASE) or b.carrier == "world"]
         carried = [j for j in env if self.bodies[j].carrier == "table" and self.bodies[j].name != "table"]
         pairs += [(i, j, limit) for i in still for j in carried]
-        # The table's disc turns into itself, but a world fixture must keep out of it (a post through
-        # the table top, a clamp on the rim that does not turn with it).
-        disc = [j for j in env if self.bodies[j].name == "table"]
-        pairs += [(i, j, limit) for i in still if self.bodies[i].carrier == "world" for j in disc]
         q0 = np.zeros((1, 6))
         carriers = carrier_poses(self.robot, self.table, q0, np.zeros(1))
         def place(name: str) -> int:  # in the chain: the base 0, links by their number, the probe 7
