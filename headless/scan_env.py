@@ -63,6 +63,7 @@ import os
 
 import gymnasium as gym
 import numpy as np
+import trimesh
 from gymnasium import spaces
 
 from addon.adaptive import NextBestView, part_box
@@ -137,18 +138,25 @@ class ScanPlanningEnv(gym.Env):
         self.planner = None
 
     def _smallest_at_any_turn(self) -> int:
-        """The smallest view's profiles for the box that holds the part at every turn (its box's
-        corners' circle, squared): no turned part's box is larger. Worked out once."""
+        """The smallest view's profiles at the part's worst angle: its box (the turned part's
+        bounds, grown as part_box grows them) is worked out every degree, and the views laid out
+        for the angles where it reaches farthest along x, along y and from the axis. Worked out
+        once."""
         if "_any_turn" not in self.__dict__:
-            lo, hi = part_box(self.config)
-            if self.config.adaptive.cylinder:
-                wide_lo, wide_hi = lo, hi
-            else:
-                r = float(np.hypot(max(abs(lo[0]), abs(hi[0])), max(abs(lo[1]), abs(hi[1]))))
-                wide_lo, wide_hi = np.array([-r, -r, lo[2]]), np.array([r, r, hi[2]])
             settings = self.config.adaptive
-            wide = NextBestView(self.scanner, wide_lo, wide_hi, min_gain=settings.min_gain, voxel_mm=settings.voxel_mm)
-            self.__dict__["_any_turn"] = wide.smallest_view()
+            if settings.cylinder:  # the same box at every angle
+                angles = [0.0]
+            elif settings.box is not None:
+                corners = trimesh.bounds.corners(np.asarray(settings.box, dtype=np.float64))
+                angles = _widest_turns(corners[:, :2])
+            else:
+                angles = _widest_turns(np.asarray(self.config.workpiece.mesh.vertices)[:, :2])
+            worst = 0
+            for deg in angles:
+                lo, hi = part_box(turned_part(self.config, deg))
+                view = NextBestView(self.scanner, lo, hi, min_gain=settings.min_gain, voxel_mm=settings.voxel_mm)
+                worst = max(worst, view.smallest_view())
+            self.__dict__["_any_turn"] = worst
         return self.__dict__["_any_turn"]
 
     # -- the episode ------------------------------------------------------------------------
@@ -173,7 +181,7 @@ class ScanPlanningEnv(gym.Env):
             smallest = max(smallest, self._smallest_at_any_turn())
         if smallest > self.max_profiles:
             self.__dict__.pop("_by_key", None)  # no step, mask or reference action until a reset that works
-            at_any = " at every angle turn_part may put the part down at" if self.turn_part else ""
+            at_any = " at the worst angle turn_part may put the part down at" if self.turn_part else ""
             raise InputError(f"max_profiles {self.max_profiles} is below the smallest view's {smallest} profiles on "
                              f"{self.config.name}{at_any}: every action would be refused (give at least {smallest})")
         self._by_key = {c.key: c for c in self.planner.pool}
@@ -359,6 +367,18 @@ def turned_part(config, deg: float):
     fixtures = tuple(replace(f, mesh=f.mesh.copy().apply_transform(R)) if f.on == "table" else f
                      for f in config.fixtures)
     return replace(config, workpiece=turned_on_table(config.workpiece, deg), adaptive=adaptive, fixtures=fixtures)
+
+
+def _widest_turns(xy: np.ndarray) -> list[float]:
+    """The angles (degrees, a whole number each) at which points ``xy`` turned about the
+    table's axis reach farthest along x, along y, and in their bounds' corner from the axis."""
+    a = np.radians(np.arange(180.0))
+    c, s = np.cos(a)[:, None], np.sin(a)[:, None]
+    x, y = c * xy[:, 0] - s * xy[:, 1], s * xy[:, 0] + c * xy[:, 1]
+    wide_x = np.maximum(np.abs(x.min(axis=1)), np.abs(x.max(axis=1)))
+    wide_y = np.maximum(np.abs(y.min(axis=1)), np.abs(y.max(axis=1)))
+    picks = {int(np.argmax(wide_x)), int(np.argmax(wide_y)), int(np.argmax(np.hypot(wide_x, wide_y)))}
+    return [float(k) for k in sorted(picks)]
 
 
 def pooled(state: np.ndarray, cells: int) -> np.ndarray:
