@@ -10,6 +10,7 @@ scan starts, its output folder is checked (``check_output_folder``) and claimed
 from __future__ import annotations
 
 import os
+import secrets
 import shutil
 import socket
 import tempfile
@@ -22,6 +23,7 @@ from .errors import FolderBusy, InputError
 LOCK_NAME = ".scanner.lock"
 LOCK_HEARTBEAT_S = 60   # a running scan touches its lock this often
 LOCK_STALE_S = 600      # a lock from another host not touched for this long is a dead scan's
+LOCK_UNREADABLE_S = 2.0  # a lock naming no process is waited on this long (being written) before taken over
 MAX_PID = 2 ** 22       # the largest process id Linux gives (pid_max's ceiling)
 
 
@@ -203,33 +205,79 @@ class OutputLock:
 
     def acquire(self) -> "OutputLock":
         host = socket.gethostname()
+        mine = f"{os.getpid()} {host}\n"
         self.made_folder = not self.folder.exists()
         self.folder.mkdir(parents=True, exist_ok=True)
-        for _ in range(3):
-            try:
-                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:
-                owner, owner_host = _lock_owner(self.path)
-                if owner and owner_host not in (None, host):
-                    age = _age_s(self.path)
-                    if age < LOCK_STALE_S:
-                        self.release()
-                        raise FolderBusy(f"output folder {self.folder}: a scan on host {owner_host} (process "
-                                         f"{owner}) holds it, its lock touched {age:.0f} s ago; wait for it to end "
-                                         f"or choose another folder (a lock not touched for {LOCK_STALE_S} s is "
-                                         f"taken over)") from None
-                elif owner and owner != os.getpid() and pid_alive(owner):
+        for _ in range(200):
+            # The lock appears whole or not at all: written beside it, then linked to its name
+            # (created empty and written after, a scan arriving in between read an empty lock as
+            # a dead scan's, took it over, and two scans held the folder).
+            if self._link_new_lock(mine):
+                self.held = True
+                self._start_heartbeat()
+                return self
+            owner, owner_host = _lock_owner(self.path)
+            if not owner:
+                if _age_s(self.path) < LOCK_UNREADABLE_S:  # (written by a version that wrote it after creating it)
+                    time.sleep(0.02)
+                    continue
+            elif owner_host not in (None, host):
+                age = _age_s(self.path)
+                if age < LOCK_STALE_S:
                     self.release()
-                    raise FolderBusy(f"output folder {self.folder}: a running scan (process {owner} on this host, "
-                                     f"{host}) is writing there; wait for it to end or choose another folder") from None
-                self.path.unlink(missing_ok=True)  # left by a process that no longer exists (or ran silent)
-                continue
-            with os.fdopen(fd, "w") as fh:
-                fh.write(f"{os.getpid()} {host}\n")
-            self.held = True
-            self._start_heartbeat()
-            return self
+                    raise FolderBusy(f"output folder {self.folder}: a scan on host {owner_host} (process "
+                                     f"{owner}) holds it, its lock touched {age:.0f} s ago; wait for it to end "
+                                     f"or choose another folder (a lock not touched for {LOCK_STALE_S} s is "
+                                     f"taken over)") from None
+            elif owner != os.getpid() and pid_alive(owner):
+                self.release()
+                raise FolderBusy(f"output folder {self.folder}: a running scan (process {owner} on this host, "
+                                 f"{host}) is writing there; wait for it to end or choose another folder (or, "
+                                 f"if no scan runs there, delete {self.path})") from None
+            self._take_over_stale(owner, owner_host)
         raise FolderBusy(f"output folder {self.folder}: could not claim it ({self.path} keeps coming back)")
+
+    def _link_new_lock(self, content: str) -> bool:
+        """Make the lock file with ``content`` in one step; False where one is there already."""
+        temp = self.folder / f"{LOCK_NAME}.{os.getpid()}.{secrets.token_hex(4)}"
+        try:
+            temp.write_text(content)
+            try:
+                os.link(temp, self.path)
+            except FileExistsError:
+                return False
+            except OSError:  # a file system without hard links (FAT): created, then written
+                try:
+                    fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+                except FileExistsError:
+                    return False
+                with os.fdopen(fd, "w") as fh:
+                    fh.write(content)
+            return True
+        finally:
+            temp.unlink(missing_ok=True)
+
+    def _take_over_stale(self, owner: int, owner_host: str | None) -> None:
+        """Move a dead scan's lock out of the way, in one step that only one of several scans
+        taking it over can make; a lock that turns out to be another's (made since it was read)
+        is put back. The dead scan's staging folders go with it."""
+        aside = self.folder / f"{LOCK_NAME}.stale.{os.getpid()}.{secrets.token_hex(4)}"
+        try:
+            os.rename(self.path, aside)
+        except FileNotFoundError:
+            return  # another scan took it over first
+        try:
+            if _lock_owner(aside) != (owner, owner_host):  # not the lock that was judged dead
+                try:
+                    os.link(aside, self.path)
+                except FileExistsError:
+                    pass
+                return
+            if owner:
+                for staging in self.folder.glob(f"{STAGING_PREFIX}{owner}-*"):
+                    shutil.rmtree(staging, ignore_errors=True)
+        finally:
+            aside.unlink(missing_ok=True)
 
     def _start_heartbeat(self) -> None:
         """Touch the lock every LOCK_HEARTBEAT_S from a daemon thread, so that other hosts can
@@ -255,7 +303,8 @@ class OutputLock:
             # process before write_set can clear its staging folder: the lock's owner clears it.
             for staging in self.folder.glob(f"{STAGING_PREFIX}{os.getpid()}-*"):
                 shutil.rmtree(staging, ignore_errors=True)
-            self.path.unlink(missing_ok=True)
+            if _lock_owner(self.path) == (os.getpid(), socket.gethostname()):  # still ours (not taken over)
+                self.path.unlink(missing_ok=True)
             self.held = False
         if self.made_folder:
             try:

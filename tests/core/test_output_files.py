@@ -85,6 +85,58 @@ def test_lock_refuses_a_live_owner_and_takes_over_a_dead_ones(tmp_path):
     assert out.is_dir() and not (out / ".scanner.lock").exists()  # the folder was there before: kept
 
 
+def _claim(folder, barrier, results):
+    barrier.wait()
+    try:
+        lock = OutputLock(folder).acquire()
+    except FolderBusy:
+        results.put("busy")
+        return
+    except Exception as exc:  # said, not lost (the test would wait for it)
+        results.put(f"{type(exc).__name__}: {exc}")
+        return
+    import time
+
+    start = time.monotonic()
+    time.sleep(0.3)
+    try:
+        still = (Path(folder) / ".scanner.lock").read_text().split()[0] == str(os.getpid())
+    except OSError:
+        still = False
+    end = time.monotonic()
+    lock.release()
+    results.put(("held" if still else "held, lock lost", start, end))
+
+
+@pytest.mark.parametrize("stale", [False, True])
+def test_scans_started_together_never_both_hold_a_folder(tmp_path, stale):
+    """Six processes claiming one folder at once (on an empty folder, and over a dead scan's
+    lock): the lock was created empty and written after, and a scan arriving in between took
+    the empty lock for a dead one's, so two held the folder in 11 of 30 such trials (15 of 20
+    over a stale lock). One holds it; the others are told it is busy."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("fork")
+    for trial in range(20):  # (a race: before, two held it in about one trial of three)
+        folder = tmp_path / f"t{trial}"
+        folder.mkdir()
+        if stale:
+            (folder / ".scanner.lock").write_text(f"4000000 {socket.gethostname()}\n")  # no such process
+        barrier, results = ctx.Barrier(6), ctx.Queue()
+        workers = [ctx.Process(target=_claim, args=(folder, barrier, results)) for _ in range(6)]
+        for w in workers:
+            w.start()
+        for w in workers:
+            w.join()
+        said = [results.get(timeout=60) for _ in workers]
+        assert all(r == "busy" or isinstance(r, tuple) for r in said), said
+        held = sorted((r for r in said if r != "busy"), key=lambda r: r[1])
+        assert held and all(r[0] == "held" for r in held), said  # each holder kept its own lock
+        for a, b in zip(held, held[1:]):  # one after another (a late starter may claim it once freed)
+            assert b[1] >= a[2], said
+        assert not (folder / ".scanner.lock").exists()
+
+
 def test_a_lock_from_another_host_is_never_taken_over_and_says_whose_it_is(tmp_path):
     """On a disk shared by render nodes a process id from another host says nothing here:
     such a lock is refused (naming the host), not taken over as a dead process's."""
