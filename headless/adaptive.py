@@ -65,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--target-coverage: {exc}") from None
         settings = replace(settings, target_coverage=args.target_coverage)
     out = args.out or default_out(given, args.engine, "adaptive")
-    preflight.check_scan(config, out, names=OUTPUT_FILES.values(), force=args.force)
+    # (the budget's profiles, not the config's [[path]], which the planner ignores)
+    preflight.check_scan(config, out, names=OUTPUT_FILES.values(), force=args.force, profiles=settings.max_profiles)
     lo, hi = part_box(config)
     print(f"adaptive: {config.name}: {config.robot.name}, {config.probe.name}; the planner is told the box "
           f"{lo.round(1).tolist()} .. {hi.round(1).tolist()} mm, budget {settings.max_profiles} profiles"

@@ -207,11 +207,13 @@ def _check_speaks_dask(address: str, timeout_s: float) -> None:
 
 
 def check_scan(config, out: str | Path, *, names=(), farm: bool = False, scheduler: str | None = None,
-               force: bool = False, local_workers: int = 1, frames: int | None = None) -> None:
+               force: bool = False, local_workers: int = 1, frames: int | None = None,
+               profiles: int | None = None) -> None:
     """Every check above for a scan of ``config`` into ``out`` (``local_workers``: the processes a
     local farm renders in side by side; ``frames``: the frames this machine renders, where not
     the whole path: a farm task's shard, none for a merge or where a scheduler's workers
-    render)."""
+    render; ``profiles``: the frames rendered in place of the path's, an adaptive scan's
+    budget, which ignores the config's [[path]])."""
     check_output_folder(out, names, "--out", config.input_files())
     if farm:
         shards = Path(out) / "shards"
@@ -222,6 +224,8 @@ def check_scan(config, out: str | Path, *, names=(), farm: bool = False, schedul
     if scheduler is not None:
         check_scheduler_answers(scheduler)
     budget = render_budget(config)
+    if profiles is not None:
+        budget = replace(budget, frames=int(profiles))
     if frames is not None:
         if frames < 1:
             return  # nothing rendered here

@@ -717,3 +717,26 @@ def test_a_flat_part_gets_a_box_the_planner_takes_and_a_bad_box_is_said_in_plain
     with pytest.raises(InputError) as info:
         checked_box(np.array([-1.0, -1.0, 0.0]), np.array([1.0, 1.0, 0.0]))
     assert "array(" not in str(info.value) and "[-1.0, -1.0, 0.0] .. [1.0, 1.0, 0.0]" in str(info.value)
+
+
+def test_the_time_check_counts_the_budgets_profiles_not_the_configs_path(tmp_path):
+    """adaptive ignores the config's [[path]]: its time check counted that path's frames, so a
+    hires budget of 100 000 profiles (days) over a one-frame path went ahead, and 10 profiles
+    over a 20 000-frame path were refused as days of work."""
+    from addon.core.config.rigs import load_probe
+    from headless import preflight
+
+    import subprocess
+    import sys
+
+    hires = replace(load_scan_config("demo"), probe=load_probe("hires"))
+    preflight.check_scan(hires, tmp_path / "a")  # its 180-frame path: minutes
+    with pytest.raises(InputError, match="100000 frames at 1024x1280.* would take up to"):
+        preflight.check_scan(hires, tmp_path / "a", profiles=100_000)
+    repo = Path(__file__).resolve().parents[2]
+    config = tmp_path / "hires.toml"
+    config.write_text((repo / "rigs" / "scenes" / "demo.toml").read_text().replace('rig = "default"', 'rig = "hires"'))
+    done = subprocess.run([sys.executable, "-m", "headless", "adaptive", str(config), "--max-profiles", "100000",
+                           "--out", str(tmp_path / "out")], cwd=repo, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and "would take up to" in done.stderr, done.stderr[-800:]
+    assert not (tmp_path / "out").exists()
