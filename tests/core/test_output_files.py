@@ -219,3 +219,22 @@ def test_a_folder_that_cannot_be_written_is_refused_with_the_reason(tmp_path, mo
     with pytest.raises(InputError, match=r"locked/out cannot be written \(its nearest existing parent .*locked is not "
                                          r"writable\): it is on a read-only file system"):
         files.check_output_folder(locked / "out")
+
+
+def test_an_ascii_ply_cloud_is_read_with_its_attributes(tmp_path):
+    """A PLY written as text (other tools' usual form): trimesh gives its columns as a dict, not
+    one array, and load_ply failed with an AttributeError's traceback on every such file."""
+    from addon.core.geometry.cloud import load_ply
+
+    path = tmp_path / "text.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+                    "property int frame\nproperty uchar camera\nproperty float quality\nend_header\n"
+                    "1 2 3 7 1 0.5\n4 5 6 8 3 0.25\n")
+    cloud = load_ply(path)
+    np.testing.assert_allclose(cloud.points, [[1, 2, 3], [4, 5, 6]])
+    assert cloud.frame.tolist() == [7, 8] and cloud.camera.tolist() == [1, 3]
+    np.testing.assert_allclose(cloud.quality, [0.5, 0.25])
+    plain = tmp_path / "plain.ply"
+    plain.write_text("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                     "property float z\nend_header\n1 2 3\n")
+    assert load_ply(plain).frame.tolist() == [0]

@@ -127,9 +127,14 @@ def load_ply(path: str | Path) -> Cloud:
     points = np.asarray(loaded.vertices, dtype=np.float64)
     n = len(points)
 
+    # A binary file's vertex data is one structured array; an ASCII file's, a dict of columns.
+    names = (raw.keys() if isinstance(raw, dict) else (raw.dtype.names or ())) if raw is not None else ()
+
     def field(name, dtype):
-        if raw is not None and name in (raw.dtype.names or ()):
-            return np.asarray(raw[name], dtype=dtype).reshape(n)
+        if name in names:
+            column = np.asarray(raw[name])
+            if column.size == n:
+                return column.astype(dtype).reshape(n)
         return np.zeros(n, dtype=dtype)
 
     return Cloud(points, field("frame", np.int32), field("camera", np.uint8), field("quality", np.float32))
