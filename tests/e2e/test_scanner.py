@@ -573,6 +573,14 @@ def test_the_report_follows_moves_extras_and_a_replaced_config():
     assert near < far - 30.0 and near == pytest.approx(now, abs=1e-3)
     assert s.result(extra={"note": "A"}).report["note"] == "A"
     assert "note" not in s.result().report
+    # A planner's numpy values join as JSON's (a TypeError's traceback after the whole
+    # measurement before); the report's own fields are not replaced ({"frames": 999} was).
+    mine = s.result(extra={"mine": {"score": np.float32(0.5), "views": np.int64(3), "xyz": np.arange(2.0)}})
+    assert json.loads(report_json(mine.report))["mine"] == {"score": 0.5, "views": 3, "xyz": [0.0, 1.0]}
+    with pytest.raises(InputError, match="'frames', 'points' are the report's own"):
+        s.result(extra={"frames": 999, "points": -1})
+    with pytest.raises(InputError, match=r"extra\['mine'\]: set .* is not JSON"):
+        s.result(extra={"mine": {1, 2}})
     s.turn_table(0.1)
     assert s.turn_table_to(30.0) == 30.0 and s.table_deg == 30.0
     s.turn_table_to(0.0)

@@ -89,11 +89,14 @@ SMALL_SHARE = 0.05  # a path measuring less of its part than this is said to mis
 
 
 def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, out_dir: str | Path | None,
-             t_start: float, extra: dict | None = None, step_by_step: bool = False) -> ScanResult:
+             t_start: float, extra: dict | None = None, step_by_step: bool = False,
+             user_extra: dict | None = None) -> ScanResult:
     """The scan's result from its cloud and counters: error against the truth, the report,
     and (with ``out_dir``) cloud.ply, report.json and preview.png written atomically.
     ``step_by_step``: frames a Scanner took one by one (not a path), which, like frames picked
-    from a path (``config.path_frames``), say nothing of how much of the part a path measures."""
+    from a path (``config.path_frames``), say nothing of how much of the part a path measures.
+    ``extra`` joins the report (the caller's own fields: a farm's, the render device);
+    ``user_extra`` too, but may not replace any of the report's fields."""
     probe = config.probe
     timing = dict(timing)
     t = time.perf_counter()
@@ -167,6 +170,16 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         "software": software_versions(),
         **(extra or {}),
     }
+    # A caller's own record (Scanner.result's extra) joins the report; it may not replace the
+    # report's fields ({"frames": 999} made a report of 999 frames).
+    clash = sorted(set(user_extra or {}) & set(report))
+    if clash:
+        from ..errors import InputError
+
+        raise InputError(f"extra: {', '.join(map(repr, clash))} {'is' if len(clash) == 1 else 'are'} the report's own "
+                         f"(frames, points, config, ...); give your record under keys of its own, e.g. "
+                         f"{{\"mine\": {{...}}}}")
+    report.update(user_extra or {})
     report["time_s"]["total"] = round(time.perf_counter() - t_start, 4)
     result = ScanResult(cloud, report, {}, error_um, on_part, on_fixture)
     return result if out_dir is None else written(result, config, out_dir, t_start)
