@@ -167,6 +167,13 @@ def main(argv: list[str] | None = None, *, exiting: bool = False) -> int:
     they are given back whatever happened."""
     from headless.lifecycle import PrivateTemp, StopRequests
 
+    # Started with stdout or stderr closed (`>&-`, a daemon), Python has None there: what would
+    # go to it goes nowhere, instead of an AttributeError's traceback after the results were
+    # written (and exit 1).
+    if sys.stdout is None:
+        sys.stdout = open(os.devnull, "w")
+    if sys.stderr is None:
+        sys.stderr = open(os.devnull, "w")
     # A terminal or a log that cannot show a character (a path in another script under an
     # ASCII locale) gets it escaped, not a UnicodeEncodeError in the middle of a scan.
     for stream in (sys.stdout, sys.stderr):

@@ -416,6 +416,23 @@ def test_a_reader_that_closes_the_pipe_is_no_scan_failure(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "preview.png", "report.json"]
 
 
+@pytest.mark.parametrize("closed", ["stdout", "stderr"])
+def test_a_scan_started_with_stdout_or_stderr_closed_writes_its_results_and_exits_0(tmp_path, closed):
+    """`... >&-` or `2>&-` (a daemon's start): Python has None for the closed stream; the scan
+    wrote its files and ended on an AttributeError's traceback, exit 1 (with stderr closed it
+    wrote nothing)."""
+    out = tmp_path / "out"
+    kw = {"stdout": subprocess.DEVNULL if closed == "stderr" else None,
+          "stderr": subprocess.PIPE if closed == "stdout" else None}
+    import os
+
+    fd = 1 if closed == "stdout" else 2
+    proc = subprocess.run([sys.executable, "-m", "headless", "scan", "demo", "--engine", "raycast", "--frames", "0:4",
+                           "--out", str(out)], cwd=REPO, text=True, timeout=300, preexec_fn=lambda: os.close(fd), **kw)
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "preview.png", "report.json"]
+
+
 def test_adaptive_takes_the_engine_as_scan_does(tmp_path):
     out = run_cli("adaptive", "demo", "--engine", "raycast", "--max-profiles", "200", "--quiet",
                   "--out", str(tmp_path / "out"))
