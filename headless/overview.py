@@ -33,6 +33,13 @@ def run(args: argparse.Namespace) -> int:
     check_output_file(args.out, "--out")  # before the render, not after
     if args.frames and not args.scan:
         raise InputError("--frames picks part of --scan's path: give --scan CONFIG too, or leave --frames out")
+    if args.scan:  # the scan's config sets its cell (they were ignored without a word)
+        given = [f"--{name}" for name, default in (("robot", "adept_viper_s650"), ("probe", "default"),
+                                                   ("workpiece", "sphere")) if getattr(args, name) != default]
+        if given:
+            raise InputError(f"{' and '.join(given)} {'sets' if len(given) == 1 else 'set'} the cell drawn without "
+                             f"--scan; with --scan the scan config's cell is drawn: leave "
+                             f"{'it' if len(given) == 1 else 'them'} out, or give a config with that cell")
     if args.scan:
         from addon.core.config.scan import load_scan_config, parse_frames
 

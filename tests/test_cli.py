@@ -696,6 +696,8 @@ def test_a_failed_write_says_no_results_were_written_and_which_shards_stay(tmp_p
 @pytest.mark.parametrize("args, words", [
     (("overview", "--width", "0"), "--width: expected a whole number from 16 to 8192"),
     (("overview", "--frames", "0:3"), "--frames picks part of --scan's path"),
+    (("overview", "--scan", "demo", "--robot", "puma560", "--workpiece", "step_block"),
+     "--robot and --workpiece set the cell drawn without --scan"),
     (("overview", "--scan", "tilted_plane", "--frames", "abc"), "--frames 'abc'"),
     (("overview", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
     (("overview", "--out", "{tmp}/afile/x.png"), "afile is a file"),
