@@ -485,6 +485,11 @@ def test_a_scan_of_part_of_the_path_says_which_frames_and_sensor_and_its_report_
     assert whole.path_frames is None  # null in the report: the whole path, numbered as written
     picked = whole.with_overrides(frames=slice(150, 160, 2)).with_overrides(frames=slice(1, 3))
     assert picked.path_frames.tolist() == [152, 154]  # a pick of a pick keeps the path's numbers
+    # ":" or "0:180" picks the whole path: scanned and reported as without --frames (its
+    # frames were listed, and the whole path's coverage warning was lost).
+    for every in (slice(None), slice(0, 180), slice(0, None, 1)):
+        assert whole.with_overrides(frames=every).path_frames is None
+    assert whole.with_overrides(frames=slice(0, 179)).path_frames.tolist() == list(range(179))
 
 
 def test_the_default_output_folder_keeps_another_config_files_results(tmp_path, monkeypatch):

@@ -307,8 +307,10 @@ class ScanConfig:
                     "" if frames.step is None else f":{frames.step}")
                 raise InputError(f"--frames (the panel's Frames) {asked} selects no frames of the "
                                  f"{len(cfg.waypoints)} in the path (0 to {len(cfg.waypoints) - 1})")
-            numbers = np.arange(len(cfg.waypoints)) if cfg.path_frames is None else cfg.path_frames
-            cfg = replace(cfg, waypoints=cfg.waypoints.select(picked), path_frames=numbers[picked])
+            whole = cfg.path_frames is None and np.array_equal(picked, np.arange(len(cfg.waypoints)))
+            if not whole:  # (":" or "0:N" is the whole path: scanned and reported as without --frames)
+                numbers = np.arange(len(cfg.waypoints)) if cfg.path_frames is None else cfg.path_frames
+                cfg = replace(cfg, waypoints=cfg.waypoints.select(picked), path_frames=numbers[picked])
         return cfg
 
 
