@@ -705,6 +705,7 @@ def test_a_failed_write_says_no_results_were_written_and_which_shards_stay(tmp_p
      "--robot and --workpiece set the cell drawn without --scan"),
     (("overview", "--scan", "tilted_plane", "--frames", "abc"), "--frames 'abc'"),
     (("overview", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
+    (("overview", "--out", "{tmp}/newfolder/"), "is a folder; give the name of the file to write"),
     (("overview", "--out", "{tmp}/afile/x.png"), "afile is a file"),
     (("realism-figure", "--frame", "1", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
     (("build-extension", "--pythons", "foo"), "expected a CPython version as X.Y"),

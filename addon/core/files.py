@@ -112,7 +112,8 @@ def check_output_file(path: str | Path, what: str = "output file") -> Path:
     """Refuse, in one line, a file that could not be written at ``path`` (a folder there, a
     file or an unwritable place above it): before the work that makes it, not after."""
     p = Path(path)
-    if not p.name or p.is_dir():
+    # (a name ending in a slash is a folder's: "x/" wrote a file x)
+    if not p.name or p.is_dir() or str(path).endswith(("/", os.sep)):
         raise InputError(f"{what} {str(path)!r} is a folder; give the name of the file to write")
     check_output_folder(p.parent, (), f"{what} {p}: its folder")
     return p
