@@ -698,6 +698,23 @@ def test_a_failed_write_says_no_results_were_written_and_which_shards_stay(tmp_p
 
 
 
+def test_bench_incidence_refuses_an_open_part_before_scanning(tmp_path):
+    """A signed error needs a closed part: an open sheet was refused only after the scan."""
+    import time
+
+    import trimesh
+
+    sheet = trimesh.Trimesh([[-40, -40, 10], [40, -40, 10], [40, 40, 10], [-40, 40, 10]], [[0, 1, 2], [0, 2, 3]])
+    sheet.export(tmp_path / "sheet.stl")
+    text = (REPO / "rigs" / "scenes" / "tilted_plane.toml").read_text()
+    start, end = text.index("[workpiece]"), text.index("[[path]]")
+    (tmp_path / "sheet.toml").write_text(text[:start] + '[workpiece]\nfile = "sheet.stl"\n\n' + text[end:])
+    t = time.perf_counter()
+    out = run_cli("bench", "incidence", "--config", str(tmp_path / "sheet.toml"), "--engine", "raycast")
+    assert out.returncode == 2 and "is not a closed mesh: a signed error" in out.stderr, out.stderr[-500:]
+    assert "Traceback" not in out.stderr and time.perf_counter() - t < 60
+
+
 @pytest.mark.parametrize("args, words", [
     (("overview", "--width", "0"), "--width: expected a whole number from 16 to 8192"),
     (("overview", "--frames", "0:3"), "--frames picks part of --scan's path"),

@@ -36,12 +36,17 @@ def incidence_bands(config_name: str, engine: str | None = None) -> tuple[list[d
     from addon import Scanner
     from addon.core.config.scan import load_scan_config
     from addon.core.geometry.line_floor import line_width_floor
-    from addon.core.geometry.metrics import distances
+    from addon.core.errors import InputError
+    from addon.core.geometry.metrics import distances, has_inside
     from addon.core.scan.plan import cell_surfaces
 
     cfg = load_scan_config(config_name)
     if engine is not None:
         cfg = cfg.with_overrides(engine=engine)
+    truth = cfg.workpiece.truth
+    if not (hasattr(truth, "signed_distance") or has_inside(truth)):  # before the scan, not after it
+        raise InputError(f"{cfg.workpiece.source} is not a closed mesh: a signed error (inside or outside the "
+                         f"part) needs one")
     t = time.perf_counter()
     scanner = Scanner(config=cfg)
     scanner.run()
@@ -52,10 +57,10 @@ def incidence_bands(config_name: str, engine: str | None = None) -> tuple[list[d
     q = np.concatenate([p[0] for p in scanner._poses])
     table_rad = np.concatenate([p[1] for p in scanner._poses])
     probe2table = cfg.cell.probe2table(q, table_rad)
+    if not len(part):
+        raise InputError(f"no point of {cfg.name!r} lies on its part, so there is no error to band by incidence: "
+                         f"give a config whose path measures the part")
     _, signed = distances(part.points, truth)
-    if signed is None:
-        raise SystemExit(f"error: {cfg.workpiece.source} is not a closed mesh: a signed error (inside or outside "
-                         f"the part) needs one")
     floor = line_width_floor(cfg.probe, probe2table, part.points, part.frame, part.camera, cell_surfaces(cfg))
     has_floor = np.isfinite(floor).all(axis=1)
     floor_signed = np.full(len(part), np.nan)
