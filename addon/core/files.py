@@ -24,6 +24,7 @@ LOCK_NAME = ".scanner.lock"
 LOCK_HEARTBEAT_S = 60   # a running scan touches its lock this often
 LOCK_STALE_S = 600      # a lock from another host not touched for this long is a dead scan's
 LOCK_UNREADABLE_S = 2.0  # a lock naming no process is waited on this long (being written) before taken over
+LOCK_GUARD_STALE_S = 10.0  # a take-over guard older than this was left by a killed process
 MAX_PID = 2 ** 22       # the largest process id Linux gives (pid_max's ceiling)
 
 
@@ -200,14 +201,14 @@ class OutputLock:
     def __init__(self, folder: str | Path):
         self.folder = Path(folder)
         self.path = self.folder / LOCK_NAME
-        self.made_folder = False
+        self.made_folders: list[Path] = []  # the folders acquire() made, the deepest first
         self.held = False
         self._beat: threading.Event | None = None
 
     def acquire(self) -> "OutputLock":
         host = socket.gethostname()
         mine = f"{os.getpid()} {host}\n"
-        self.made_folder = not self.folder.exists()
+        self.made_folders = _missing_folders(self.folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         for _ in range(200):
             # The lock appears whole or not at all: written beside it, then linked to its name
@@ -238,18 +239,20 @@ class OutputLock:
             self._take_over_stale(owner, owner_host)
         raise FolderBusy(f"output folder {self.folder}: could not claim it ({self.path} keeps coming back)")
 
-    def _link_new_lock(self, content: str) -> bool:
-        """Make the lock file with ``content`` in one step; False where one is there already."""
+    def _link_new_lock(self, content: str, path: Path | None = None) -> bool:
+        """Make the lock file (or ``path``) with ``content`` in one step; False where one is
+        there already."""
+        path = path or self.path
         temp = self.folder / f"{LOCK_NAME}.{os.getpid()}.{secrets.token_hex(4)}"
         try:
             temp.write_text(content)
             try:
-                os.link(temp, self.path)
+                os.link(temp, path)
             except FileExistsError:
                 return False
             except OSError:  # a file system without hard links (FAT): created, then written
                 try:
-                    fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+                    fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
                 except FileExistsError:
                     return False
                 with os.fdopen(fd, "w") as fh:
@@ -259,26 +262,27 @@ class OutputLock:
             temp.unlink(missing_ok=True)
 
     def _take_over_stale(self, owner: int, owner_host: str | None) -> None:
-        """Move a dead scan's lock out of the way, in one step that only one of several scans
-        taking it over can make; a lock that turns out to be another's (made since it was read)
-        is put back. The dead scan's staging folders go with it."""
-        aside = self.folder / f"{LOCK_NAME}.stale.{os.getpid()}.{secrets.token_hex(4)}"
+        """Remove a dead scan's lock, and its staging folders. Only the holder of a guard file
+        beside the lock removes one, after reading it again: a lock can be made only where none
+        is, so the one read under the guard is the one removed. (Moved aside without a guard, a
+        scan that had judged the dead lock a moment earlier moved the new owner's lock instead,
+        and another scan claimed the folder before it was put back: two held it.)"""
+        guard = self.folder / f"{LOCK_NAME}.takeover"
+        if not self._link_new_lock(f"{os.getpid()} {socket.gethostname()}\n", guard):
+            if _age_s(guard) > LOCK_GUARD_STALE_S:  # left by a process killed while it held it
+                guard.unlink(missing_ok=True)
+            else:
+                time.sleep(0.01)
+            return
         try:
-            os.rename(self.path, aside)
-        except FileNotFoundError:
-            return  # another scan took it over first
-        try:
-            if _lock_owner(aside) != (owner, owner_host):  # not the lock that was judged dead
-                try:
-                    os.link(aside, self.path)
-                except FileExistsError:
-                    pass
-                return
+            if _lock_owner(self.path) != (owner, owner_host):
+                return  # taken over and claimed by another scan since it was read: judged again
+            self.path.unlink(missing_ok=True)
             if owner:
                 for staging in self.folder.glob(f"{STAGING_PREFIX}{owner}-*"):
                     shutil.rmtree(staging, ignore_errors=True)
         finally:
-            aside.unlink(missing_ok=True)
+            guard.unlink(missing_ok=True)
 
     def _start_heartbeat(self) -> None:
         """Touch the lock every LOCK_HEARTBEAT_S from a daemon thread, so that other hosts can
@@ -307,17 +311,28 @@ class OutputLock:
             if _lock_owner(self.path) == (os.getpid(), socket.gethostname()):  # still ours (not taken over)
                 self.path.unlink(missing_ok=True)
             self.held = False
-        if self.made_folder:
+        for folder in self.made_folders:  # the folder and those made above it ('--out a/b' made a)
             try:
-                self.folder.rmdir()  # only when empty
+                folder.rmdir()  # only when empty
             except OSError:
-                pass
+                break
+        self.made_folders = []
 
     def __enter__(self) -> "OutputLock":
         return self.acquire()
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def _missing_folders(folder: Path) -> list[Path]:
+    """``folder`` and those above it that do not exist yet, the deepest first."""
+    missing = []
+    for p in (folder.absolute(), *folder.absolute().parents):
+        if p.exists() or p.is_symlink():
+            break
+        missing.append(p)
+    return missing
 
 
 def _lock_owner(path: Path) -> tuple[int, str | None]:

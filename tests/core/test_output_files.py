@@ -85,6 +85,17 @@ def test_lock_refuses_a_live_owner_and_takes_over_a_dead_ones(tmp_path):
     assert out.is_dir() and not (out / ".scanner.lock").exists()  # the folder was there before: kept
 
 
+def test_a_failed_scan_leaves_none_of_the_folders_it_made(tmp_path):
+    (tmp_path / "a").mkdir()
+    with OutputLock(tmp_path / "a" / "b" / "c" / "out"):
+        pass
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a"]  # b, c and out gone; a was there
+    assert not any((tmp_path / "a").iterdir())
+    with OutputLock(tmp_path / "x" / "y"):
+        (tmp_path / "x" / "kept.txt").write_text("another's file")  # written beside it meanwhile
+    assert sorted(p.name for p in (tmp_path / "x").iterdir()) == ["kept.txt"]
+
+
 def _claim(folder, barrier, results):
     barrier.wait()
     try:
