@@ -65,7 +65,10 @@ def run(args: argparse.Namespace) -> int:
                               f"a calibration needs at least {MIN_VIEWS}")
     count = args.views if poses is None else len(poses)
     print(f"calibrate: {config.name}: {config.robot.name}, {config.probe.name}; {count} board views"
-          + (f" from {args.poses}" if poses is not None else " (proposed)"), flush=True)
+          + (f" from {args.poses}" if poses is not None else " (proposed)")
+          # (the ray caster draws a laser line, not a printed board under room light)
+          + ("; rendered with Cycles (the config's raycast engine draws no board)"
+             if config.render.engine == "raycast" else ""), flush=True)
     bar_progress, lock = progress_and_lock(args, out)
 
     def progress(stage, done, total):

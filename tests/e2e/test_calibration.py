@@ -122,6 +122,23 @@ def test_parallel_poses_from_the_user_are_refused_with_nothing_written(tmp_path,
     assert not (tmp_path / "cal").exists() or not any((tmp_path / "cal").iterdir())
 
 
+def test_a_raycast_config_says_that_its_calibration_renders_with_cycles(tmp_path, capsys):
+    """The ray caster draws a laser line only; the board images need Blender's renderer, and
+    the command says so rather than changing engines without a word."""
+    from addon.core.calibration import board_for, flat_views
+
+    config = tmp_path / "raycast.toml"
+    config.write_text((REPO / "rigs" / "scenes" / "demo.toml").read_text()
+                      .replace('engine = "cycles"', 'engine = "raycast"'))
+    probe = load_probe("default")
+    poses = _poses_file(tmp_path / "flat.toml", flat_views(board_for(probe), probe.z_range_mm, 6))
+    rc = main(["calibrate", str(config), "--poses", poses, "--out", str(tmp_path / "cal"), "--quiet"])
+    out = capsys.readouterr().out
+    assert rc == 2 and "rendered with Cycles (the config's raycast engine draws no board)" in out, out
+    rc = main(["calibrate", "demo", "--poses", poses, "--out", str(tmp_path / "cal"), "--quiet"])
+    assert rc == 2 and "rendered with Cycles" not in capsys.readouterr().out
+
+
 def test_too_few_poses_from_the_user_are_refused_as_too_few_not_as_collisions(tmp_path, capsys):
     from addon.core.calibration import board_for, board_views
 
