@@ -80,6 +80,7 @@ def test_an_unknown_option_points_to_the_commands_own_help(command):
     (("realism", "--scenes", "demo", "--readme"), "--scenes runs part of it"),
     (("parts", "--only", "zzzz"), "no part's name holds it; the parts: "),
     (("calibration", "--views", "5", "1001"), "expected a whole number from 4 to 1000"),
+    (("detect", "--cols", "3000"), "expected a whole number from 16 to 1600"),  # (the line left the image)
 ])
 def test_a_bench_refuses_a_partial_docs_table_and_a_bad_selection_before_any_work(args, words):
     # (Each ran part of its table and then replaced the docs' whole table with it; --views

@@ -51,11 +51,11 @@ class Row:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=whole(), default=20, help="frames per scene (default 20)")
+    parser.add_argument("--frames", type=whole(), default=20, help="frames per scene, at least: every k-th frame of its path, k its frames // N (default 20)")
     parser.add_argument("--repeats", type=whole(), default=3, help="runs per setting; the median time counts (default 3)")
     parser.add_argument("--scenes", default=",".join(SCENES), help=f"comma-separated, of: {', '.join(SCENES)}")
     parser.add_argument("--factors", default="", help="comma-separated factor names to run (default all)")
-    parser.add_argument("--eevee-frames", type=whole(), default=4, help="frames for the Eevee rows (slow on a CPU)")
+    parser.add_argument("--eevee-frames", type=whole(), default=4, help="frames for the Eevee rows, at least, spread as --frames's (default 4; slow on a CPU)")
     parser.add_argument("--out", default="out/accuracy", help="folder for accuracy.csv, .md and .png")
     parser.add_argument("--readme", action="store_true", help="also put the table and plot into docs/accuracy.md")
     parser.set_defaults(run=run)
