@@ -13,12 +13,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="adept_viper_s650", help="robot rig under rigs/robots/ (default adept_viper_s650)")
     parser.add_argument("--probe", default="default", help="probe rig under rigs/probes/ (default: default)")
     parser.add_argument("--workpiece", default="sphere", help="plane, sphere, cylinder or step_block")
-    parser.add_argument("--width", type=whole(16, 8192), default=720, help="picture width in pixels, 16 to 8192 (default 720)")
+    parser.add_argument("--width", type=whole(16, 8192), default=720,
+                        help="width of the cell's view in pixels, 16 to 8192 (default 720); the probe's camera "
+                             "images are added to its right")
     parser.add_argument("--height", type=whole(16, 8192), default=480, help="picture height in pixels, 16 to 8192 (default 480)")
     parser.add_argument("--samples", type=whole(1, 4096), default=24, help="Cycles samples per pixel, 1 to 4096 (default 24)")
     parser.add_argument("--scan", metavar="CONFIG",
                         help="first run this scan through the Scanner panel's operator and show the imported "
-                             "cloud, framed on the table")
+                             "cloud, framed on the table; the scan's files go beside the picture, in a folder "
+                             "named after it with -scan (default out/cell_overview-scan/CONFIG NAME/)")
     parser.add_argument("--frames", default="", help="with --scan: part of the path, as A:B (default all)")
     parser.set_defaults(run=run)
 
@@ -45,6 +48,10 @@ def run(args: argparse.Namespace) -> int:
 
         # the config and --frames checked before Blender starts (the operator's error was a traceback)
         load_scan_config(args.scan).with_overrides(frames=parse_frames(args.frames, "--frames"))
+        from addon.core.files import check_output_folder
+
+        # (the operator checks the config's own folder inside it, also before it renders)
+        check_output_folder(scan_folder(args.out), (), "--scan's files: folder")
     scene = new_scene()
     if args.scan:
         return _with_scan(args, scene, render_overview)
@@ -53,6 +60,11 @@ def run(args: argparse.Namespace) -> int:
     path = render_overview(sc, Path(args.out), args.width, args.height, args.samples, frame=frames.start + 1)
     print(f"wrote {path}")
     return 0
+
+
+def scan_folder(out: str) -> Path:
+    """Where ``overview --scan`` keeps the scan's files: beside the picture ``out``, named after it."""
+    return Path(out).parent / f"{Path(out).stem}-scan"
 
 
 def _with_scan(args, scene, render_overview) -> int:
@@ -69,7 +81,7 @@ def _with_scan(args, scene, render_overview) -> int:
         s.scan_config = "FILE"
         s.scan_file = str(load_scan_config(args.scan).source)
         try:
-            bpy.ops.scanner.scan(frames=args.frames)
+            bpy.ops.scanner.scan(frames=args.frames, output_dir=str(scan_folder(args.out)))
         except RuntimeError as exc:  # the operator's own report: its last line says what went wrong
             from addon.core.errors import ScannerError
 

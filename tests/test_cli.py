@@ -126,6 +126,20 @@ def test_overview_picture_is_written(tmp_path):
 
 
 @needs_bpy
+def test_overview_with_a_scan_keeps_the_scans_files_beside_the_picture(tmp_path):
+    # (they went to a temporary folder, deleted at exit, that the operator's message named)
+    (tmp_path / "taken-scan").write_text("x")
+    out = run_cli("overview", "--scan", "demo", "--out", str(tmp_path / "taken.png"))
+    assert out.returncode == 2 and "taken-scan is a file" in out.stderr and not (tmp_path / "taken.png").exists()
+    out = run_cli("overview", "--scan", "demo", "--frames", "0:3", "--out", str(tmp_path / "cell.png"),
+                  "--width", "64", "--height", "48", "--samples", "1")
+    assert out.returncode == 0, out.stderr[-2000:]
+    kept = sorted(p.name for p in (tmp_path / "cell-scan").glob("*/*"))
+    assert kept == ["cloud.ply", "preview.png", "report.json"] and (tmp_path / "cell.png").is_file()
+    assert str(tmp_path / "cell-scan") in out.stdout
+
+
+@needs_bpy
 def test_render_bench_runs_small():
     out = run_cli("bench", "render", "--frames", "3", "--repeats", "1")
     assert out.returncode == 0, out.stderr[-2000:]
