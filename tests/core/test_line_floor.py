@@ -33,6 +33,21 @@ def test_a_flat_face_square_to_the_beam_is_measured_where_it_is():
         assert np.max(np.abs(F[:, 1] - ys)) < 0.01
 
 
+def test_an_open_sheet_seen_from_behind_has_the_floor_of_its_front():
+    """An open mesh is lit and seen from whichever side the laser meets, as Cycles and the
+    ray caster shade it: a sheet wound to face down, scanned from above, has the same floor as
+    one facing up (it had none: no light reached its back)."""
+    up = trimesh.Trimesh([[-40, -40, 5], [40, -40, 5], [40, 40, 5], [-40, 40, 5]], [[0, 1, 2], [0, 2, 3]])
+    down = trimesh.Trimesh(up.vertices, up.faces[:, ::-1])
+    assert up.face_normals[0, 2] > 0 > down.face_normals[0, 2]
+    ys = np.linspace(-20.0, 20.0, 9)
+    for camera in (1, 2, 3):
+        front, back = _floor(up, 165.0, ys, 5.0, camera), _floor(down, 165.0, ys, 5.0, camera)
+        assert np.isfinite(back).all(), back
+        assert np.allclose(front, back, atol=1e-9)
+        assert np.max(np.abs(back[:, 2] - 5.0)) < 0.004
+
+
 def test_a_step_inside_the_strip_moves_or_rejects_the_point():
     # Two levels meet along x = 0.25 mm, a little under one beam σ beside the laser plane:
     # part of the strip falls 10 mm lower. Far from the step the face reads true.

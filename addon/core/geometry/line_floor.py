@@ -132,6 +132,9 @@ def line_width_floor(probe: Probe, probe2table: np.ndarray, points: np.ndarray, 
     hit_t, face = _first_hits_exact(surfaces, origins, dirs)
     hits = origins + hit_t[:, None] * dirs
     normals = surfaces.mesh.face_normals[np.maximum(face, 0)]
+    # A face met from behind (an open mesh seen from its inside) is lit and seen from that
+    # side, as the renderers shade it: its normal turned towards the laser.
+    normals = np.where((np.einsum("ij,ij->i", normals, dirs) > 0)[:, None], -normals, normals)
     hit_local = np.einsum("nji,nkj->nki", R, hits.reshape(n, samples, 3) - t[:, None, :]).reshape(-1, 3)
     frame_of = np.repeat(np.arange(n), samples)
     # A pixel sees the surface's radiance, which for a matt surface is its irradiance: the
