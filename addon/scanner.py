@@ -579,10 +579,11 @@ class Scanner:
 
         t = time.perf_counter()
         plan = plan_scan(cfg)
-        # plan_scan checks the motion from the config's start joints; the robot may stand
-        # elsewhere (moved, or a scan done before): the way from there to the path's start too.
-        self._check_path(plan.q[:1], plan.table_rad[:1], "the move to the path's start", record=False)
         self._timing["plan"] += time.perf_counter() - t
+        # plan_scan checks the motion from the config's start joints; the robot may stand
+        # elsewhere (moved, or a scan done before): the way from there to the path's start too
+        # (its time counted in "plan" by the check itself).
+        self._check_path(plan.q[:1], plan.table_rad[:1], "the move to the path's start", record=False)
         yield from self._frames_steps(plan.q, plan.table_rad, plan=plan, progress=progress,
                                       clearance=plan.clearance, warnings=plan.warnings)
 
