@@ -124,3 +124,35 @@ def test_how_near_a_mesh_comes_to_the_table_axis_counts_its_faces_not_only_its_c
     assert nearest_to_axis_mm(trimesh.creation.box([40.0, 40.0, 40.0])) == 0.0  # over the axis
     ring = trimesh.creation.annulus(r_min=50.0, r_max=60.0, height=10.0, sections=64)
     assert nearest_to_axis_mm(ring) == pytest.approx(50.0 * math.cos(math.pi / 64), abs=1e-6)  # the inner chords
+
+
+def test_points_are_measured_against_the_whole_drawn_disc_top_side_and_bottom():
+    """The side's points were measured against the top's plane (13 mm off for a point 13 mm
+    down the rim). Ground truth: the drawn disc is a prism on a regular 128-gon of radius
+    150 mm, 20 mm thick, whose flat sides lie at R cos(π/128) through their middles."""
+    from addon.core.kinematics.turntable import TABLE_RADIUS_MM, TABLE_SECTIONS, TABLE_THICKNESS_MM
+    from addon.core.scan.outputs import table_distances
+
+    R, T = TABLE_RADIUS_MM, TABLE_THICKNESS_MM
+    inner = R * np.cos(np.pi / TABLE_SECTIONS)
+    # The middle of one side face: find its direction from the drawn mesh's vertices.
+    from addon.core.kinematics.turntable import table_top_mesh
+
+    v = table_top_mesh().vertices
+    rim = v[np.isclose(np.hypot(v[:, 0], v[:, 1]), R)]
+    a0 = np.sort(np.unique(np.round(np.arctan2(rim[:, 1], rim[:, 0]), 9)))[:2].mean()  # between two corners
+    side = np.array([np.cos(a0), np.sin(a0)])
+    pts = np.array([
+        [10.0, -20.0, 0.3],                       # above the top: 0.3
+        [40.0, 30.0, -0.002],                     # just inside the top: -0.002
+        [*(side * (inner + 0.004)), -13.0],       # 4 µm outside the side, 13 mm down
+        [*(side * (inner - 0.003)), -7.0],        # 3 µm inside the side
+        [0.0, 50.0, -T - 0.01],                   # 10 µm under the bottom
+        [*(side * (inner + 0.2)), 0.2],           # beyond the top's edge, outside: to the edge
+        [*(side * (R + 5.0)), -5.0],              # beyond the rim: not the table's
+    ])
+    unsigned, signed = table_distances(pts)
+    expect = np.array([0.3, -0.002, 0.004, -0.003, 0.01, np.hypot(0.2, 0.2)])
+    np.testing.assert_allclose(signed[:6], expect, atol=1e-9)
+    np.testing.assert_allclose(unsigned[:6], np.abs(expect), atol=1e-9)
+    assert np.isinf(unsigned[6])

@@ -139,6 +139,35 @@ def test_turning_the_table_between_scans_keeps_the_cloud_on_the_part():
     assert np.abs(a.points - b.points).max() < 1e-3
 
 
+def test_points_on_the_tables_side_are_the_tables_beside_a_part_over_the_rim(tmp_path):
+    """A horizontal sweep past the rim, under a box that overhangs it by 2.5 mm: the laser
+    lights the disc's side. Those points were measured against the top's plane (RMS 7.6 mm
+    on the table) and, level with the box's bottom face, counted as the part's (its RMS 4.3 mm,
+    against 3 µm). Ground truth: the box's planes and the drawn disc (the table's distances are
+    checked against the analytic disc in tests/core/test_turntable_cell.py)."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=[40.0, 25.0, 32.0])
+    box.apply_translation([0.0, 0.0, 16.0])
+    box.export(tmp_path / "box.stl")
+    (tmp_path / "rim.toml").write_text(
+        'name = "over the rim"\n[robot]\nrig = "puma560"\n[probe]\nrig = "default"\n'
+        '[workpiece]\nfile = "box.stl"\n[workpiece.pose]\nxyz_mm = [0.0, -140.0, 0.0]\n'
+        '[[path]]\nkind = "sweep"\nframes = 12\nfrom_mm = [-30.0, -235.0, 12.0]\nto_mm = [30.0, -235.0, 12.0]\n'
+        'beam = [0.0, 1.0, 0.0]\n[render]\nengine = "raycast"\n')
+    cfg = load_scan_config(tmp_path / "rim.toml")
+    result = run_scan(cfg, None, write_outputs=False)
+    r, P = result.report, result.cloud.points
+    side = (P[:, 2] < -1.0) & (np.hypot(P[:, 0], P[:, 1]) > 140.0)
+    assert side.sum() > 50  # the sweep does light the disc's side
+    lo, hi = box.bounds + [[0.0, -140.0, 0.0], [0.0, -140.0, 0.0]]
+    inside = np.minimum(P - lo, hi - P).min(axis=1)  # > 0 inside the box
+    on_box = np.abs(inside) < 0.05
+    assert r["points_on_part"] == on_box.sum() and r["points_on_table"] == (~on_box).sum(), r
+    assert r["error_um"]["rms_um"] < PLANE_BOUND_UM and r["outliers"] == 0, r["error_um"]
+    assert r["table_error_um"]["max_um"] < PLANE_BOUND_UM, r["table_error_um"]
+
+
 def test_the_same_config_gives_the_same_cloud_twice():
     cfg = load_scan_config("step_block").with_overrides(frames=slice(60, 100, 4))
     a = run_scan(cfg, None, write_outputs=False).cloud

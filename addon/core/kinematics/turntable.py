@@ -55,13 +55,14 @@ class Turntable:
 
 TABLE_RADIUS_MM = 150.0
 TABLE_THICKNESS_MM = 20.0
+TABLE_SECTIONS = 128  # the disc's sides, as drawn and cast
 
 
 def table_top_mesh(radius_mm: float = TABLE_RADIUS_MM, thickness_mm: float = TABLE_THICKNESS_MM):
     """The table's disc in the table frame: its top face is z = 0 (a trimesh)."""
     import trimesh
 
-    disc = trimesh.creation.cylinder(radius=radius_mm, height=thickness_mm, sections=128)
+    disc = trimesh.creation.cylinder(radius=radius_mm, height=thickness_mm, sections=TABLE_SECTIONS)
     disc.apply_translation([0.0, 0.0, -thickness_mm / 2])
     return disc
 

@@ -23,7 +23,7 @@ from ..geometry.cloud import Cloud, ply_bytes
 from ..geometry.footprint import measurable_points
 from ..geometry.surface_fit import across_line
 from ..optics.sensor import EFFECTS, SensorModel
-from ..kinematics.turntable import TABLE_RADIUS_MM
+from ..kinematics.turntable import TABLE_RADIUS_MM, TABLE_SECTIONS, TABLE_THICKNESS_MM, table_top_mesh
 from .plan import Plan, cell_surfaces, fixture_warnings, table_fixtures
 from .preview import render_preview
 from .report import report_json
@@ -252,6 +252,34 @@ def measurable_coverage(config: ScanConfig, probe2table: np.ndarray, part_points
     return {"coverage_measurable": cov, "measurable_share": share}
 
 
+RIM_SLACK_MM = 0.5  # points this far beyond the table's rim, seen from above, may still be its side's
+
+
+@functools.lru_cache(maxsize=1)
+def _disc():
+    return table_top_mesh()
+
+
+def table_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(unsigned, signed (outside positive)) mm from points (n, 3), table frame, to the table's
+    disc as drawn: its top, its side and its bottom (the side's points were measured against
+    the top's plane, 13 mm off, and beside a part overhanging the rim counted as the part's);
+    inf beyond the rim."""
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    r, z = np.hypot(P[:, 0], P[:, 1]), P[:, 2]
+    unsigned, signed = np.abs(z), z.copy()
+    # Over the top face, well inside the side (the polygon's inner radius) and the bottom: the
+    # top's plane is the nearest of the disc's faces.
+    inner = TABLE_RADIUS_MM * np.cos(np.pi / TABLE_SECTIONS)
+    elsewhere = (r <= TABLE_RADIUS_MM + RIM_SLACK_MM) & ~((r <= inner - np.maximum(-z, 0.0)) & (z > -TABLE_THICKNESS_MM / 2))
+    if elsewhere.any():
+        d, s = metrics.mesh_distances(P[elsewhere], _disc())
+        unsigned[elsewhere], signed[elsewhere] = d, (d if s is None else s)
+    beyond = r > TABLE_RADIUS_MM + RIM_SLACK_MM
+    unsigned[beyond], signed[beyond] = np.inf, np.inf
+    return unsigned, signed
+
+
 def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | None = None
                           ) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray]:
     """Error against the truth: points nearer the part count as the part's, those nearer one of
@@ -270,14 +298,14 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
                  **measurable_coverage(config, poses, P),
                  "coverage_tolerance_mm": config.coverage_tolerance_mm}, np.zeros(0, bool), np.zeros(0), np.zeros(0, bool))
     d_part, s_part = metrics.distances(P, wp.truth)
-    d_table = np.where(np.hypot(P[:, 0], P[:, 1]) <= TABLE_RADIUS_MM, np.abs(P[:, 2]), np.inf)
+    d_table, s_table = table_distances(P)
     on_fixture = np.zeros(len(P), bool)  # nearer one of the table's fixtures than the part and the table top
     for f in table_fixtures(config):
         on_fixture |= metrics.NearMesh(f.mesh).within(P, np.minimum(d_part, d_table))
     on_part = (d_part <= d_table) & ~on_fixture
     on_table = ~on_part & ~on_fixture
     part = metrics.error_stats(d_part[on_part], None if s_part is None else s_part[on_part])
-    table = metrics.error_stats(d_table[on_table], P[on_table, 2])
+    table = metrics.error_stats(d_table[on_table], s_table[on_table])
     coverage = metrics.coverage(P[on_part], wp.mesh, config.coverage_tolerance_mm)
     d = d_part[on_part]
     within = float(np.mean(d <= 2.0 * cloud.quality[on_part])) if len(d) else None
