@@ -265,7 +265,9 @@ class Scanner:
         self._surfaces = None  # the part and table for ray casts, built at the first measurement
 
     def pose(self, relative_to: str = "table") -> np.ndarray:
-        """(4, 4) mm: the probe frame's pose (laser at the origin, beam along +Z) now."""
+        """(4, 4) mm: the probe frame's pose (laser at the origin, beam along +Z) now, in the
+        table frame or ("base") the world frame: the robot's base frame unless its rig gives a
+        [base] pose."""
         if relative_to not in RELATIVE_TO:
             raise InputError(f"relative_to must be one of {', '.join(RELATIVE_TO)}, got {relative_to!r}")
         cell = self.config.cell
@@ -320,7 +322,8 @@ class Scanner:
     # -- moves ---------------------------------------------------------------------------
     def move_to(self, pose, relative_to: str = "table") -> np.ndarray:
         """Put the probe at ``pose``: a (4, 4) transform, or (xyz_mm, yzz_deg), relative to the
-        table or the robot base. IK takes the branch nearest the current joints. Returns the
+        table or the robot base ("base": the world frame, the robot's base frame unless its rig
+        gives a [base] pose). IK takes the branch nearest the current joints. Returns the
         new joints; raises UnreachablePose where the pose cannot be reached and CollisionError
         where the pose or the motion to it comes too near the table, the part or a fixture (or
         the robot to itself), naming the two bodies: in either case nothing moves."""

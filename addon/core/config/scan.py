@@ -42,8 +42,9 @@ Sections (units in the key names; every key is checked, unknown keys are errors)
     [safety]     check (true), min_clearance_mm (2): the least distance between the robot or the
                  probe and the table, the workpiece or a fixture (see addon.core.safety)
     [[fixture]]  name, file (+ scale), [fixture.pose] xyz_mm, yzz_deg, on = "table" (turns with
-                 it, default; the pose in the table frame) | "world" (the pose in the robot's
-                 base frame): solids the robot must keep clear of
+                 it, default; the pose in the table frame) | "world" (the pose in the world
+                 frame: the robot's base frame unless its rig gives [base]): solids the robot
+                 must keep clear of
     [truth]      coverage_tolerance_mm
 
 Paths in the file (robot/probe rigs, workpiece files) are relative to the file.

@@ -8,7 +8,7 @@ with the same protocol, so a team can put an adapter for its controller behind i
 Protocol, version 1: one JSON object per line, UTF-8, each way.
 
 Request ``{"op": "ik", "id": 7, "target_mm": [[4 × 4]], "seed_rad": [6], "tool_mm": [[4 × 4]]}``:
-the tool pose to reach in the robot's base frame (mm), the joints to start from, and
+the tool pose to reach in the world frame (the robot's base frame unless its rig gives [base]; mm), the joints to start from, and
 the tool frame in the flange frame (the paper's T_L^6). Answer
 ``{"id": 7, "joints_rad": [6], "success": true, "reason": "ok"}``; on failure
 ``success`` is false and ``reason`` says why in words (``joints_rad`` may be the best
