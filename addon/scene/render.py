@@ -53,6 +53,18 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, cam
     r.pixel_aspect_x = r.pixel_aspect_y = 1.0
     r.use_border = False
     r.film_transparent = False
+    # What the scene's own post-processing or overrides would put into the probe images: the
+    # compositor (a blur moved points), the sequencer (a strip replaced the image), Freestyle's
+    # lines, Simplify, a view layer's material or sample override, the layers beside the one
+    # rendered.
+    r.use_compositing = r.use_sequencer = r.use_freestyle = r.use_simplify = False
+    r.use_single_layer = True
+    for layer in scene.view_layers:
+        layer.material_override = None
+        if hasattr(layer, "world_override"):  # (5.0 and later)
+            layer.world_override = None
+        layer.samples = 0
+        layer.use_solid = layer.use_sky = layer.use_motion_blur = True
     r.use_persistent_data = settings.persistent_data
     if settings.threads is None:
         r.threads_mode = "AUTO"
@@ -82,11 +94,16 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, cam
         c.transparent_max_bounces = max(settings.bounces, 0)
         c.caustics_reflective = c.caustics_refractive = False
         c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+        # The scene's own choices that would change the probe images: as in a new scene.
+        _as_new(c, ("film_exposure", "blur_glossy", "min_light_bounces", "min_transparent_bounces",
+                    "use_animated_seed", "use_layer_samples"))
         c.use_light_tree = False  # one light: the tree only adds work (measured: −12 % time per frame)
         # Cycles drops (or, at random, boosts) light below 1 % of its strength by default:
         # that cuts the laser line's flanks, which every sub-pixel detector reads.
         c.light_sampling_threshold = 0.0
     else:
+        _as_new(scene.eevee, ("clamp_surface_direct", "clamp_surface_indirect", "clamp_volume_direct",
+                              "clamp_volume_indirect", "gi_glossy_clamp", "volumetric_light_clamp"))
         scene.eevee.taa_render_samples = settings.samples
         r.filter_size = max(settings.filter_width_px, 0.01)
     # Eevee shades each pixel at the point its depth buffer gives, and the buffer's
@@ -120,19 +137,40 @@ def configure(scene: bpy.types.Scene, probe: Probe, settings: RenderOptions, cam
     return device
 
 
+def _as_new(struct, names) -> None:
+    """Set the properties ``names`` of ``struct`` to what a new scene has (those this Blender
+    lacks are skipped)."""
+    for name in names:
+        prop = struct.bl_rna.properties.get(name)
+        if prop is not None:
+            setattr(struct, name, tuple(prop.default_array) if getattr(prop, "is_array", False) else prop.default)
+
+
 def use_views(scene: bpy.types.Scene, cameras=(0, 1)) -> None:
     """Render only the given probe cameras (a camera that sees nothing can be skipped)."""
     for index, (view_name, _) in enumerate(VIEWS):
         scene.render.views[view_name].use = index in cameras
 
 
+SCANNER_WORLD = "Scanner probe world"
+
+
 def _world(scene, strength: float) -> None:
-    world = scene.world or new_world("Scanner world")
+    """Light the probe renders with the scanner's own world, a white background of ``strength``
+    (the scene's world, whose background may be named otherwise, fed by a sky texture, or have
+    no nodes, is left as it is; the panel puts it back afterwards)."""
+    world = bpy.data.worlds.get(SCANNER_WORLD)
+    bg = None if world is None or world.node_tree is None else world.node_tree.nodes.get("Background")
+    out = None if bg is None else next((n for n in world.node_tree.nodes if n.type == "OUTPUT_WORLD"), None)
+    if bg is None or bg.type != "BACKGROUND" or out is None or not bg.outputs[0].links \
+            or any(i.is_linked for i in bg.inputs):  # changed since it was made: made again
+        if world is not None:
+            bpy.data.worlds.remove(world)
+        world = new_world(SCANNER_WORLD)
+        bg = ensure_node_tree(world).nodes["Background"]
+    bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bg.inputs["Strength"].default_value = strength
     scene.world = world
-    bg = ensure_node_tree(world).nodes.get("Background")
-    if bg is not None:
-        bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-        bg.inputs["Strength"].default_value = strength
 
 
 RAISED_AFTER_RENDER = "Ctrl-C during a render: raised once the render call returned"

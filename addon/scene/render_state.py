@@ -8,8 +8,8 @@ whether they finish, fail or are cancelled.
 
 The snapshot is generic: every writable plain property (numbers, booleans,
 strings, enums, fixed-size arrays) of the structs the scanner writes to, plus
-the few pointers and collections it changes (the scene camera and world, the
-world's background, the stereo views, the view layers' Z pass, the frame).
+the few pointers and collections it changes (the scene camera and world, the stereo
+views, the view layers' overrides and Z pass, the frame).
 """
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ from contextlib import contextmanager
 import bpy
 
 _PLAIN = {"BOOLEAN", "INT", "FLOAT", "STRING", "ENUM"}
+# What the probe renders set on each view layer (render.configure).
+_LAYER = ("use_pass_z", "material_override", "world_override", "samples", "use_solid", "use_sky", "use_motion_blur")
 # Worked out by Blender from others, and setting it sets them: the white point is the white
 # balance's temperature and tint over again, and put back after them it moved them by a hair
 # (6500 K became 6500.087 K after ten probe renders).
@@ -60,18 +62,11 @@ class RenderState:
                 self.structs.append(getattr(scene, name))
         self.values = [_struct_values(s) for s in self.structs]
         self.camera = scene.camera
-        self.world = scene.world
-        self.background = self._background_values()
+        self.world = scene.world  # (the probe renders light with a world of their own)
         self.views = {v.name: (v.use, v.camera_suffix) for v in r.views}
-        self.z_pass = {layer.name: layer.use_pass_z for layer in scene.view_layers}
+        self.layers = {layer.name: {name: getattr(layer, name) for name in _LAYER if hasattr(layer, name)}
+                       for layer in scene.view_layers}
         self.frame = scene.frame_current
-
-    def _background_values(self):
-        world = self.scene.world
-        bg = world.node_tree.nodes.get("Background") if world is not None and world.node_tree else None
-        if bg is None:
-            return None
-        return tuple(bg.inputs["Color"].default_value), bg.inputs["Strength"].default_value
 
     def restore(self) -> None:
         scene = self.scene
@@ -82,11 +77,6 @@ class RenderState:
         for struct, values in zip(self.structs, self.values):
             _set_values(struct, values)
         scene.camera = self.camera if self.camera is None or self.camera.name in bpy.data.objects else None
-        world = scene.world
-        if self.background is not None and world is not None and world.node_tree:
-            bg = world.node_tree.nodes.get("Background")
-            if bg is not None:
-                bg.inputs["Color"].default_value, bg.inputs["Strength"].default_value = self.background
         scene.world = self.world
         views = scene.render.views
         for view in list(views):
@@ -97,8 +87,9 @@ class RenderState:
             if view is not None:
                 view.use, view.camera_suffix = use, suffix
         for layer in scene.view_layers:
-            if layer.name in self.z_pass:
-                layer.use_pass_z = self.z_pass[layer.name]
+            for name, value in self.layers.get(layer.name, {}).items():
+                if getattr(layer, name) != value:
+                    setattr(layer, name, value)
         if scene.frame_current != self.frame:
             scene.frame_set(self.frame)
 
