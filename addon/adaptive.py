@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .core.config.scan import MAX_PROFILES, AdaptiveSettings
-from .core.errors import CollisionError, InputError, UnreachablePose
+from .core.errors import CollisionError, InputError, UnreachablePose, is_whole
 from .core.geometry.known_space import UNKNOWN, KnownSpace
 from .core.geometry.metrics import NearMesh
 from .core.kinematics.turntable import box_beyond_table
@@ -167,6 +167,9 @@ class NextBestView:
         ranking, each promising at least ``min_gain`` cells and fitting ``budget`` profiles;
         None where there is none. (It asked the best 12 only, and where the robot could do none
         of them stopped the scan as if no view were left.)"""
+        if budget is not None and not (is_whole(budget) and budget >= 0):
+            raise InputError(f"choose: the budget is a whole number of profiles, 0 or more (or None: no limit), "
+                             f"got {budget!r}")
         probe_now = scanner.pose("table")[:3, 3]
         live = self.live()
         self.refused, self.ranked = [], []
@@ -174,7 +177,11 @@ class NextBestView:
             first = self.overview(scanner, live, probe_now, budget)
             if first is not None:
                 return first
-            self.looked = True
+            # None: the robot can do no overview, and never will be asked again; or none fits
+            # this budget, and a larger one may be given later (a look-ahead with a small
+            # budget gave up the overview for good).
+            if not any(self.is_overview(c) and c.key not in self.impossible for c in live):
+                self.looked = True
         ranked = [c for c in next_view.rank(self.space, self.probe, live, scanner.table_deg, probe_now, self.missed)
                   if c.gain >= self.min_gain and (budget is None or c.frames <= budget)]
         self.ranked = ranked
@@ -263,14 +270,19 @@ class NextBestView:
         tilted ones while it finds only the faces that look up (on the step block 23 % of the
         part against 71 %).
         None where no tilted turn fits the budget or the robot can do none."""
-        turns = [c for c in live if c.kind == "turn" and 0.0 < abs(c.tilt_deg) <= OVERVIEW_MAX_TILT_DEG
-                 and (budget is None or c.frames <= budget)]
+        turns = [c for c in live if self.is_overview(c) and (budget is None or c.frames <= budget)]
         ranked = next_view.rank(self.space, self.probe, turns, scanner.table_deg, probe_now, self.missed)
         self.ranked = sorted(ranked, key=lambda c: (-abs(c.tilt_deg), -c.tilt_deg))
         for c in self.ranked:
             if self.feasible(scanner, c):
                 return c
         return None
+
+    @staticmethod
+    def is_overview(c) -> bool:
+        """Whether candidate ``c`` can be the overview: a tilted table turn, tilted no more than
+        OVERVIEW_MAX_TILT_DEG."""
+        return c.kind == "turn" and 0.0 < abs(c.tilt_deg) <= OVERVIEW_MAX_TILT_DEG
 
     def runners_up(self, chosen, n: int = RUNNERS_UP) -> tuple:
         """The ``n`` candidates ranked after ``chosen`` in the last decision: what the planner

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -105,10 +106,19 @@ def load_planner(spec: str):
             raise InputError(f"--planner {spec!r}: there is no file {where}")
         module_spec = importlib.util.spec_from_file_location(f"your_planner_{path.stem}", path)
         module = importlib.util.module_from_spec(module_spec)
+        # Registered as imports are (dataclasses look their module up there), and beside its
+        # own folder's modules (a helper file next to it).
+        sys.modules[module_spec.name] = module
+        folder = str(path.resolve().parent)
+        sys.path.insert(0, folder)
         try:
             module_spec.loader.exec_module(module)
         except Exception as exc:
+            sys.modules.pop(module_spec.name, None)
             raise InputError(f"--planner {spec!r}: {where} failed to load: {_where_failed(exc, where)}") from None
+        finally:
+            if folder in sys.path:
+                sys.path.remove(folder)
     else:
         try:
             module = importlib.import_module(where)
@@ -166,14 +176,38 @@ def run_planner(config, budget: int, factory=None) -> dict:
 
     scanner = Scanner(config=config)
     lo, hi = part_box(config)
+
+    def kept_rules(what: str, before: int) -> None:
+        """Every profile counts, and the bench's config scores the scan: a planner that measured
+        outside scan() (in its set-up or in choose()) or replaced the scanner's config is
+        stopped (it scanned for free, or was scored against another truth)."""
+        if not own:
+            return
+        if scanner.frames_taken != before:
+            raise InputError(f"{who} measured {scanner.frames_taken - before} profiles in {what}: every profile "
+                             f"counts against the budget, so measure only in scan(), the view choose() gave")
+        if scanner.config is not config:
+            raise InputError(f"{who} replaced the scanner's config in {what}: the bench scores every planner "
+                             f"against its own config; keep your settings in your planner")
+
     t = time.perf_counter()
     planner = yours("its set-up", lambda: factory(scanner, lo, hi))  # the one-off set-up (model, candidates, ...)
     setup = time.perf_counter() - t
+    kept_rules("its set-up", 0)
+    smallest = getattr(planner, "smallest_view", None)
+    if callable(smallest):  # (the reference's, and a subclass's): a budget that fits no view scans nothing
+        smallest = yours("smallest_view()", smallest)
+        if is_whole(smallest) and budget < smallest:
+            raise InputError(f"--budget {budget} is below the smallest view's {smallest} profiles of "
+                             f"{'your planner' if own else 'the planner'} on {config.workpiece.name}: nothing would "
+                             f"be scanned (give a budget of at least {smallest})")
     curve, plan_s, taken, views = [], [], 0, []
     while taken < budget:
         t = time.perf_counter()
+        before = scanner.frames_taken
         c = yours("choose()", lambda: planner.choose(scanner, budget - taken))
         plan_s.append(time.perf_counter() - t)
+        kept_rules("choose()", before)
         if c is None:
             break
         frames = getattr(c, "frames", None)
@@ -181,9 +215,14 @@ def run_planner(config, budget: int, factory=None) -> dict:
             raise InputError(f"your planner chose {_describe(c)} with {frames!r} profiles while "
                              f"{budget - taken} were left in the budget: choose() must return a view that fits "
                              f"the profiles it is given, or None")
-        before = scanner.frames_taken
         yours("scan()", lambda: planner.scan(scanner, c))
-        taken += scanner.frames_taken - before  # what the scanner took, whatever scan() returns
+        took = scanner.frames_taken - before  # what the scanner took, whatever scan() returns
+        if own and not 0 < took <= budget - taken:
+            raise InputError(f"{who}: its scan() of {_describe(c)} ({frames} profiles) measured {took}, with "
+                             f"{budget - taken} left in the budget: scan() must measure the view it chose"
+                             + (", which is more than the budget" if took else ""))
+        kept_rules("scan()", scanner.frames_taken)
+        taken += took
         curve.append((taken, scanner.result().report["coverage"]))
         views.append(_describe(c))
     result = scanner.result()
@@ -195,16 +234,28 @@ def run_planner(config, budget: int, factory=None) -> dict:
                plan_max=max(plan_s) if plan_s else 0.0, plan_median=float(np.median(plan_s)) if plan_s else 0.0,
                setup=setup, rms=r["error_um"]["rms_um"], coverage=r["coverage"], measurable=r["coverage_measurable"])
     if callable(estimate):
-        out["estimate"] = float(yours("coverage_estimate()", estimate))
+        given = yours("coverage_estimate()", estimate)
+        try:
+            value = float(given)
+        except (TypeError, ValueError):
+            value = math.nan
+        if own and not 0.0 <= value <= 1.0:
+            raise InputError(f"{who}: its coverage_estimate() gave {given!r}: the bench shows it beside the true "
+                             f"coverage, so it must be a share from 0 to 1 (or leave the method out)")
+        out["estimate"] = value
     return out
 
 
 def _describe(view) -> str:
     """A view for the growth picture's titles: kind and tilt where it has them."""
     kind, tilt = getattr(view, "kind", None), getattr(view, "tilt_deg", None)
-    if kind is None or tilt is None:
+    try:
+        tilt = float(tilt)
+    except (TypeError, ValueError):
+        tilt = math.nan
+    if kind is None or not math.isfinite(tilt):
         return type(view).__name__
-    return f"{'turn' if kind == 'turn' else 'sweep'}, tilt {float(tilt):.0f} deg"
+    return f"{'turn' if kind == 'turn' else 'sweep'}, tilt {tilt:.0f} deg"
 
 
 def run_fixed(config, passes) -> dict:

@@ -400,6 +400,17 @@ def test_numpy_whole_numbers_are_taken_as_budget_and_gain():
     config, scanner, planner = _raycast_planner("demo")
     with pytest.raises(InputError, match=r"scan: expected a view .*got None: choose\(\) gives None when no view"):
         planner.scan(scanner, None)
+    # A look-ahead with a budget the overview does not fit keeps the overview for later (it
+    # was given up for good); a budget that is no number of profiles is named.
+    assert planner.choose(scanner, 100).kind == "sweep"
+    first = planner.choose(scanner, 450)
+    assert first.kind == "turn" and planner.is_overview(first) and first.frames > 100
+    for budget in (-5, 2.5, "many", float("nan")):
+        with pytest.raises(InputError, match="the budget is a whole number of profiles"):
+            planner.choose(scanner, budget)
+    for lo, hi in (([0, 0, float("nan")], [1, 1, 1]), ([1, 1, 1], [0, 0, 0]), ([0, 0], [1, 1])):
+        with pytest.raises(InputError, match="coverage_estimate: the part's box needs lo < hi"):
+            planner.space.coverage_estimate(lo, hi)
     s = Scanner(config=config)
     steps = s.adaptive(max_profiles=np.int64(200), min_gain=np.int32(30), target_coverage=np.float32(0.99))
     assert steps and s.report().to_dict()["adaptive"]["max_profiles"] == 200
@@ -539,6 +550,17 @@ def test_a_budget_or_box_the_planner_cannot_use_is_named_by_the_api_and_the_envi
     config, scanner, planner = _raycast_planner("demo")
     with pytest.raises(InputError, match=r"scan: expected a view .*got None: choose\(\) gives None when no view"):
         planner.scan(scanner, None)
+    # A look-ahead with a budget the overview does not fit keeps the overview for later (it
+    # was given up for good); a budget that is no number of profiles is named.
+    assert planner.choose(scanner, 100).kind == "sweep"
+    first = planner.choose(scanner, 450)
+    assert first.kind == "turn" and planner.is_overview(first) and first.frames > 100
+    for budget in (-5, 2.5, "many", float("nan")):
+        with pytest.raises(InputError, match="the budget is a whole number of profiles"):
+            planner.choose(scanner, budget)
+    for lo, hi in (([0, 0, float("nan")], [1, 1, 1]), ([1, 1, 1], [0, 0, 0]), ([0, 0], [1, 1])):
+        with pytest.raises(InputError, match="coverage_estimate: the part's box needs lo < hi"):
+            planner.space.coverage_estimate(lo, hi)
     s = Scanner(config=config)
     with pytest.raises(BudgetBelowView, match=r"budget of 10 profiles is below the smallest view's \d+") as exc:
         s.adaptive(max_profiles=10)
@@ -630,8 +652,61 @@ def test_a_planner_of_ones_own_that_fails_or_overspends_is_named_in_one_line(tmp
                     "    def __init__(self, scanner, lo, hi):\n"
                     "        pass\n"
                     "    def choose(self, scanner, left):\n"
-                    "        return self\n")
-    cases = {f"{mine}:Raises": f"failed in choose(): IndexError: index 7 is out of bounds for axis 0 with size 3 "
+                    "        return self\n"
+                    "\n"
+                    "class View:\n"
+                    "    frames = 10\n"
+                    "\n"
+                    "class Sweeps:  # scan() sweeps `sweep` profiles for a view of 10\n"
+                    "    sweep, at_start, in_choose, loosen, estimate = 10, 0, 0, False, 0.5\n"
+                    "    def __init__(self, scanner, lo, hi):\n"
+                    "        if self.at_start:\n"
+                    "            scanner.sweep([-30.0, 0.0, 210.0], [30.0, 0.0, 210.0], self.at_start)\n"
+                    "    def choose(self, scanner, left):\n"
+                    "        if self.in_choose:\n"
+                    "            scanner.sweep([-30.0, 0.0, 210.0], [30.0, 0.0, 210.0], self.in_choose)\n"
+                    "        if self.loosen:\n"
+                    "            import dataclasses\n"
+                    "            scanner.config = dataclasses.replace(scanner.config, coverage_tolerance_mm=20.0)\n"
+                    "        return View() if left >= 10 else None\n"
+                    "    def scan(self, scanner, view):\n"
+                    "        if self.sweep:\n"
+                    "            scanner.sweep([-30.0, 0.0, 210.0], [30.0, 0.0, 210.0], self.sweep)\n"
+                    "    def coverage_estimate(self):\n"
+                    "        return self.estimate\n"
+                    "\n"
+                    "class FreeLook(Sweeps):\n"
+                    "    at_start = 40\n"
+                    "class LooksInChoose(Sweeps):\n"
+                    "    in_choose = 5\n"
+                    "class ScansNothing(Sweeps):\n"
+                    "    sweep = 0\n"
+                    "class Overscans(Sweeps):\n"
+                    "    sweep = 200\n"
+                    "class Loosens(Sweeps):\n"
+                    "    loosen = True\n"
+                    "class Guesses(Sweeps):\n"
+                    "    estimate = 'most of it'\n")
+    (tmp_path / "dc.py").write_text("from __future__ import annotations\n"
+                                    "from dataclasses import dataclass\n"
+                                    "from mine import Sweeps\n"  # (a helper beside it)
+                                    "@dataclass\n"
+                                    "class Kept:\n"
+                                    "    views: int = 0\n"
+                                    "class Fine(Sweeps):\n"
+                                    "    log = Kept()\n")
+    # (each was let through: profiles measured free, a run that never ended, a budget
+    # overrun, a scan scored against a looser tolerance, a traceback; a dataclass in the
+    # file did not load)
+    cases = {
+             f"{mine}:FreeLook": "measured 40 profiles in its set-up: every profile counts",
+             f"{mine}:LooksInChoose": "measured 5 profiles in choose(): every profile counts",
+             f"{mine}:ScansNothing": "its scan() of View (10 profiles) measured 0, with 150 left",
+             f"{mine}:Overscans": "measured 200, with 150 left in the budget: scan() must measure the view it chose, "
+                                  "which is more than the budget",
+             f"{mine}:Loosens": "replaced the scanner's config in choose(): the bench scores every planner",
+             f"{mine}:Guesses": "its coverage_estimate() gave 'most of it': the bench shows it beside",
+             "addon.adaptive:NextBestView --budget 20": "--budget 20 is below the smallest view's",f"{mine}:Raises": f"failed in choose(): IndexError: index 7 is out of bounds for axis 0 with size 3 "
                                f"(at {mine}:5)",
              f"{mine}:Greedy": "chose Greedy with 1000000 profiles while 150 were left in the budget",
              f"{mine}:Nothing": f"{mine} has no class or function Nothing",
@@ -643,10 +718,14 @@ def test_a_planner_of_ones_own_that_fails_or_overspends_is_named_in_one_line(tmp
         return rc, capsys.readouterr()
 
     for spec, said in cases.items():
-        rc, out = bench("--only", "sphere", "--engine", "raycast", "--budget", "150", "--methods", "yours",
-                        "--planner", spec)
+        spec, *budget = spec.split(" --budget ")
+        rc, out = bench("--only", "sphere", "--engine", "raycast", "--budget", (budget or ["150"])[0],
+                        "--methods", "yours", "--planner", spec)
         assert rc == 2 and said in out.err and "Traceback" not in out.err, (spec, out.err)
         assert len(out.err.strip().splitlines()) == 1 and out.out.count("|") == 0, (spec, out.err)
+    rc, out = bench("--only", "sphere", "--engine", "raycast", "--budget", "30", "--methods", "yours",
+                    "--planner", f"{tmp_path / 'dc.py'}:Fine")
+    assert rc == 0 and "| sphere (demo) | yours | 30 | 3 |" in out.out and "50.0 %" in out.out, out.err
     rc, out = bench("--methods", "yours")
     assert rc == 2 and "--methods yours needs --planner" in out.err
     rc, out = bench("--only", "no part has this name")

@@ -180,7 +180,14 @@ class KnownSpace:
         underside on the table) have no frontier and do not count. ``bench adaptive``
         shows it beside the true coverage.
         0 before anything is known."""
-        lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+        try:
+            lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+        except (TypeError, ValueError):
+            lo = hi = np.full(0, np.nan)
+        if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()
+                                                        and (hi > lo).all()):
+            raise InputError("coverage_estimate: the part's box needs lo < hi in x, y and z, three finite numbers "
+                             "(mm) each")
         bottom = lo.copy()
         bottom[2] += self.voxel
         ranges = [_cell_range(self.lo[a], self.voxel, self.shape[a], bottom[a], hi[a]) for a in range(3)]
