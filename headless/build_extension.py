@@ -87,16 +87,30 @@ def wheel_python(filename: str) -> str | None:
     return f"{python_tag[2]}.{python_tag[3:]}"
 
 
+def wheel_serves(filename: str, python: str) -> bool:
+    """Whether a wheel installs on CPython ``python`` ("3.13"), as Blender judges it: a
+    compiled wheel on its own version, a stable-ABI one (cp312-abi3) on its version and later,
+    a pure-Python one on any."""
+    python_tag, abi_tag = filename[:-4].split("-")[-3:-1]
+    if abi_tag == "abi3" and python_tag.startswith("cp"):
+        def version(v):
+            return tuple(int(x) for x in v.split("."))
+        return version(python) >= version(f"{python_tag[2]}.{python_tag[3:]}")
+    return wheel_python(filename) in (None, python)
+
+
 def check_pythons(wheels: list[str], platforms: list[str], pythons: list[str]) -> None:
     """Every compiled package has a wheel for each Python on each platform, or Blender will
     refuse to enable the extension on the releases that lack one."""
     missing = []
     for platform in platforms:
         for_platform = [w for w in wheels if wheel_for(w, [platform])]
-        compiled = {w.split("-")[0] for w in for_platform if wheel_python(w) is not None}
+        # (compiled: a CPython tag, for one version or, abi3, from one version on)
+        compiled = {w.split("-")[0] for w in for_platform if w[:-4].split("-")[-3].startswith("cp")}
         for package in sorted(compiled):
-            have = {wheel_python(w) for w in for_platform if w.split("-")[0] == package}
-            missing += [f"{package} for CPython {py} on {platform}" for py in pythons if py not in have]
+            own = [w for w in for_platform if w.split("-")[0] == package]
+            missing += [f"{package} for CPython {py} on {platform}" for py in pythons
+                        if not any(wheel_serves(w, py) for w in own)]
     if missing:
         raise SystemExit("error: blender_manifest.toml lists no wheel of " + "; ".join(missing))
 

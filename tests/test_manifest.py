@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from headless.build_extension import blender_ext_tool, check_pythons, supported_pythons, wheel_for, wheel_platforms, wheel_python
+from headless.build_extension import (blender_ext_tool, check_pythons, supported_pythons, wheel_for, wheel_platforms,
+                                      wheel_python, wheel_serves)
 
 REPO = Path(__file__).resolve().parents[1]
 MANIFEST = tomllib.loads((REPO / "blender_manifest.toml").read_text())
@@ -39,6 +40,19 @@ def test_a_missing_python_is_named():
     only_311 = [w for w in WHEELS if wheel_python(w) != "3.13"]
     with pytest.raises(SystemExit, match=r"scipy for CPython 3.13 on linux-x64"):
         check_pythons(only_311, ["linux-x64"], ["3.11", "3.13"])
+
+
+def test_a_stable_abi_wheel_serves_its_python_and_later_ones_only():
+    """libigl ships cp311 for Blender 4.5 and cp312-abi3 for 5.1 and 5.2, as Blender's installer
+    picks them; without its cp311 wheel, 3.11 has none."""
+    abi3 = "libigl-2.6.3-cp312-abi3-win_amd64.whl"
+    assert wheel_serves(abi3, "3.13") and wheel_serves(abi3, "3.12") and not wheel_serves(abi3, "3.11")
+    assert wheel_serves("libigl-2.6.3-cp311-cp311-win_amd64.whl", "3.11")
+    assert not wheel_serves("libigl-2.6.3-cp311-cp311-win_amd64.whl", "3.13")
+    assert wheel_serves("trimesh-5.2.0-py3-none-any.whl", "3.11")
+    without = [w for w in WHEELS if not w.startswith("libigl-2.6.3-cp311")]
+    with pytest.raises(SystemExit, match=r"libigl for CPython 3.11 on linux-x64"):
+        check_pythons(without, ["linux-x64"], ["3.11", "3.13"])
 
 
 def test_wheel_tags_are_read_from_file_names():

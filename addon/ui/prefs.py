@@ -14,6 +14,8 @@ class ScannerPreferences(bpy.types.AddonPreferences):
         col = self.layout.column()
         col.label(text="Scans are written to the folder set in the Scan panel, or by default to:")
         col.label(text=str(default_output_dir()))
+        col.label(text="Blender deletes that folder with the extension when it is uninstalled: keep scans "
+                       "you need elsewhere.", icon="ERROR")
 
 
 # Only an installed extension has a preferences entry to attach to.

@@ -186,7 +186,8 @@ class ScannerSettings(bpy.types.PropertyGroup):
                               description="Scan config file (TOML)")
     output_dir: StringProperty(name="Output", subtype="DIR_PATH", options=BLEND_RELATIVE, default="",
                                description="Folder for cloud.ply, report.json, preview.png (empty: the "
-                                           "extension's user folder)")
+                                           "extension's user folder, which Blender deletes with the "
+                                           "extension when it is uninstalled)")
     scan_sensor: EnumProperty(name="Sensor", items=[
         ("CONFIG", "From the scan config", "Use the scan config's [sensor] table and material"),
         ("PANEL", "From the probe panel", "Use the probe panel's realistic sensor, material and ambient light")],

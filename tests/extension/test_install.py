@@ -68,8 +68,19 @@ try:
     dae = Path(tempfile.mkdtemp()) / "box.dae"
     dae.write_bytes(trimesh.exchange.dae.export_collada(trimesh.creation.box((0.1, 0.2, 0.3))))
     out["dae_extents"] = sorted(trimesh.load(dae, force="mesh").extents.tolist())
+    out["step"] = "a mesh part's distances signed (the zip's libigl)"
+    import igl
+    out["igl_from_zip"] = Path(igl.__file__).is_relative_to(local)
+    metrics = importlib.import_module(module + ".addon.core.geometry.metrics")
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=10.0)
+    _, signed = metrics.mesh_distances(numpy.array([[0.0, 0.0, 9.0], [0.0, 0.0, 12.0]]), ball)
+    out["signed"] = None if signed is None else [float(v) for v in signed]
     out["step"] = "build cell"
     check(bpy.ops.scanner.build_cell() == {"FINISHED"}, "scanner.build_cell did not finish")
+    def over_the_part():  # the probe 150 mm above the sphere's top: the line lies on the part
+        bpy.context.scene.scanner.target_location = (0.0, 0.0, 210.0)
+        check(bpy.ops.scanner.go() == {"FINISHED"}, "scanner.go did not finish")
+    over_the_part()
     out["step"] = "render probe views"
     check(bpy.ops.scanner.render_views() == {"FINISHED"}, "scanner.render_views did not finish")
     def views():
@@ -84,6 +95,7 @@ try:
     out["step"] = "render probe views with Eevee's spot laser"
     bpy.context.scene.scanner.laser = "spot"
     check(bpy.ops.scanner.build_cell() == {"FINISHED"}, "scanner.build_cell (spot laser) did not finish")
+    over_the_part()
     check(bpy.ops.scanner.render_views() == {"FINISHED"}, "scanner.render_views (Eevee) did not finish")
     out["eevee_views"] = views()
     bpy.context.scene.scanner.laser = "gobo"
@@ -170,6 +182,8 @@ def test_zip_ships_the_addon_its_rigs_and_linux_wheels_for_both_pythons(linux_zi
     for package in ("scipy", "embreex", "lxml"):
         tags = {w.split("-")[2] for w in wheels if w.startswith(f"wheels/{package}-")}
         assert tags == {"cp311", "cp313"}, (package, tags)
+    tags = {tuple(w.split("-")[2:4]) for w in wheels if w.startswith("wheels/libigl-")}
+    assert tags == {("cp311", "cp311"), ("cp312", "abi3")}, tags  # 4.5 and 5.0; 5.1 and 5.2
     assert not [n for n in names if n.startswith(("tests/", "headless/", ".venv", ".ci/", ".git"))]
     assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
 
@@ -192,8 +206,12 @@ def test_install_enable_scan_disable_uninstall(release, linux_zip, tmp_path):
     assert out["trimesh_from_zip"] and out["cv2_from_zip"], f"{where}: the zip's wheels are not what runs"
     assert out["yourdfpy_from_zip"] and out["urdf_prismatic"] == [True] * 3 + [False] * 3, where
     assert out["collada_from_zip"] and np.allclose(out["dae_extents"], [0.1, 0.2, 0.3]), where
-    for view in out["views"]:
-        assert view["size"] == [160, 160] and view["max"] > 0.05, f"{where}: probe view {view}"
+    # The signed distances of the metrics (a mesh part's bias), through the zip's libigl in each Blender
+    # (none shipped: unsigned, and 40 times slower)
+    assert out["igl_from_zip"] and out["signed"] is not None, f"{where}: {out.get('signed')}"
+    assert -1.0 < out["signed"][0] < -0.9 and 1.99 < out["signed"][1] < 2.01, f"{where}: {out['signed']}"
+    for view in out["views"]:  # the laser line, far above the ambient 0.08 (which passed alone before)
+        assert view["size"] == [160, 160] and view["max"] > 0.3, f"{where}: probe view {view}"
     # Eevee (4.5's Eevee Next and 5.x's) renders the spots' line as bright as Cycles the gobo's.
     for view, eevee in zip(out["views"], out["eevee_views"]):
         assert eevee["size"] == [160, 160] and 0.8 < eevee["max"] / view["max"] < 1.25, f"{where}: {eevee} {view}"

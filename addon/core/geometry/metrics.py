@@ -4,7 +4,7 @@ Truth is either an analytic shape (:mod:`addon.core.geometry.shapes`, exact dist
 a mesh: exact closest-point distances to its flat faces through libigl's AABB tree
 (25 000 points against 82 000 faces in under a second, where trimesh's proximity query
 took about 3 ms per point), signed (positive outside) where the mesh is closed, so that
-a mesh part has a bias too. Without libigl (a Blender whose Python it has no wheel for)
+a mesh part has a bias too. Without libigl (a Python it is not installed in; the extension ships it)
 trimesh answers the same distances, unsigned and slower. Statistics are in micrometres.
 """
 
