@@ -2,7 +2,8 @@
 
 The cloud becomes a mesh of loose vertices in the table frame, parented to the
 turntable so it stays on the part when the table turns. Per-point attributes:
-``frame`` and ``camera`` (int), ``quality`` and ``error_um`` (float) and
+``frame`` and ``camera`` (int), ``quality`` and ``error_um`` (float: the distance to what the
+point counts as, the part, the table or a fixture) and
 ``error_colour`` (colour). A small Geometry Nodes modifier turns the vertices
 into points (drawn in the viewport, rendered by Cycles as spheres) and gives
 them a material that shows ``error_colour``.

@@ -74,3 +74,5 @@ def test_a_jaw_pressed_against_the_part_takes_none_of_the_parts_points_and_gives
     assert result.report["points_on_fixtures"] == on_fixture.sum() > 300
     assert not (on_fixture & (to_sphere < 0.02)).any() and not (result.on_part & (to_jaw < 0.02)).any()
     assert result.report["error_um"]["rms_um"] < 9.0
+    # Each point's error is against what it counts as: the jaw's points against the box.
+    np.testing.assert_allclose(result.error_um[result.on_fixture], to_jaw[result.on_fixture] * 1e3, atol=0.01)

@@ -166,6 +166,11 @@ def test_points_on_the_tables_side_are_the_tables_beside_a_part_over_the_rim(tmp
     assert r["points_on_part"] == on_box.sum() and r["points_on_table"] == (~on_box).sum(), r
     assert r["error_um"]["rms_um"] < PLANE_BOUND_UM and r["outliers"] == 0, r["error_um"]
     assert r["table_error_um"]["max_um"] < PLANE_BOUND_UM, r["table_error_um"]
+    # Each point's own error (the Blender cloud's error_um) is against what it counts as: the
+    # table's points read their distance to the part before (tens of millimetres).
+    err = result.error_um
+    assert err[~on_box].max() < PLANE_BOUND_UM and err[on_box].max() < 50.0
+    np.testing.assert_allclose(err[on_box], np.abs(inside[on_box]) * 1e3, atol=0.01)
 
 
 def test_the_same_config_gives_the_same_cloud_twice():

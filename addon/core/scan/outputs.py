@@ -32,8 +32,9 @@ from .report import report_json
 @dataclass
 class ScanResult:
     """cloud (table frame); report (the report.json content); files written; per point:
-    |error| to the part in µm, whether the point counts as the part's, and whether as one of
-    the table's fixtures' (neither: the table's)."""
+    |error| in µm to what it counts as (the part, the table's disc or a fixture), whether the
+    point counts as the part's, and whether as one of the table's fixtures' (neither: the
+    table's)."""
 
     cloud: object
     report: dict
@@ -286,7 +287,8 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
     the table's fixtures (rendered with the part) as the fixtures', the rest as the table's;
     coverage of the whole part and (given the frames' probe poses) of what the path can measure.
 
-    Returns (report entries, on_part (n,) bool, |error| (n,) µm to the part, on a fixture (n,) bool)."""
+    Returns (report entries, on_part (n,) bool, |error| (n,) µm to what each point counts as,
+    on a fixture (n,) bool)."""
     wp = config.workpiece
     P = cloud.points
     poses = np.zeros((0, 4, 4)) if probe2table is None else probe2table
@@ -300,10 +302,16 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
     d_part, s_part = metrics.distances(P, wp.truth)
     d_table, s_table = table_distances(P)
     on_fixture = np.zeros(len(P), bool)  # nearer one of the table's fixtures than the part and the table top
-    for f in table_fixtures(config):
+    fixtures = table_fixtures(config)
+    for f in fixtures:
         on_fixture |= metrics.NearMesh(f.mesh).within(P, np.minimum(d_part, d_table))
     on_part = (d_part <= d_table) & ~on_fixture
     on_table = ~on_part & ~on_fixture
+    # Each point's error against what it counts as (the cloud object's error_um: a table point
+    # read its distance to the part, tens of millimetres).
+    d_own = np.where(on_part, d_part, d_table)
+    if on_fixture.any():
+        d_own[on_fixture] = np.min([metrics.unsigned_distances(P[on_fixture], f.mesh) for f in fixtures], axis=0)
     part = metrics.error_stats(d_part[on_part], None if s_part is None else s_part[on_part])
     table = metrics.error_stats(d_table[on_table], s_table[on_table])
     coverage = metrics.coverage(P[on_part], wp.mesh, config.coverage_tolerance_mm)
@@ -314,7 +322,7 @@ def measure_against_truth(cloud, config: ScanConfig, probe2table: np.ndarray | N
              "outliers": int(np.sum(d > metrics.OUTLIER_MM)), "within_2_sigma": within,
              "error_um": part.as_dict(), "table_error_um": table.as_dict(), "coverage": coverage,
              **measurable_coverage(config, poses, P[on_part]),
-             "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_part * 1e3, on_fixture)
+             "coverage_tolerance_mm": config.coverage_tolerance_mm}, on_part, d_own * 1e3, on_fixture)
 
 
 OUTPUT_FILES = {"cloud": "cloud.ply", "report": "report.json", "preview": "preview.png"}
