@@ -57,9 +57,25 @@ def run(args: argparse.Namespace) -> int:
         return _with_scan(args, scene, render_overview)
     sc = demo_cell.build(scene, args.robot, args.probe, args.workpiece)
     frames = demo_cell.sweep(sc, 3, table_angle_rad=0.5)
-    path = render_overview(sc, Path(args.out), args.width, args.height, args.samples, frame=frames.start + 1)
+    path = render_overview(sc, Path(args.out), args.width, args.height, args.samples, frame=frames.start + 1,
+                           before_write=_stop_check(args))
     print(f"wrote {path}")
     return 0
+
+
+def _stop_check(args):
+    """What render_overview calls between its renders and writing the picture: a Ctrl-C or
+    SIGTERM during the render (one long Cycles call, which only records it) stops the command
+    there, with nothing written (it wrote the picture and exited 0)."""
+    stops = getattr(args, "stops", None)
+    if stops is None:
+        return None
+
+    def check():
+        stops.done, stops.total, stops.unit = 0, 0, "pictures"
+        stops.check()
+
+    return check
 
 
 def scan_folder(out: str) -> Path:
@@ -85,6 +101,9 @@ def _with_scan(args, scene, render_overview) -> int:
         except RuntimeError as exc:  # the operator's own report: its last line says what went wrong
             from addon.core.errors import ScannerError
 
+            stops = getattr(args, "stops", None)
+            if stops is not None and stops.signum is not None:  # stopped: the operator reported the stop
+                raise stops.interrupted() from None
             raise ScannerError(f"the Scanner panel's scan: {str(exc).strip().splitlines()[-1]}") from None
         cfg = load_scan_config(args.scan)
         sc = SceneCell.attach(scene, cfg.cell, cfg.probe, cfg.workpiece)
@@ -92,7 +111,8 @@ def _with_scan(args, scene, render_overview) -> int:
         cloud.modifiers["Points"].node_group.nodes["Mesh to Points"].inputs["Radius"].default_value = 0.0009
         focus = [o for o in sc.root.all_objects if o.name == "Turntable"]
         scene.frame_set(scene.frame_end)
-        path = render_overview(sc, Path(args.out), args.width, args.height, args.samples, focus=focus)
+        path = render_overview(sc, Path(args.out), args.width, args.height, args.samples, focus=focus,
+                               before_write=_stop_check(args))
     finally:
         ui.unregister()
     print(f"wrote {path}")

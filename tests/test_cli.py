@@ -140,6 +140,31 @@ def test_overview_with_a_scan_keeps_the_scans_files_beside_the_picture(tmp_path)
 
 
 @needs_bpy
+@pytest.mark.parametrize("args, said", [
+    (("--samples", "128", "--width", "800", "--height", "600"), "interrupted (Ctrl-C) before the first picture"),
+    (("--scan", "demo", "--frames", "0:180", "--samples", "4", "--width", "320", "--height", "240"),
+     "interrupted (Ctrl-C) after "),
+])
+def test_overview_stopped_by_ctrl_c_writes_nothing_and_exits_130(tmp_path, args, said):
+    """Its render is one long Cycles call, during which a Ctrl-C is only noted: it then wrote
+    the picture and exited 0; stopped during --scan, the operator's report became a traceback
+    and exit 2."""
+    import signal
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "headless", "overview", "--out", str(tmp_path / "o.png"), *args],
+                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(5.0)  # under way (or, on a slow start, still starting: stopped there the same)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130 and said in err and "Traceback" not in err, err[-2000:]
+    assert not (tmp_path / "o.png").exists() and "wrote" not in out
+
+
+@needs_bpy
 def test_render_bench_runs_small():
     out = run_cli("bench", "render", "--frames", "3", "--repeats", "1")
     assert out.returncode == 0, out.stderr[-2000:]

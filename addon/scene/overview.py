@@ -39,10 +39,12 @@ def to_srgb8(img: np.ndarray) -> np.ndarray:
 
 
 def render_overview(sc: SceneCell, path: str | Path, width: int = 720, height: int = 480,
-                    samples: int = 24, frame: int | None = None, focus: list | None = None) -> Path:
+                    samples: int = 24, frame: int | None = None, focus: list | None = None,
+                    before_write=None) -> Path:
     """Render the overview PNG for the current pose (or ``frame``) and write it atomically.
 
-    ``focus``: objects to frame (default: the whole cell)."""
+    ``focus``: objects to frame (default: the whole cell); ``before_write()``: called once the
+    renders are done, before the picture is written (a stop asked for meanwhile raises there)."""
     scene = sc.scene
     if frame is not None:
         scene.frame_set(frame)
@@ -86,6 +88,8 @@ def render_overview(sc: SceneCell, path: str | Path, width: int = 720, height: i
         cv2.putText(img, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
         return img
 
+    if before_write is not None:
+        before_write()
     panes = [label(to_srgb8(outside), "cell")]
     for camera, img in enumerate(probe_imgs):
         # Scale the probe image so the line's peak sits at 90 % of white.

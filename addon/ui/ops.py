@@ -440,6 +440,11 @@ class _SteppedScan:
             self._restore()
             self.report({"ERROR"}, _message(exc))
             return {"CANCELLED"}
+        except KeyboardInterrupt:  # Ctrl-C (a script's, or the command line's stop): said, not a traceback
+            self._scanner = self._steps = None
+            self._restore()
+            self.report({"ERROR"}, f"{self.bl_label} stopped (Ctrl-C); nothing was kept")
+            return {"CANCELLED"}
 
     def invoke(self, context, event):
         try:
