@@ -764,6 +764,7 @@ def test_bench_incidence_refuses_an_open_part_before_scanning(tmp_path):
     (("overview", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
     (("overview", "--out", "{tmp}/newfolder/"), "is a folder; give the name of the file to write"),
     (("overview", "--out", "{tmp}/afile/x.png"), "afile is a file"),
+    (("overview", "--out", "{tmp}/fifo"), "is a pipe (FIFO), not a file"),  # (replaced by the picture)
     (("realism-figure", "--frame", "1", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
     (("build-extension", "--pythons", "foo"), "expected a CPython version as X.Y"),
     (("build-extension", "--out", ""), "an empty name is no folder"),
@@ -774,6 +775,7 @@ def test_commands_refuse_bad_options_and_outputs_before_any_work(tmp_path, args,
     # (--width 0 divided by zero; --frames abc was the panel operator's traceback; an --out
     # folder was found after the renders, and named a hidden temporary file)
     (tmp_path / "afile").write_text("x")
+    os.mkfifo(tmp_path / "fifo")
     out = run_cli(*(a.replace("{tmp}", str(tmp_path)) for a in args))
     # (stdout may hold bpy's own start-up line, "color_management | Using OCIO=...")
     assert out.returncode == 2 and "Traceback" not in out.stderr and "wrote" not in out.stdout \

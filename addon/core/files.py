@@ -62,18 +62,39 @@ def write_set(folder: str | Path, contents: dict[str, bytes]) -> dict[str, Path]
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=folder))
-    moved: list[Path] = []
+    old = staging / ".old"  # the files being replaced, kept until every new one is in place
+    old.mkdir()
+    kept: list[str] = []
+    moved: list[str] = []
     try:
         for name, data in contents.items():
             with open(staging / name, "wb") as fh:
                 _write_synced(fh, data, folder / name)
             os.chmod(staging / name, 0o666 & ~_umask())
         for name in contents:
-            os.replace(staging / name, folder / name)
-            moved.append(folder / name)
+            try:
+                if (folder / name).is_file():
+                    try:
+                        os.link(folder / name, old / name)  # (the file stays in place, under a second name)
+                    except OSError:  # a file system without hard links, or a file that refuses one
+                        shutil.copy2(folder / name, old / name)
+                    kept.append(name)
+                os.replace(staging / name, folder / name)
+            except OSError as exc:  # named for the user's file, not the staging folder's
+                raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
+            moved.append(name)
     except BaseException:
-        for path in moved:  # a rename failed after others worked: take the new ones out again
-            path.unlink(missing_ok=True)
+        # A rename failed after others worked: the new files out again and the old ones back, so
+        # that the folder holds the last complete set (the old cloud and preview were lost, and
+        # an old report stood beside nothing).
+        for name in moved:
+            try:
+                if name in kept:
+                    os.replace(old / name, folder / name)
+                else:
+                    (folder / name).unlink(missing_ok=True)
+            except OSError:
+                pass
         raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
@@ -116,6 +137,8 @@ def check_output_file(path: str | Path, what: str = "output file") -> Path:
     # (a name ending in a slash is a folder's: "x/" wrote a file x)
     if not p.name or p.is_dir() or str(path).endswith(("/", os.sep)):
         raise InputError(f"{what} {str(path)!r} is a folder; give the name of the file to write")
+    if p.exists() and not p.is_file():  # a device or a pipe: the file written beside it would replace it
+        raise InputError(f"{what} {str(path)!r} is {_not_a_file(p)}, not a file; give the name of a file to write")
     check_output_folder(p.parent, (), f"{what} {p}: its folder")
     return p
 
@@ -151,7 +174,7 @@ def check_output_folder(folder: str | Path, names=(), what: str = "output folder
     for name in names:
         target = p / name
         if target.exists() and not target.is_file():
-            raise InputError(f"{what} {p}: {target} is a folder where the scan writes its {name}; "
+            raise InputError(f"{what} {p}: {target} is {_not_a_file(target)} where the scan writes its {name}; "
                              f"move it away or choose another folder")
         for source in inputs:
             try:
@@ -176,6 +199,25 @@ def _why_not_writable(folder: Path) -> str:
     except (OSError, AttributeError):  # AttributeError: no statvfs (Windows)
         return "this user may not write there"
     return f"this user may not write there (its permissions {stat.filemode(st.st_mode)}, owner uid {st.st_uid})"
+
+
+def _not_a_file(path: Path) -> str:
+    """What stands at ``path`` that is not a plain file, in words."""
+    import stat
+
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return "something other than a file"
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a pipe (FIFO)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "something other than a file"
 
 
 def pid_alive(pid: int) -> bool:

@@ -96,6 +96,33 @@ def test_a_failed_scan_leaves_none_of_the_folders_it_made(tmp_path):
     assert sorted(p.name for p in (tmp_path / "x").iterdir()) == ["kept.txt"]
 
 
+def test_a_set_that_fails_midway_leaves_the_last_complete_set(tmp_path, monkeypatch):
+    """The report's rename refused (a file held open on Windows, an immutable file): the new
+    cloud and preview were taken out again, and with them the old ones, which the renames had
+    replaced; the old report was left describing a cloud that was gone."""
+    import addon.core.files as files
+
+    out = tmp_path / "out"
+    write_set(out, {"cloud.ply": b"old cloud", "preview.png": b"old picture", "report.json": b"old report"})
+    replace = os.replace
+
+    def refusing(src, dst):
+        if Path(dst).name == "report.json" and Path(dst).parent == out and ".old" not in str(src):
+            raise PermissionError(1, "Operation not permitted", str(src))
+        return replace(src, dst)
+
+    monkeypatch.setattr(files.os, "replace", refusing)
+    with pytest.raises(PermissionError) as caught:
+        write_set(out, {"cloud.ply": b"new cloud", "preview.png": b"new picture", "report.json": b"new report"})
+    assert caught.value.filename == str(out / "report.json")  # the user's file, not a staging one
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == {
+        "cloud.ply": b"old cloud", "preview.png": b"old picture", "report.json": b"old report"}
+    monkeypatch.setattr(files.os, "replace", replace)
+    write_set(out, {"cloud.ply": b"new cloud", "preview.png": b"new picture"})  # a new file beside the old ones
+    write_set(out, {"extra.txt": b"x"})
+    assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "extra.txt", "preview.png", "report.json"]
+
+
 def _claim(folder, barrier, results):
     barrier.wait()
     try:
