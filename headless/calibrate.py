@@ -78,6 +78,10 @@ def run(args: argparse.Namespace) -> int:
                 bar_progress.bar.say(f"plan: {done} of {total} board views reachable")
             return
         bar_progress(stage, done, total)
+        if stage == "laser images" and done == total and getattr(args, "stops", None) is not None:
+            # Every image is rendered: a stop asked for until now ends the command with nothing
+            # written; one from now on waits for the files (it was announced as a stop and ignored).
+            args.stops.finish()
 
     try:
         t = time.perf_counter()

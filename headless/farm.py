@@ -282,6 +282,10 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
                                                         render_threads, log, progress)
         except KeyboardInterrupt as exc:  # the cluster is closed: what its workers finished is on disk
             exc.shards_finished = (sum(1 for s in parts if _not_ready(folder, s, fp) is None), len(parts))
+            _drop_if_empty(folder)
+            raise
+        except BaseException:
+            _drop_if_empty(folder)  # (a run that failed before any shard left OUT/shards/, and so OUT/)
             raise
     wall = time.perf_counter() - t_farm
     computed_frames = sum(len(s.frames) for s, _ in todo)
@@ -323,6 +327,14 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
                       # the frames computed here (a resumed run's reused shards took no time)
                       "profiles_per_s_wall": computed_frames / wall if wall > 0 and todo else None}}
     return assemble(config, plan, cloud, stats, timing, out_dir, t_all, extra)
+
+
+def _drop_if_empty(folder: Path) -> None:
+    """Remove the shards folder where no shard (nor anything else) is in it."""
+    try:
+        folder.rmdir()
+    except OSError:
+        pass
 
 
 def _not_ready(folder: Path, s: shards.Shard, fp: str) -> str | None:

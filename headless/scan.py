@@ -121,10 +121,17 @@ class ProgressBar:
         self.start = time.perf_counter()
         self.shown = -1
         self.drawn = ""  # the bar on screen now (tty), "" once its line is ended
+        self.stages: set[str] = set()
+        self.last = self.start  # when progress was last reported
 
     def __call__(self, stage: str, done: int, total: int) -> None:
         if self.quiet:
             return
+        if stage not in self.stages:  # a new stage (calibrate's laser images after its board images): its own count
+            if self.stages:  # (its work began when the last stage last reported)
+                self.start, self.shown = self.last, -1
+            self.stages.add(stage)
+        self.last = time.perf_counter()
         frac = min(done / max(total, 1), 1.0)
         elapsed = time.perf_counter() - self.start
         rate = done / max(elapsed, 1e-9)

@@ -265,6 +265,23 @@ def test_progress_bar_redraws_one_line_on_a_terminal():
     assert "100/100 frames" in text and "left" in text and "frames/s" in text
 
 
+def test_a_log_shows_each_stage_of_a_two_stage_run():
+    """calibrate renders its board images, then its laser images: in a log (not a terminal)
+    the second stage never showed, its count starting where the first had reached 100 %."""
+    import io
+
+    from headless.scan import ProgressBar
+
+    stream = io.StringIO()
+    bar = ProgressBar(quiet=False, stream=stream)
+    for stage in ("board images", "laser images"):
+        for done in (2, 4):
+            bar(stage, done, 4)
+    lines = stream.getvalue().splitlines()
+    assert [ln.split(":")[0] for ln in lines] == ["board images", "board images", "laser images", "laser images"]
+    assert lines[-1].endswith("(100 %)") and "4/4 frames" in lines[-1]
+
+
 def test_an_adaptive_bar_counts_profiles_against_the_budget_and_log_lines_do_not_run_into_it(capsys):
     import io
 

@@ -159,8 +159,11 @@ def run(args: argparse.Namespace) -> int:
     if not picked:
         raise InputError(f"--only {args.only!r}: no part's name holds it; the parts: {', '.join(catalogue)}")
     rows = []
+    stops = getattr(args, "stops", None)
     for name, mesh in picked.items():
         row = measure_part(name, mesh, args.frames, args.probe)
+        if stops is not None:  # a stop during a part's floor and ceiling (no frames render there): none of the figures
+            stops.check()
         rows.append(row)
         print(f"{name}: {row['points']} points, RMS {row['rms']:.1f} um (floor {row['floor']:.1f}), "
               f"{row['outliers']} beyond 0.2 mm, {row['coverage_measurable'] * 100:.1f} % of the measurable surface, "
