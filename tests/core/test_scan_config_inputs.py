@@ -103,6 +103,13 @@ def test_a_roughness_is_refused_for_a_surface_that_has_none(tmp_path):
     ('kind = "turntable"\nframes = 5\nprobe_mm = [12.0, 0.0, 210.0]\nturn_deg = 1440.0\n', "turn_deg"),
     ('kind = "sweep"\nframes = 20\nfrom_mm = [0.0, 0.0, 210.0]\nto_mm = [0.0, 0.0, 210.0]\nline = [0.0, 1.0, 0.0]\n',
      "takes one profile 20 times"),
+    # (a 1e-8 mm sweep and a 1e-9° turn were let through)
+    ('kind = "sweep"\nframes = 3\nfrom_mm = [0.0, 0.0, 210.0]\nto_mm = [1e-8, 0.0, 210.0]\n',
+     "takes one profile 3 times; give to_mm apart from from_mm .by 1e-06 mm or more., or 1 frame with a line"),
+    ('kind = "turntable"\nframes = 3\nprobe_mm = [12.0, 0.0, 210.0]\nturn_deg = 1e-9\n',
+     "turntable path of 3 frames with turn_deg 1e-09 takes one profile 3 times"),
+    ('kind = "sweep"\nframes = 1\nfrom_mm = [0.0, 0.0, 210.0]\nto_mm = [0.0, 0.0, 210.0]\n',
+     "give its line, or to_mm apart across the beam"),
 ])
 def test_a_path_that_takes_the_same_profiles_again_is_refused(tmp_path, entry, fragment):
     """Four whole turns in 5 frames took one profile 5 times (and counted each in the error);

@@ -156,3 +156,22 @@ def test_points_are_measured_against_the_whole_drawn_disc_top_side_and_bottom():
     np.testing.assert_allclose(signed[:6], expect, atol=1e-9)
     np.testing.assert_allclose(unsigned[:6], np.abs(expect), atol=1e-9)
     assert np.isinf(unsigned[6])
+
+
+@pytest.mark.parametrize("probe_mm, beam", [
+    ([12.0, 0.0, 210.0], [0.0, 0.0, -1.0]),        # from above, a little off the axis
+    ([200.0, 120.0, 60.0], [-200.0, -120.0, 0.0]),  # level, aimed at the axis (its line fell back to x: a ring)
+    ([300.0, 0.0, 60.0], [-1.0, 0.0, 0.0]),         # level along x (x was the beam itself: refused)
+    ([150.0, -90.0, 200.0], [-150.0, 90.0, -140.0]),  # tilted, aimed at the axis
+])
+def test_a_turns_default_laser_plane_holds_the_tables_axis(probe_mm, beam):
+    """docs/scans.md: without `line`, a turn's laser plane holds the table's axis, so each
+    profile is a meridian. Ground truth: the plane through the laser (the probe's origin)
+    spanned by the beam and the line contains the points (0, 0, z) of the axis."""
+    from addon.core.kinematics.path import turntable
+
+    wp = turntable(4, probe_mm, beam=beam, turn_rad=np.pi / 2, table=Turntable())
+    for pose in wp.probe2table:
+        normal = pose[:3, 0]  # the probe's x: across the laser plane (y the line, z the beam)
+        for z in (-50.0, 0.0, 100.0):
+            assert abs(np.dot(np.array([0.0, 0.0, z]) - pose[:3, 3], normal)) < 1e-9

@@ -35,6 +35,10 @@ from .transforms import RIGID_TOL, make_pose, orthonormality_error
 
 DOWN = (0.0, 0.0, -1.0)
 MAX_FRAMES = 1_000_000  # the most frames one path entry takes
+# Less travel, or less turn, than this over a whole path entry of several frames takes one
+# profile over and over (a sweep 1e-8 mm long was let through, as a turn of 1e-9°).
+MIN_TRAVEL_MM = 1e-6
+MIN_TURN_DEG = 1e-6
 JUMP_LIMIT_RAD = np.radians(30.0)  # a joint moving more than this between neighbours is a flip
 
 
@@ -137,12 +141,14 @@ def sweep(frames: int, from_mm, to_mm, beam=DOWN, line=None, table_rad: float = 
     z = _unit(beam, "beam")
     motion = b - a - np.dot(b - a, z) * z  # the probe's travel across the beam
     moves = np.linalg.norm(motion) >= 1e-9
-    if frames > 1 and np.linalg.norm(b - a) < 1e-9:
+    if frames > 1 and np.linalg.norm(b - a) < MIN_TRAVEL_MM:
         raise InputError(f"a sweep of {frames} frames from and to the same point {a.tolist()} takes one profile "
-                         f"{frames} times; give to_mm apart from from_mm, or 1 frame")
+                         f"{frames} times; give to_mm apart from from_mm (by {MIN_TRAVEL_MM:g} mm or more), or 1 "
+                         f"frame with a line")
     if line is None:
         if not moves:
-            raise InputError("a sweep must move across the beam: from_mm and to_mm differ only along it")
+            raise InputError("a sweep must move across the beam (from_mm and to_mm differ only along it) for its "
+                             "laser line to stand across the motion; give its line, or to_mm apart across the beam")
         line = np.cross(z, motion)  # the plane (line, beam) stands across the motion
     R = probe_orientation(z, line)
     if frames > 1 and moves:
@@ -164,15 +170,21 @@ def turntable(frames: int, probe_mm, beam=DOWN, line=None, start_rad: float = 0.
     start_rad, turn_rad = _angle(start_rad, "a turntable path's start angle"), _angle(turn_rad, "its turn")
     if table is None:
         raise InputError("a turntable path needs the table placement")
-    if frames > 1 and turn_rad == 0.0:
-        raise InputError(f"a turntable path of {frames} frames with turn_deg 0 takes one profile {frames} times; give "
-                         f"the turn (turn_deg, 360 for a whole turn, the default) or 1 frame")
+    if frames > 1 and abs(turn_rad) < math.radians(MIN_TURN_DEG):
+        raise InputError(f"a turntable path of {frames} frames with turn_deg {math.degrees(turn_rad):g} takes one "
+                         f"profile {frames} times; give the turn (turn_deg, {MIN_TURN_DEG:g} or more; 360 for a "
+                         f"whole turn, the default) or 1 frame")
     p = _point(probe_mm, "probe_mm")
     z = _unit(beam, "beam")
     if line is None:
         radial = p - np.dot(p, z) * z
         radial[2] = 0.0
-        line = radial if np.linalg.norm(radial) > 1e-6 else np.array([1.0, 0.0, 0.0])
+        # A level beam aimed at the axis leaves no radial part across it: the line then runs up
+        # the axis (across the beam), so that the laser plane still holds the axis (it fell back
+        # to x, a horizontal line: every frame scanned the same ring, or x along the beam was refused).
+        up = np.array([0.0, 0.0, 1.0]) - z[2] * z
+        line = radial if np.linalg.norm(radial) > 1e-6 else up if np.linalg.norm(up) > 1e-6 \
+            else np.array([1.0, 0.0, 0.0])
     start = make_pose(probe_orientation(z, line), p)
     probe2base = table.table2base(start_rad) @ start
     full_turn = abs(abs(turn_rad) - 2 * np.pi) < 1e-9
