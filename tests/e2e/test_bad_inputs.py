@@ -868,9 +868,10 @@ def test_a_scan_that_measures_nothing_of_the_part_says_so_and_counts_only_the_po
     report = json.loads((tmp_path / "tiny" / "report.json").read_text())
     assert rc == 0 and report["points"] > 0 and report["points_on_part"] == 0
     said = [w for w in report["warnings"] if w.startswith("the scan measured")]
-    assert said == [f"the scan measured {report['points']} points, none of them on the part: the path's laser meets "
-                    f"none of the part within the probe's range and a camera's view: a path onto the part ([[path]] "
-                    f"entries; the preview shows where the points are)"]
+    assert said == [f"the scan measured {report['points']} points, none of them on the part: none of the laser rays "
+                    f"sampled along the path (one per sensor column) meets the part within the probe's range and a "
+                    f"camera's view: a path onto the part ([[path]] entries; the preview shows where the points are), "
+                    f"or a part narrower than the line or a column's footprint"]
     assert said[0] in capsys.readouterr().out
     # Coarse rows: most fused points are dropped as uncertain once their neighbours are in.
     rc = main(["scan", "demo", "--engine", "raycast", "--frames", "0:12", "--resolution", "160x96",

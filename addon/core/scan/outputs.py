@@ -114,8 +114,9 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     share = quality.get("measurable_share", 0.0)
     if n and not np.any(on_part) and not step_by_step:  # (a planner's poses may see nothing on purpose)
         what = "no point at all" if len(cloud) == 0 else f"{len(cloud)} points, none of them on the part"
-        why = ("the path's laser meets none of the part within the probe's range and a camera's view: a path onto "
-               "the part ([[path]] entries; the preview shows where the points are)" if share == 0 else
+        why = ("none of the laser rays sampled along the path (one per sensor column) meets the part within the "
+               "probe's range and a camera's view: a path onto the part ([[path]] entries; the preview shows where "
+               "the points are), or a part narrower than the line or a column's footprint" if share == 0 else
                f"the laser meets {share * 100:.1f} % of the part within the probe's range, and every column there was "
                f"dropped or found no line (see the points dropped after detection): the sensor's settings, the "
                f"detector's, or the probe's view of the part")
