@@ -587,8 +587,13 @@ class Scanner:
         # elsewhere (moved, or a scan done before): the way from there to the path's start too
         # (its time counted in "plan" by the check itself).
         self._check_path(plan.q[:1], plan.table_rad[:1], "the move to the path's start", record=False)
-        yield from self._frames_steps(plan.q, plan.table_rad, plan=plan, progress=progress,
-                                      clearance=plan.clearance, warnings=plan.warnings)
+        again = self.frames_taken > 0
+        out = yield from self._frames_steps(plan.q, plan.table_rad, plan=plan, progress=progress,
+                                            clearance=plan.clearance, warnings=plan.warnings)
+        # Run again after anything measured (the path twice): its frame numbers no longer say
+        # which frame of the path each is (report.json's path_frames listed the first run's only).
+        self._off_path |= again
+        return out
 
     def _scene_cell(self):
         # Built at the first measurement, and again where another Scanner's cell (or the

@@ -195,6 +195,11 @@ def test_a_scan_is_measured_against_the_truth_once_for_its_report_and_its_files(
     report = s.report()
     files = s.save(tmp_path / "a")  # save() after report() only writes
     assert len(measured) == 1 and json.loads(files["report"].read_text())["points"] == report.points
+    # Written again through the typed report, report.json keeps its keys' order (it took the
+    # dataclass's): the two files compare line by line.
+    assert list(json.loads(report_json(report))) == list(json.loads(files["report"].read_text()))
+    again = ScanReport.from_dict(json.loads(files["report"].read_text()))
+    assert report_json(again).strip() == files["report"].read_text().strip()
     assert s.report().points == report.points and len(measured) == 1
     s.measure()
     assert s.report().frames == report.frames + 1 and len(measured) == 2  # a new profile: measured again
@@ -216,6 +221,17 @@ def test_the_stages_times_add_up_to_no_more_than_the_total(monkeypatch):
     times = json.loads(report_json(s.report()))["time_s"]
     stages = sum(v for k, v in times.items() if k != "total")
     assert times["plan"] >= 1.0 and stages <= times["total"] * 1.02 + 0.02, times
+
+
+def test_a_path_run_twice_no_longer_claims_its_frame_numbers():
+    """report.json's path_frames gives the path's frame number of each frame scanned: after a
+    second run() it listed the first run's 6 for 12 frames."""
+    s = Scanner(config=load_scan_config("demo").with_overrides(engine="raycast", frames=slice(0, 120, 20)))
+    s.run()
+    assert json.loads(report_json(s.report()))["config"]["path_frames"] == [0, 20, 40, 60, 80, 100]
+    s.run()
+    r = json.loads(report_json(s.report()))
+    assert r["frames"] == 12 and r["config"]["path_frames"] is None
 
 
 def test_save_writes_every_time_and_bad_arguments_are_named(scanner, tmp_path):

@@ -83,17 +83,21 @@ class ScanReport:
     within_2_sigma: float | None = None
     render_device: str | None = None
     extra: dict = field(default_factory=dict)  # anything else a run adds (a farm's shard counts)
+    # The keys in the order the report came in, which to_dict keeps (report.json written again
+    # through this class came out in the fields' order, and no longer compared line by line).
+    key_order: tuple = field(default=(), repr=False, compare=False)
 
     @classmethod
     def from_dict(cls, d: dict) -> "ScanReport":
-        names = {f.name for f in fields(cls)} - {"extra"}
+        names = {f.name for f in fields(cls)} - {"extra", "key_order"}
         kwargs = {k: v for k, v in d.items() if k in names}
         kwargs["error_um"] = ErrorStats.from_dict(d["error_um"])
         kwargs["table_error_um"] = ErrorStats.from_dict(d["table_error_um"])
         kwargs["profiles_per_s"] = _nan(d["profiles_per_s"])
-        return cls(**kwargs, extra={k: v for k, v in d.items() if k not in names})
+        return cls(**kwargs, extra={k: v for k, v in d.items() if k not in names}, key_order=tuple(d))
 
     def to_dict(self) -> dict:
         d = asdict(self)
+        order = d.pop("key_order")
         d.update(d.pop("extra"))
-        return d
+        return {**{k: d[k] for k in order if k in d}, **d}
