@@ -31,7 +31,8 @@ from .report import report_json
 
 @dataclass
 class ScanResult:
-    """cloud (table frame); report (the report.json content); files written; per point:
+    """cloud (table frame); report (the report.json content, but for figures with no finite
+    value: NaN or inf here, null once written by report_json); files written; per point:
     |error| in µm to what it counts as (the part, the table's disc or a fixture), whether the
     point counts as the part's, and whether as one of the table's fixtures' (neither: the
     table's)."""
