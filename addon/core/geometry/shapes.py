@@ -8,12 +8,20 @@ rendering, coverage sampling and mesh-based checks.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
 
 from ..errors import InputError
+
+# How far the flat facets of a built-in round shape may lie inside the exact shape its error
+# is measured against (that much of the error is the drawing's, not the scanner's): the
+# meshes take as many facets as keep under it, up to a size (see facet_sag_mm).
+FACET_SAG_MM = 0.0025
+SPHERE_SAG_PER_MM = {6: 2.1e-3 / 30.0, 7: 2.1e-3 / 30.0 / 4}  # the deepest sag per mm of radius (icosphere)
+MAX_CYLINDER_SECTIONS = 4096
 from ..kinematics.transforms import check_transform, rigid_inverse
 
 
@@ -56,10 +64,14 @@ class Sphere(_Shape):
     def signed_distance(self, points) -> np.ndarray:
         return np.linalg.norm(self.to_local(points), axis=1) - self.radius_mm
 
-    def _local_mesh(self, subdivisions: int = 6) -> trimesh.Trimesh:
+    def _local_mesh(self, subdivisions: int | None = None) -> trimesh.Trimesh:
         # Subdivision 6 (81 920 faces): for r = 30 mm the flat facets lie up to 2.1 µm
         # inside the sphere, 1.35 µm on average over its surface, which the error measured
-        # against the exact sphere carries as a bias; subdivision 5: up to 8.5 µm, 5.5 µm on average.
+        # against the exact sphere carries as a bias; subdivision 5: up to 8.5 µm, 5.5 µm on
+        # average. Each subdivision quarters the sag: a sphere too large for subdivision 6 to
+        # keep it under FACET_SAG_MM takes 7 (327 680 faces), and beyond that says so (facet_sag_mm).
+        if subdivisions is None:
+            subdivisions = 6 if self.radius_mm * SPHERE_SAG_PER_MM[6] <= FACET_SAG_MM else 7
         return trimesh.creation.icosphere(subdivisions=subdivisions, radius=self.radius_mm)
 
 
@@ -110,7 +122,12 @@ class Cylinder(_Shape):
         inside = np.maximum(dr, dz)  # both negative: the nearer wall, negated
         return np.where((dr > 0) | (dz > 0), outside, inside)
 
-    def _local_mesh(self, sections: int = 256) -> trimesh.Trimesh:
+    def _local_mesh(self, sections: int | None = None) -> trimesh.Trimesh:
+        # 256 sides: for r = 30 mm the flat sides lie up to 2.3 µm inside the cylinder; a larger
+        # one takes as many more as keep that under FACET_SAG_MM (sag = r (1 − cos(π / n))).
+        if sections is None:
+            need = math.pi / math.acos(max(1.0 - FACET_SAG_MM / self.radius_mm, -1.0))
+            sections = int(min(max(256, 8 * math.ceil(need / 8)), MAX_CYLINDER_SECTIONS))
         m = trimesh.creation.cylinder(radius=self.radius_mm, height=self.height_mm, sections=sections)
         m.apply_translation([0.0, 0.0, self.height_mm / 2])
         return m

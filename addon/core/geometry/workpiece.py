@@ -94,7 +94,22 @@ def builtin_workpiece(kind: str, pose=None, **params) -> Workpiece:
     mesh = shape.mesh()
     check_mesh(mesh, f"the built-in {kind}", f"give it a size from {MIN_EXTENT_MM:g} to {MAX_EXTENT_MM:g} mm "
                                              f"across with its size keys ({', '.join(defaults)})")
-    return Workpiece(kind, mesh, shape, f"builtin:{kind}", pose)
+    return Workpiece(kind, mesh, shape, f"builtin:{kind}", pose, _facet_notes(kind, mesh, shape))
+
+
+def _facet_notes(kind: str, mesh: trimesh.Trimesh, shape) -> tuple:
+    """A warning where the drawn mesh's flat facets lie deeper inside the exact shape than
+    shapes.FACET_SAG_MM (a sphere of half a metre: 36 µm, which the scan's error carried as
+    the scanner's): their deepest points are their middles and the middles of their edges."""
+    from .shapes import FACET_SAG_MM
+
+    edges = mesh.vertices[mesh.edges_unique].mean(axis=1)
+    sag = -float(np.min(shape.signed_distance(np.vstack([mesh.triangles_center, edges]))))
+    if sag <= FACET_SAG_MM * 1.05:
+        return ()
+    return (f"the built-in {kind} is drawn with flat facets that lie up to {sag * 1e3:.1f} um inside the exact shape "
+            f"its error is measured against: that much of the error (a bias) is the drawing's, not the scanner's "
+            f"(a part of this size as a mesh file is measured against itself)",)
 
 
 def check_mesh(mesh: trimesh.Trimesh, what: str, fix: str = "is it in another unit? Set the workpiece's scale key"
