@@ -185,7 +185,11 @@ class StopRequests:
                     f"stopped at once, no cloud or report written; the shards finished (at least {self.done}: others "
                     f"may have finished since) stay in the output folder's shards/, for the next run to keep" if self.unit == "shards" and self.done else
                     "stopped at once, nothing written")
-            print(f"\n{self.interrupted().describe()}: {said}", file=self.stream, flush=True)
+            # (once every frame is measured, how far the frames got says nothing: a merge's stop
+            # read "before the first frame")
+            head = (f"interrupted ({SIGNAL_NAMES.get(signum, f'signal {signum}')})" if self.finishing
+                    else self.interrupted().describe())
+            print(f"\n{head}: {said}", file=self.stream, flush=True)
             for undo in reversed(self.cleanups):
                 try:
                     undo()
