@@ -23,7 +23,7 @@ import numpy as np
 
 from .core.config.scan import MAX_PROFILES, AdaptiveSettings
 from .core.errors import CollisionError, InputError, UnreachablePose, is_whole
-from .core.geometry.known_space import UNKNOWN, KnownSpace
+from .core.geometry.known_space import UNKNOWN, KnownSpace, box_arrays
 from .core.geometry.metrics import NearMesh
 from .core.kinematics.turntable import box_beyond_table
 from .core.scan import next_view
@@ -106,17 +106,7 @@ class BudgetBelowView(InputError):
 def checked_box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
     """The part's bounding box (table frame, mm) as two float arrays, or InputError naming
     what is wrong: three finite numbers each, lo < hi, its top above the table top."""
-    try:
-        lo_a, hi_a = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-    except (TypeError, ValueError):
-        lo_a = hi_a = np.full(0, np.nan)
-    if lo_a.shape != (3,) or hi_a.shape != (3,) or not (np.isfinite(lo_a).all() and np.isfinite(hi_a).all()
-                                                        and (hi_a > lo_a).all()):
-        def shown(v):
-            return v.tolist() if isinstance(v, np.ndarray) else v
-
-        raise InputError(f"the part's bounding box needs lo < hi in x, y and z, three finite numbers (mm) each, got "
-                         f"{shown(lo)!r} .. {shown(hi)!r}")
+    lo_a, hi_a = box_arrays(lo, hi, "the part's bounding box")
     if hi_a[2] <= 0.0:
         raise InputError(f"the part's bounding box {lo_a.tolist()} .. {hi_a.tolist()} mm lies under the table top "
                          f"(z = 0 in the table frame): its top must be above 0")

@@ -180,14 +180,7 @@ class KnownSpace:
         underside on the table) have no frontier and do not count. ``bench adaptive``
         shows it beside the true coverage.
         0 before anything is known."""
-        try:
-            lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-        except (TypeError, ValueError):
-            lo = hi = np.full(0, np.nan)
-        if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()
-                                                        and (hi > lo).all()):
-            raise InputError("coverage_estimate: the part's box needs lo < hi in x, y and z, three finite numbers "
-                             "(mm) each")
+        lo, hi = box_arrays(lo, hi, "coverage_estimate: the part's box")
         bottom = lo.copy()
         bottom[2] += self.voxel
         ranges = [_cell_range(self.lo[a], self.voxel, self.shape[a], bottom[a], hi[a]) for a in range(3)]
@@ -198,6 +191,23 @@ class KnownSpace:
         surface = int(np.count_nonzero(self.state[keep] == SURFACE))
         frontier = int(np.count_nonzero(self._frontier_mask()[keep]))
         return surface / (surface + frontier) if surface else 0.0
+
+
+def box_arrays(lo, hi, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """A box (mm) as two float arrays, or InputError: ``what`` needs three finite numbers each,
+    lo < hi."""
+    try:
+        lo_a, hi_a = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    except (TypeError, ValueError):
+        lo_a = hi_a = np.full(0, np.nan)
+    if lo_a.shape != (3,) or hi_a.shape != (3,) or not (np.isfinite(lo_a).all() and np.isfinite(hi_a).all()
+                                                        and (hi_a > lo_a).all()):
+        def shown(v):
+            return v.tolist() if isinstance(v, np.ndarray) else v
+
+        raise InputError(f"{what} needs lo < hi in x, y and z, three finite numbers (mm) each, got "
+                         f"{shown(lo)!r} .. {shown(hi)!r}")
+    return lo_a, hi_a
 
 
 def _cell_range(grid_lo: float, voxel: float, n: int, lo: float, hi: float) -> tuple[int, int]:
