@@ -187,6 +187,7 @@ class Scanner:
         self._warnings: list[str] = [moved] if moved else []
         self._empty_frames: list[int] = []  # frames that put no surface inside the probe's range
         self._off_path = False  # measured anything but the config's path (run())
+        self._path_again = False  # run() after something was measured: no path frame numbers
         self._t0 = time.perf_counter()
         self._cached = None  # (key, ScanResult, config) of the last result(): report() after save() is free
         self._extra: dict = {}  # what joins the report besides the scan itself (an adaptive scan's sweeps)
@@ -592,7 +593,7 @@ class Scanner:
                                             clearance=plan.clearance, warnings=plan.warnings)
         # Run again after anything measured (the path twice): its frame numbers no longer say
         # which frame of the path each is (report.json's path_frames listed the first run's only).
-        self._off_path |= again
+        self._path_again |= again
         return out
 
     def _scene_cell(self):
@@ -785,7 +786,7 @@ class Scanner:
         key = (self.frames_taken, json.dumps(self._extra, sort_keys=True),
                json.dumps(extra or {}, sort_keys=True, default=str), len(self._warnings), len(self._clearances))
         # The path's frame numbers hold only while this Scanner has run nothing but its path.
-        config = self.config if not self._off_path else replace(self.config, path_frames=None)
+        config = self.config if not (self._off_path or self._path_again) else replace(self.config, path_frames=None)
         # (A config set on the Scanner since is measured afresh: the cache holds the one it measured.)
         cached = self._cached is not None and self._cached[0] == key and self._cached[2] is self.config
         if cached:

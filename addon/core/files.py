@@ -24,7 +24,8 @@ LOCK_NAME = ".scanner.lock"
 LOCK_HEARTBEAT_S = 60   # a running scan touches its lock this often
 LOCK_STALE_S = 600      # a lock from another host not touched for this long is a dead scan's
 LOCK_UNREADABLE_S = 2.0  # a lock naming no process is waited on this long (being written) before taken over
-LOCK_GUARD_STALE_S = 10.0  # a take-over guard older than this was left by a killed process
+LOCK_GUARD_STALE_S = 10.0  # a take-over guard older than this was left by a killed process (another host's)
+GUARD_NAME = f"{LOCK_NAME}.takeover"  # held while a dead scan's lock is removed
 MAX_PID = 2 ** 22       # the largest process id Linux gives (pid_max's ceiling)
 
 
@@ -76,9 +77,13 @@ def write_set(folder: str | Path, contents: dict[str, bytes]) -> dict[str, Path]
                 if (folder / name).is_file():
                     try:
                         os.link(folder / name, old / name)  # (the file stays in place, under a second name)
-                    except OSError:  # a file system without hard links, or a file that refuses one
-                        shutil.copy2(folder / name, old / name)
-                    kept.append(name)
+                        kept.append(name)
+                    except OSError:  # a file system without hard links, or a file that refuses one: a copy
+                        try:
+                            shutil.copy2(folder / name, old / name)
+                            kept.append(name)
+                        except OSError:
+                            pass  # (nor a copy: replaced without one to put back, as a plain rename is)
                 os.replace(staging / name, folder / name)
             except OSError as exc:  # named for the user's file, not the staging folder's
                 raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
@@ -279,7 +284,10 @@ class OutputLock:
                                  f"{host}) is writing there; wait for it to end or choose another folder (or, "
                                  f"if no scan runs there, delete {self.path})") from None
             self._take_over_stale(owner, owner_host)
-        raise FolderBusy(f"output folder {self.folder}: could not claim it ({self.path} keeps coming back)")
+        guard = self.folder / GUARD_NAME
+        held = f"; {guard} is held by process {_lock_owner(guard)[0]}" if guard.exists() else ""
+        raise FolderBusy(f"output folder {self.folder}: could not claim it ({self.path} keeps coming back{held}); "
+                         f"try again, or, if no scan runs there, delete those files")
 
     def _link_new_lock(self, content: str, path: Path | None = None) -> bool:
         """Make the lock file (or ``path``) with ``content`` in one step; False where one is
@@ -308,23 +316,47 @@ class OutputLock:
         beside the lock removes one, after reading it again: a lock can be made only where none
         is, so the one read under the guard is the one removed. (Moved aside without a guard, a
         scan that had judged the dead lock a moment earlier moved the new owner's lock instead,
-        and another scan claimed the folder before it was put back: two held it.)"""
-        guard = self.folder / f"{LOCK_NAME}.takeover"
-        if not self._link_new_lock(f"{os.getpid()} {socket.gethostname()}\n", guard):
-            if _age_s(guard) > LOCK_GUARD_STALE_S:  # left by a process killed while it held it
-                guard.unlink(missing_ok=True)
-            else:
-                time.sleep(0.01)
+        and another scan claimed the folder before it was put back: two held it.) The guard is
+        held for a read and an unlink; one left by a process killed meanwhile is cleared at
+        once where its process is gone (this host), else once LOCK_GUARD_STALE_S old."""
+        host = socket.gethostname()
+        guard = self.folder / GUARD_NAME
+        if not self._link_new_lock(f"{os.getpid()} {host}\n", guard):
+            self._clear_dead_guard(guard, host)
+            time.sleep(0.01)
             return
         try:
             if _lock_owner(self.path) != (owner, owner_host):
                 return  # taken over and claimed by another scan since it was read: judged again
             self.path.unlink(missing_ok=True)
-            if owner:
-                for staging in self.folder.glob(f"{STAGING_PREFIX}{owner}-*"):
-                    shutil.rmtree(staging, ignore_errors=True)
         finally:
             guard.unlink(missing_ok=True)
+        if owner:  # (outside the guard: only the dead owner's, which nobody else writes)
+            for staging in self.folder.glob(f"{STAGING_PREFIX}{owner}-*"):
+                shutil.rmtree(staging, ignore_errors=True)
+
+    def _clear_dead_guard(self, guard: Path, host: str) -> None:
+        """Remove a take-over guard whose holder is gone: a process of this host that no longer
+        runs, or one not touched for LOCK_GUARD_STALE_S. Moved aside first under a name of its
+        own and read there, so that of several scans judging it at once only one removes it,
+        and a guard made since (another's, alive) is put back rather than removed."""
+        pid, guard_host = _lock_owner(guard)
+        dead = (pid and guard_host in (None, host) and not pid_alive(pid)) or _age_s(guard) > LOCK_GUARD_STALE_S
+        if not dead:
+            return
+        aside = self.folder / f"{GUARD_NAME}.stale.{os.getpid()}.{secrets.token_hex(4)}"
+        try:
+            os.rename(guard, aside)
+        except OSError:
+            return  # gone already (another scan cleared it)
+        try:
+            if _lock_owner(aside) != (pid, guard_host):  # a new guard, made since it was read: put back
+                try:
+                    os.link(aside, guard)
+                except OSError:
+                    pass
+        finally:
+            aside.unlink(missing_ok=True)
 
     def _start_heartbeat(self) -> None:
         """Touch the lock every LOCK_HEARTBEAT_S from a daemon thread, so that other hosts can

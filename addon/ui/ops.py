@@ -358,6 +358,7 @@ class _SteppedScan:
         return idle()  # not while another scan runs
 
     def _start(self, context):
+        self._completing = False
         self._state = RenderState(context.scene)  # put back when the work ends, however it ends
         robot = models.find_robot(context.scene)
         try:  # the pose to put back afterwards (none where a joint's property was deleted)
@@ -424,6 +425,7 @@ class _SteppedScan:
 
     def _complete(self, context):
         scanner, self._scanner, self._steps = self._scanner, None, None
+        self._completing = True  # (writing its files: a stop now may leave them written)
         try:
             return self._finish(context, scanner, self._value)
         finally:
@@ -443,7 +445,9 @@ class _SteppedScan:
         except KeyboardInterrupt:  # Ctrl-C (a script's, or the command line's stop): said, not a traceback
             self._scanner = self._steps = None
             self._restore()
-            self.report({"ERROR"}, f"{self.bl_label} stopped (Ctrl-C); nothing was kept")
+            said = ("its files may have been written before the stop" if getattr(self, "_completing", False)
+                    else "nothing was kept")
+            self.report({"ERROR"}, f"{self.bl_label} stopped (Ctrl-C); {said}")
             return {"CANCELLED"}
 
     def invoke(self, context, event):

@@ -106,19 +106,18 @@ def load_planner(spec: str):
             raise InputError(f"--planner {spec!r}: there is no file {where}")
         module_spec = importlib.util.spec_from_file_location(f"your_planner_{path.stem}", path)
         module = importlib.util.module_from_spec(module_spec)
-        # Registered as imports are (dataclasses look their module up there), and beside its
-        # own folder's modules (a helper file next to it).
+        # Registered as imports are (dataclasses look their module up there), and with its own
+        # folder's modules importable for the whole run (a helper file next to it, imported as
+        # it loads or later in choose()); after the installed ones, which it cannot shadow.
         sys.modules[module_spec.name] = module
         folder = str(path.resolve().parent)
-        sys.path.insert(0, folder)
+        if folder not in sys.path:
+            sys.path.append(folder)
         try:
             module_spec.loader.exec_module(module)
         except Exception as exc:
             sys.modules.pop(module_spec.name, None)
             raise InputError(f"--planner {spec!r}: {where} failed to load: {_where_failed(exc, where)}") from None
-        finally:
-            if folder in sys.path:
-                sys.path.remove(folder)
     else:
         try:
             module = importlib.import_module(where)

@@ -117,10 +117,45 @@ def test_a_set_that_fails_midway_leaves_the_last_complete_set(tmp_path, monkeypa
     assert caught.value.filename == str(out / "report.json")  # the user's file, not a staging one
     assert {p.name: p.read_bytes() for p in out.iterdir()} == {
         "cloud.ply": b"old cloud", "preview.png": b"old picture", "report.json": b"old report"}
+    # Where no hard link can be made (FAT, some shares) the old files are copied aside instead.
+    def no_links(*args, **kwargs):
+        raise OSError(1, "Operation not permitted")
+
+    monkeypatch.setattr(files.os, "link", no_links)
+    with pytest.raises(PermissionError):
+        write_set(out, {"cloud.ply": b"new cloud", "preview.png": b"new picture", "report.json": b"new report"})
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == {
+        "cloud.ply": b"old cloud", "preview.png": b"old picture", "report.json": b"old report"}
     monkeypatch.setattr(files.os, "replace", replace)
     write_set(out, {"cloud.ply": b"new cloud", "preview.png": b"new picture"})  # a new file beside the old ones
     write_set(out, {"extra.txt": b"x"})
     assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "extra.txt", "preview.png", "report.json"]
+
+
+def test_a_take_over_guard_left_by_a_killed_scan_is_cleared_at_once(tmp_path):
+    """A scan killed while it held the guard (removing a dead scan's lock) left it: the next
+    scan retried for 2 s and said the lock "keeps coming back". A live holder's guard is
+    waited on, and named when it outlasts the retries."""
+    import time
+
+    from addon.core.files import GUARD_NAME
+
+    out = tmp_path / "out"
+    out.mkdir()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    host = socket.gethostname()
+    (out / ".scanner.lock").write_text(f"{dead.pid} {host}\n")
+    (out / GUARD_NAME).write_text(f"{dead.pid} {host}\n")
+    t = time.perf_counter()
+    lock = OutputLock(out).acquire()
+    assert time.perf_counter() - t < 1.0 and not (out / GUARD_NAME).exists()
+    lock.release()
+    assert sorted(p.name for p in out.iterdir()) == []
+    (out / ".scanner.lock").write_text(f"{dead.pid} {host}\n")
+    (out / GUARD_NAME).write_text(f"{os.getppid()} {host}\n")  # held, by a live process
+    with pytest.raises(FolderBusy, match=rf"{GUARD_NAME} is held by process {os.getppid()}"):
+        OutputLock(out).acquire()
 
 
 def _claim(folder, barrier, results):

@@ -277,7 +277,9 @@ def table_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     elsewhere = (r <= TABLE_RADIUS_MM + RIM_SLACK_MM) & ~((r <= inner - np.maximum(-z, 0.0)) & (z > -TABLE_THICKNESS_MM / 2))
     if elsewhere.any():
         d, s = metrics.mesh_distances(P[elsewhere], _disc())
-        unsigned[elsewhere], signed[elsewhere] = d, (d if s is None else s)
+        if s is None:  # (a Python without libigl signs nothing: the disc is solid, ask it what is inside)
+            s = np.where(_disc().contains(P[elsewhere]), -d, d)
+        unsigned[elsewhere], signed[elsewhere] = d, s
     beyond = r > TABLE_RADIUS_MM + RIM_SLACK_MM
     unsigned[beyond], signed[beyond] = np.inf, np.inf
     return unsigned, signed
