@@ -238,6 +238,11 @@ def _exit_code(args: argparse.Namespace, stops) -> int:
         return EXIT_USER_ERROR
     except Interrupted as exc:
         # A benchmark writes its figures and files once all is measured: none yet.
+        if getattr(args, "bench", None) and exc.total and exc.done >= exc.total and exc.unit == "frames":
+            # (its last scan was done: "after 160 of 160 frames of the scan under way" named none)
+            print(f"interrupted ({SIGNAL_NAMES.get(exc.signum, 'a signal')}) between two of the benchmark's scans: "
+                  f"nothing written", file=sys.stderr)
+            return exc.exit_code
         where = " of the scan under way: nothing written" if getattr(args, "bench", None) else ""
         print(exc.describe() + where, file=sys.stderr)
         return exc.exit_code

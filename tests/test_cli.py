@@ -265,6 +265,25 @@ def test_progress_bar_redraws_one_line_on_a_terminal():
     assert "100/100 frames" in text and "left" in text and "frames/s" in text
 
 
+def test_a_benchmark_stopped_between_its_scans_says_so(capsys):
+    """It said "after 160 of 160 frames of the scan under way" where no scan was under way."""
+    import argparse
+
+    from headless.cli import _exit_code
+    from headless.lifecycle import Interrupted, StopRequests
+
+    def stopped(done, total):
+        def run(args):
+            raise Interrupted(2, done, total)
+        return argparse.Namespace(run=run, bench="adaptive")
+
+    assert _exit_code(stopped(160, 160), StopRequests()) == 130
+    assert capsys.readouterr().err.strip() == "interrupted (Ctrl-C) between two of the benchmark's scans: nothing written"
+    assert _exit_code(stopped(40, 160), StopRequests()) == 130
+    assert capsys.readouterr().err.strip() == ("interrupted (Ctrl-C) after 40 of 160 frames of the scan under way: "
+                                               "nothing written")
+
+
 def test_a_log_shows_each_stage_of_a_two_stage_run():
     """calibrate renders its board images, then its laser images: in a log (not a terminal)
     the second stage never showed, its count starting where the first had reached 100 %."""
