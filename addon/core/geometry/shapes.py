@@ -15,14 +15,14 @@ import numpy as np
 import trimesh
 
 from ..errors import InputError
+from ..kinematics.transforms import check_transform, rigid_inverse
 
 # How far the flat facets of a built-in round shape may lie inside the exact shape its error
 # is measured against (that much of the error is the drawing's, not the scanner's): the
-# meshes take as many facets as keep under it, up to a size (see facet_sag_mm).
+# meshes take as many facets as keep under it, up to a size (see facet_sag_bound_mm).
 FACET_SAG_MM = 0.0025
 SPHERE_SAG_PER_MM = {6: 2.1e-3 / 30.0, 7: 2.1e-3 / 30.0 / 4}  # the deepest sag per mm of radius (icosphere)
 MAX_CYLINDER_SECTIONS = 4096
-from ..kinematics.transforms import check_transform, rigid_inverse
 
 
 def _positive(name: str, value: float) -> float:
@@ -52,6 +52,11 @@ class _Shape:
         m.apply_transform(self.pose)
         return m
 
+    def facet_sag_bound_mm(self) -> float:
+        """About how far the default mesh's flat facets lie inside the exact shape at most (0
+        for a shape of flat faces)."""
+        return 0.0
+
 
 @dataclass(frozen=True, eq=False)
 class Sphere(_Shape):
@@ -70,9 +75,14 @@ class Sphere(_Shape):
         # against the exact sphere carries as a bias; subdivision 5: up to 8.5 µm, 5.5 µm on
         # average. Each subdivision quarters the sag: a sphere too large for subdivision 6 to
         # keep it under FACET_SAG_MM takes 7 (327 680 faces), and beyond that says so (facet_sag_mm).
-        if subdivisions is None:
-            subdivisions = 6 if self.radius_mm * SPHERE_SAG_PER_MM[6] <= FACET_SAG_MM else 7
+        subdivisions = self._subdivisions() if subdivisions is None else subdivisions
         return trimesh.creation.icosphere(subdivisions=subdivisions, radius=self.radius_mm)
+
+    def _subdivisions(self) -> int:
+        return 6 if self.radius_mm * SPHERE_SAG_PER_MM[6] <= FACET_SAG_MM else 7
+
+    def facet_sag_bound_mm(self) -> float:
+        return self.radius_mm * SPHERE_SAG_PER_MM[self._subdivisions()]
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,12 +135,17 @@ class Cylinder(_Shape):
     def _local_mesh(self, sections: int | None = None) -> trimesh.Trimesh:
         # 256 sides: for r = 30 mm the flat sides lie up to 2.3 µm inside the cylinder; a larger
         # one takes as many more as keep that under FACET_SAG_MM (sag = r (1 − cos(π / n))).
-        if sections is None:
-            need = math.pi / math.acos(max(1.0 - FACET_SAG_MM / self.radius_mm, -1.0))
-            sections = int(min(max(256, 8 * math.ceil(need / 8)), MAX_CYLINDER_SECTIONS))
+        sections = self._sections() if sections is None else sections
         m = trimesh.creation.cylinder(radius=self.radius_mm, height=self.height_mm, sections=sections)
         m.apply_translation([0.0, 0.0, self.height_mm / 2])
         return m
+
+    def _sections(self) -> int:
+        need = math.pi / math.acos(max(1.0 - FACET_SAG_MM / self.radius_mm, -1.0))
+        return int(min(max(256, 8 * math.ceil(need / 8)), MAX_CYLINDER_SECTIONS))
+
+    def facet_sag_bound_mm(self) -> float:
+        return self.radius_mm * (1.0 - math.cos(math.pi / self._sections()))
 
 
 @dataclass(frozen=True, eq=False)
