@@ -125,28 +125,6 @@ def drain(steps):
             return done.value
 
 
-def _as_json(value, where: str = "extra"):
-    """``value`` with numpy's scalars and arrays as Python's numbers and lists (a planner's
-    record made with numpy), checked to be JSON: InputError naming what is not."""
-    if isinstance(value, dict):
-        out = {}
-        for k, v in value.items():
-            if not isinstance(k, str):
-                raise InputError(f"{where}: the key {k!r} is not a string (a JSON object's keys are)")
-            out[k] = _as_json(v, f"{where}[{k!r}]")
-        return out
-    if isinstance(value, (list, tuple)):
-        return [_as_json(v, f"{where}[{i}]") for i, v in enumerate(value)]
-    if isinstance(value, np.ndarray):
-        return _as_json(value.tolist(), where)
-    if isinstance(value, np.generic):
-        return value.item()
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    raise InputError(f"{where}: {type(value).__name__} {str(value)[:60]!r} is not JSON (numbers, strings, booleans, "
-                     f"None, lists and dicts of them join the report)")
-
-
 class Scanner:
     """A simulated cell: a robot carrying the probe over a part on the rotary table.
 
@@ -779,7 +757,9 @@ class Scanner:
         if extra is not None and not isinstance(extra, dict):
             raise InputError(f"extra must be a dict of what joins the report, got {extra!r}")
         if extra is not None:
-            extra = _as_json(extra)  # numpy's numbers and arrays as JSON's; anything else refused now, not after
+            from .core.scan.report import as_json
+
+            extra = as_json(extra)  # numpy's numbers and arrays as JSON's; anything else refused now, not after
         if out_dir is not None:
             self._check_out_dir(out_dir)
         # Everything the report tells: the frames, what joins it, its warnings, the moves' clearances.

@@ -11,6 +11,9 @@ import json
 import math
 from dataclasses import asdict, dataclass, field, fields
 
+import numpy as np
+
+from ..errors import InputError
 from ..geometry.metrics import ErrorStats
 
 
@@ -23,6 +26,28 @@ def _finite_or_none(value):
     if isinstance(value, (list, tuple)):
         return [_finite_or_none(v) for v in value]
     return value
+
+
+def as_json(value, where: str = "extra"):
+    """``value`` with numpy's scalars and arrays as Python's numbers and lists (a planner's
+    record made with numpy), checked to be JSON: InputError naming what is not."""
+    if isinstance(value, dict):
+        out = {}
+        for k, v in value.items():
+            if not isinstance(k, str):
+                raise InputError(f"{where}: the key {k!r} is not a string (a JSON object's keys are)")
+            out[k] = as_json(v, f"{where}[{k!r}]")
+        return out
+    if isinstance(value, (list, tuple)):
+        return [as_json(v, f"{where}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, np.ndarray):
+        return as_json(value.tolist(), where)
+    if isinstance(value, np.generic):
+        return value.item()
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    raise InputError(f"{where}: {type(value).__name__} {str(value)[:60]!r} is not JSON (numbers, strings, booleans, "
+                     f"None, lists and dicts of them join the report)")
 
 
 def report_json(report) -> str:
