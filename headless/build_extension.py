@@ -79,23 +79,26 @@ def blender_ext_tool(explicit: str | None = None) -> Path:
     return found[-1]
 
 
+def _cpython(filename: str) -> tuple[tuple[int, int] | None, str]:
+    """(the CPython version of a wheel's python tag, (3, 13), or None where it names none; its
+    abi tag)."""
+    python_tag, abi_tag = filename[:-4].split("-")[-3:-1]
+    return ((int(python_tag[2]), int(python_tag[3:])) if python_tag.startswith("cp") else None), abi_tag
+
+
 def wheel_python(filename: str) -> str | None:
     """The CPython version a compiled wheel is for ("3.13"), or None for abi3 and pure-Python wheels."""
-    python_tag, abi_tag = filename[:-4].split("-")[-3:-1]
-    if abi_tag in ("abi3", "none") or not python_tag.startswith("cp"):
-        return None
-    return f"{python_tag[2]}.{python_tag[3:]}"
+    version, abi_tag = _cpython(filename)
+    return None if version is None or abi_tag in ("abi3", "none") else "%d.%d" % version
 
 
 def wheel_serves(filename: str, python: str) -> bool:
     """Whether a wheel installs on CPython ``python`` ("3.13"), as Blender judges it: a
     compiled wheel on its own version, a stable-ABI one (cp312-abi3) on its version and later,
     a pure-Python one on any."""
-    python_tag, abi_tag = filename[:-4].split("-")[-3:-1]
-    if abi_tag == "abi3" and python_tag.startswith("cp"):
-        def version(v):
-            return tuple(int(x) for x in v.split("."))
-        return version(python) >= version(f"{python_tag[2]}.{python_tag[3:]}")
+    version, abi_tag = _cpython(filename)
+    if version is not None and abi_tag == "abi3":
+        return tuple(int(x) for x in python.split(".")) >= version
     return wheel_python(filename) in (None, python)
 
 
@@ -106,7 +109,7 @@ def check_pythons(wheels: list[str], platforms: list[str], pythons: list[str]) -
     for platform in platforms:
         for_platform = [w for w in wheels if wheel_for(w, [platform])]
         # (compiled: a CPython tag, for one version or, abi3, from one version on)
-        compiled = {w.split("-")[0] for w in for_platform if w[:-4].split("-")[-3].startswith("cp")}
+        compiled = {w.split("-")[0] for w in for_platform if _cpython(w)[0] is not None}
         for package in sorted(compiled):
             own = [w for w in for_platform if w.split("-")[0] == package]
             missing += [f"{package} for CPython {py} on {platform}" for py in pythons
