@@ -43,7 +43,6 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"{' and '.join(given)} {'sets' if len(given) == 1 else 'set'} the cell drawn without "
                              f"--scan; with --scan the scan config's cell is drawn: leave "
                              f"{'it' if len(given) == 1 else 'them'} out, or give a config with that cell")
-    if args.scan:
         from addon.core.config.scan import load_scan_config, parse_frames
 
         # the config and --frames checked before Blender starts (the operator's error was a traceback)
