@@ -492,3 +492,26 @@ def test_single_solve_gives_the_batch_answer(name, limits):
     assert batch.success[:300].all() and not batch.success[300:320].any()
     outside = robot.q_max_rad + 0.5
     np.testing.assert_allclose(robot.ik(T[0], q0=outside).q, robot.ik_batch(T[:1], outside).q[0], atol=1e-12)
+
+
+@pytest.mark.parametrize("name", SPHERICAL + ["ur5"])
+def test_straight_elbow_keeps_the_seed_that_reaches_the_target(name):
+    """With the elbow exactly straight the elbow's cosine computes a few ulps past 1: the
+    one-target solve dropped that branch and swung the arm to another (J1 by 150-200°, a
+    hunt's finding on a third of the UR5's straight-elbow poses), where the batch solve
+    kept it. Seeded with the very joints that reach the target, both must return them."""
+    robot = load_robot(name)
+    rng = np.random.default_rng(7)
+    moved = []
+    for q in robot.random_q(150, rng):
+        q = stretched_q(robot, q) if name in SPHERICAL else np.where(np.arange(6) == 2, 0.0, q)
+        if not robot.within_limits(q):
+            continue
+        T = robot.fk(q)
+        one = robot.ik(T, q0=q)
+        batch = robot.ik_batch(T[None], q[None])
+        assert one.success and batch.success[0]
+        turn = np.abs(np.mod(one.q - q + np.pi, 2 * np.pi) - np.pi).max()
+        moved.append(turn)
+        np.testing.assert_allclose(one.q, batch.q[0], atol=1e-9)
+    assert len(moved) >= 50 and max(moved) < 1e-6, (len(moved), max(moved))

@@ -38,6 +38,9 @@ from ..tolerances import TOL
 # A unit-vector component below this is treated as exactly zero (singular wrist,
 # wrist centre on the joint-1 axis).
 SINGULAR = TOL.singular
+# A cosine this far past ±1 is rounding, not a pose out of reach: a straight elbow (θ3 = 0)
+# computes K a few ulps over 1, and both the batched and the one-target solves must keep it.
+COS_SLACK = 1.0 + TOL.singular
 # The two choices of each of shoulder, elbow and wrist, as a sign and as a half turn.
 _SHOULDER_SIGN = np.array([1.0, -1.0])
 _SHOULDER_TURN = np.array([0.0, np.pi])
@@ -137,7 +140,7 @@ def shoulder_angles(px, py, Ds, scale: float, seed1):
     phi = np.where(on_axis, seed1, np.arctan2(py, px))
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(on_axis, np.where(abs(Ds) <= SINGULAR * scale, 0.0, np.inf), Ds / r)
-    return phi, np.arcsin(np.clip(ratio, -1.0, 1.0)), np.abs(ratio) <= 1.0 + 1e-12
+    return phi, np.arcsin(np.clip(ratio, -1.0, 1.0)), np.abs(ratio) <= COS_SLACK
 
 
 def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> Branches:
@@ -160,7 +163,7 @@ def branches(arm: SphericalWristArm, F: np.ndarray, seed_theta: np.ndarray) -> B
     x = c1 * px[:, None] + s1 * py[:, None] - arm.a1
     y = np.broadcast_to((arm.s1 * (pz - arm.d1))[:, None], x.shape)
     K = (x * x + y * y - arm.a2 ** 2 - arm.L3 ** 2) / (2.0 * arm.a2 * arm.L3)
-    elbow_ok = np.abs(K) <= 1.0 + 1e-12
+    elbow_ok = np.abs(K) <= COS_SLACK
     delta0 = np.arccos(np.clip(K, -1.0, 1.0))
     delta = delta0[:, :, None] * _SHOULDER_SIGN  # (n, 2, 2): elbow up and down
     xx, yy = x[:, :, None], y[:, :, None]
@@ -242,10 +245,10 @@ def branches_one(arm: SphericalWristArm, F: np.ndarray) -> list[tuple[float, ...
         x = c1 * px + s1 * py - arm.a1
         y = sa1 * (pz - arm.d1)
         K = (x * x + y * y - arm.a2 ** 2 - arm.L3 ** 2) / (2.0 * arm.a2 * arm.L3)
-        if abs(K) > 1.0:  # the elbow cannot reach this shoulder's wrist centre
+        if abs(K) > COS_SLACK:  # the elbow cannot reach this shoulder's wrist centre
             out.extend([None] * 4)
             continue
-        delta0 = math.acos(K)
+        delta0 = math.acos(max(-1.0, min(1.0, K)))
         for delta in (delta0, -delta0):
             th3 = arm.beta + delta
             th2 = math.atan2(y, x) - math.atan2(arm.L3 * math.sin(delta), arm.a2 + arm.L3 * math.cos(delta))

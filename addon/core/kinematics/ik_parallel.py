@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..tolerances import TOL
-from .ik_analytic import Branches, shoulder_angles, wrist_and_shoulder_one
+from .ik_analytic import COS_SLACK, Branches, shoulder_angles, wrist_and_shoulder_one
 
 SINGULAR = TOL.singular
 
@@ -166,7 +166,7 @@ def parallel_branches(arm: ParallelAxesArm, F: np.ndarray, seed_theta: np.ndarra
     K = (x * x + y * y - arm.a2 ** 2 - arm.a3 ** 2) / (2.0 * arm.a2 * arm.a3)
     # At a singular wrist the seed's frame 4 may leave the elbow short of its reach while
     # another would not: those branches go to the caller's polish, not to "out of reach".
-    elbow_ok = (np.abs(K) <= 1.0 + 1e-12) | singular
+    elbow_ok = (np.abs(K) <= COS_SLACK) | singular
     th3 = _ELBOW * np.arccos(np.clip(K, -1.0, 1.0))
     th2 = np.arctan2(y, x) - np.arctan2(arm.a3 * np.sin(th3), arm.a2 + arm.a3 * np.cos(th3))
     th4 = np.arctan2(arm.s1 * x4[2], c1 * x4[0] + s1 * x4[1]) - th2 - th3  # x4 at θ2 + θ3 + θ4 in frame 1
@@ -208,7 +208,7 @@ def parallel_branches_one(arm: ParallelAxesArm, F: np.ndarray) -> list[tuple[flo
             x = c1 * o4[0] + s1 * o4[1] - arm.a1
             y = sa1 * (o4[2] - arm.d1)
             K = (x * x + y * y - arm.a2 ** 2 - arm.a3 ** 2) / (2.0 * arm.a2 * arm.a3)
-            wrist.append((th5, th6, x4, x, y, math.acos(K) if abs(K) <= 1.0 else None))
+            wrist.append((th5, th6, x4, x, y, math.acos(max(-1.0, min(1.0, K))) if abs(K) <= COS_SLACK else None))
         for elbow in (1.0, -1.0):
             for th5, th6, x4, x, y, acos3 in wrist:
                 if acos3 is None:  # the elbow cannot reach this branch's wrist
