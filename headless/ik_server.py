@@ -1,6 +1,6 @@
 """``ik-server``: serve this project's IK over TCP/IP with the controller protocol.
 
-``python -m headless ik-server [--robot RIG] [--host 127.0.0.1] [--port 5757]`` answers
+``python -m headless ik-server [--robot RIG | --config CONFIG] [--host 127.0.0.1] [--port 5757]`` answers
 line-delimited JSON requests (see addon/core/kinematics/ik_remote.py) with the robot
 rig's own solver, one thread per connection, until Ctrl-C. A scan config then takes its
 IK from it with ``[robot] ik = "controller"``; a controller adapter speaking the same
@@ -29,7 +29,7 @@ def _matrix(value, name: str) -> np.ndarray:
 
 def _plain(rid) -> bool:
     """An id the answer can carry: none, or a whole number of at most 64 bits."""
-    return rid is None or (isinstance(rid, int) and not isinstance(rid, bool) and abs(rid) < 2 ** 63)
+    return rid is None or (isinstance(rid, int) and not isinstance(rid, bool) and -(2 ** 63) <= rid < 2 ** 63)
 
 
 def answer(robot, request) -> dict:
@@ -54,11 +54,12 @@ def answer(robot, request) -> dict:
     except (ValueError, TypeError, OverflowError) as exc:  # (an integer of 400 digits overflows a float)
         return {"id": rid if _plain(rid) else None, "success": False, "reason": f"malformed request: {exc}"}
     try:
-        res = robot.with_tool(tool).ik(T, seed)
+        with np.errstate(all="ignore"):  # (numbers near 1e308 overflow on the way: the answer says so)
+            res = robot.with_tool(tool).ik(T, seed)
     except Exception as exc:  # the solver's own refusal of a target (a non-rigid matrix, say)
         return {"id": rid, "success": False, "reason": f"malformed request: {exc}"}
     q = [float(v) for v in res.q] if np.isfinite(res.q).all() else None
-    return {"id": rid, "joints_rad": q, "success": bool(res.success), "reason": res.message}
+    return {"id": rid, "joints_rad": q, "success": bool(res.success), "reason": res.message, "code": res.reason}
 
 
 MAX_REQUEST_BYTES = 1 << 20  # a request line longer than this is refused (as the client caps its answers)
@@ -119,7 +120,10 @@ class IKServer(socketserver.ThreadingTCPServer):
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--robot", default="adept_viper_s650", help="robot rig (name or path) whose IK to serve")
+    parser.add_argument("--robot", help="robot rig (name or path) whose IK to serve (default adept_viper_s650)")
+    parser.add_argument("--config", metavar="CONFIG",
+                        help="serve the robot of this scan config instead, as its [robot] table gives it (a URDF "
+                             "arm's base_link, tool_link and package_dirs included)")
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any)")
     parser.set_defaults(run=run)
@@ -131,7 +135,18 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         print(f"error: --port must be in 0..65535, got {args.port}", file=sys.stderr)
         return 2
-    robot = load_robot(args.robot)
+    if args.robot and args.config:
+        print("error: give --robot or --config, not both (--config serves its config's robot)", file=sys.stderr)
+        return 2
+    if args.config:
+        from dataclasses import replace
+
+        from addon.core.config.scan import load_scan_config
+
+        # the config's own robot, solved here (its ik = "controller" would ask this very server)
+        robot = replace(load_scan_config(args.config).robot, ik_via=None)
+    else:
+        robot = load_robot(args.robot or "adept_viper_s650")
     try:
         server = IKServer(robot, args.host, args.port)
     except OSError as exc:

@@ -96,6 +96,21 @@ def test_an_unreachable_target_is_a_failed_solve_with_the_controllers_reason(ser
         replace(robot, ik_via=_client(server.port)).ik(far, np.zeros(6), raise_on_failure=True)
 
 
+def test_a_failed_solve_through_the_bridge_keeps_the_solvers_reason_code(server):
+    """The reason code came back out_of_reach for every failure (a hunt: a pose reachable
+    only with J5 at 150°, outside the Viper's ±120°, is joint_limits locally): the server's
+    answer carries the code and the client keeps it."""
+    robot = load_robot("adept_viper_s650")
+    wide = replace(robot, q_min_rad=np.full(6, -np.pi), q_max_rad=np.full(6, np.pi))
+    q = np.radians([10.0, 40.0, -30.0, 20.0, 150.0, -10.0])
+    assert not robot.within_limits(q) and wide.within_limits(q)
+    T = wide.fk(q)
+    local = robot.ik(T, np.zeros(6))
+    remote = replace(robot, ik_via=_client(server.port)).ik(T, np.zeros(6))
+    assert local.reason == "joint_limits" and not remote.success
+    assert remote.reason == local.reason, remote.message
+
+
 def test_a_controller_serving_another_robot_is_named_when_its_joints_miss(server):
     puma = load_robot("puma560")  # this cell's robot; the server solves for the Viper
     T = puma.fk(np.radians([10.0, -30.0, 20.0, 0.0, 40.0, 0.0]))
@@ -251,3 +266,38 @@ def test_the_server_refuses_a_line_past_its_limit_and_frees_the_connection(serve
         reply = json.loads(reader.readline())
         assert reply["success"] is False and "longer than" in reply["reason"]
         assert reader.readline() == b""  # the connection is closed: the rest cannot be told from a request
+
+
+def test_ik_server_serves_a_configs_urdf_robot_with_its_tool_link(tmp_path):
+    """ik-server took only --robot: a config's URDF arm with tool_link (or base_link,
+    package_dirs) could not be served, and every solve through it missed by the links
+    between (a hunt: 80 mm). --config serves the config's own chain."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    text = (repo / "rigs" / "scenes" / "ur5_urdf.toml").read_text()
+    text = text.replace('urdf = "../robots/urdf/ur5.urdf"', f'urdf = "{repo}/rigs/robots/urdf/ur5.urdf"\n'
+                                                           'tool_link = "wrist_3_link"')
+    config = tmp_path / "ur5_wrist.toml"
+    config.write_text(text)
+    robot = load_scan_config(config).robot
+    proc = subprocess.Popen([sys.executable, "-m", "headless", "ik-server", "--config", str(config), "--port", "0"],
+                            cwd=repo, env={**os.environ, "PYTHONPATH": str(repo)}, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        port = int(re.search(r":(\d+) \(protocol", line).group(1))
+        remote = replace(robot, ik_via=_client(port, timeout=10.0))
+        q = np.radians([10.0, -70.0, 80.0, -100.0, -80.0, 20.0])
+        res = remote.ik(robot.fk(q), q + 0.05)
+        assert res.success, res.message
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+    both = subprocess.run([sys.executable, "-m", "headless", "ik-server", "--config", str(config), "--robot", "ur5"],
+                          cwd=repo, env={**os.environ, "PYTHONPATH": str(repo)}, capture_output=True, text=True,
+                          timeout=120)
+    assert both.returncode == 2 and "not both" in both.stderr and "Traceback" not in both.stderr

@@ -136,3 +136,14 @@ def test_an_obj_face_naming_vertex_0_is_refused(tmp_path):
 
     with pytest.raises(InputError, match="line 10 names vertex 0"):
         load_workpiece(tmp_path / "zero.obj")
+
+
+def test_a_controller_table_without_ik_controller_is_named_for_it(tmp_path):
+    """[robot.controller] with the default ik = "local" read as an unknown key whose list of
+    allowed keys did not name it (a hunt)."""
+    path = demo_with(tmp_path, old="[robot]\n", new="[robot.controller]\nport = 5758\n\n[robot]\n")
+    with pytest.raises(ConfigError, match=r'robot\.controller: is read only with ik = "controller"'):
+        load_scan_config(path)
+    typo = demo_with(tmp_path, old="[robot]\n", new="[robot]\nikk = 1\n", name="typo.toml")
+    with pytest.raises(ConfigError, match=r"allowed here: .*controller"):
+        load_scan_config(typo)

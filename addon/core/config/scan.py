@@ -391,6 +391,9 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
             raise ct.error("host", str(exc)) from None
         ct.finish()
         robot = replace(robot, ik_via=ControllerIK(controller))
+    elif rt.has("controller"):  # (it read as an unknown key, its allowed keys not naming it)
+        raise rt.error("controller", 'is read only with ik = "controller" (the IK from a robot controller); '
+                                     'set that, or leave [robot.controller] out')
     rt.finish()
 
     pt = top.table("probe")

@@ -33,10 +33,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, ScannerError
-from .ik import ROT_TOL_RAD, IKResult, default_pos_tol, pose_errors
+from .ik import REASONS, ROT_TOL_RAD, IKResult, default_pos_tol, pose_errors
 
 PROTOCOL = 1
 DEFAULT_PORT = 5757
+FAILURE_CODES = tuple(r for r in REASONS if r != "ok")  # an answer's "code" when it failed
 
 
 
@@ -215,9 +216,13 @@ class ControllerIK:
                                       f"{json.dumps(joints)[:120]}")
             q = np.array(joints, dtype=np.float64)
         if not success:
+            # The answer's optional "code" is the solver's reason code; a controller that
+            # sends none (or one outside the four) reads as out of reach.
+            code = answer.get("code")
+            code = code if code in FAILURE_CODES else "out_of_reach"
             return IKResult(seed if q is None else q, False, math.inf, math.inf, 0,
                             f"the controller at {where} found no solution: {reason}{self._other_robot(robot)}",
-                            "controller", "out_of_reach")
+                            "controller", code)
         if q is None:
             raise ControllerError(f"IK controller at {where}: a successful answer without 'joints_rad'")
         pos_err, rot_err = pose_errors(robot, q[None, :], T[None])
