@@ -130,6 +130,7 @@ class NextBestView:
         self.pool = next_view.candidates(scanner.config.cell, self.probe, lo, hi)
         self.table = scanner.config.cell.table
         self.reach: float | None = None  # the farthest the part was measured from the table's axis
+        self.top_seen: float | None = None  # the highest the part was measured above the table top
         self.impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
         self.refused: list[str] = []  # why, for the last decision
         self.ranked: list = []  # the candidates the last decision ranked, best first (see runners_up)
@@ -250,6 +251,8 @@ class NextBestView:
         if part.any():
             r = float(np.max(np.hypot(P[part, 0], P[part, 1])))
             self.reach = r if self.reach is None else max(self.reach, r)
+            top = float(np.max(P[part, 2]))
+            self.top_seen = top if self.top_seen is None else max(self.top_seen, top)
 
     def overview(self, scanner, live, probe_now, budget):
         """The overview pass, before anything is known: a full table turn with the probe at the
@@ -303,9 +306,14 @@ class NextBestView:
     def coverage_estimate(self) -> float:
         """How much of the part's surface the model says is seen (0..1), from its box alone
         (from the table top up, where the box reaches below it: the table is not the part)."""
-        lo = self.lo.copy()
+        lo, hi = self.lo.copy(), self.hi.copy()
         lo[2] = max(lo[2], 0.0)  # the table top is z = 0 in the table frame
-        return self.space.coverage_estimate(lo, self.hi)
+        # A part measured no higher than the layer the estimate leaves out as the table top (a
+        # plate under a cell thick: its box is raised to FLAT_BOX_MM, and a 1.9 mm plate read
+        # 0 % after a view that saw all of its top) is estimated on the layer holding its top.
+        if self.top_seen is not None and self.top_seen < lo[2] + self.space.voxel < hi[2]:
+            hi[2] = max(self.top_seen, lo[2] + 1e-6)
+        return self.space.coverage_estimate(lo, hi)
 
     def scan(self, scanner, c, progress=None) -> tuple[list, int]:
         """Scan candidate ``c`` and learn from it: (its profiles, the cells it taught). The

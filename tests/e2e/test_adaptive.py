@@ -808,3 +808,23 @@ def test_the_time_check_counts_the_budgets_profiles_not_the_configs_path(tmp_pat
                            "--out", str(tmp_path / "out")], cwd=repo, capture_output=True, text=True, timeout=300)
     assert done.returncode == 2 and "would take up to" in done.stderr, done.stderr[-800:]
     assert not (tmp_path / "out").exists()
+
+
+def test_a_plate_thinner_than_a_cell_is_estimated_on_the_layer_holding_its_top(tmp_path):
+    """A plate under 2 mm thick has its top in the model's bottom layer, which the estimate
+    leaves out as the table top: after a view that saw all of its top the estimate read 0 and
+    --target-coverage was never met (a hunt: 592 of 600 profiles spent on a 1 mm plate)."""
+    import trimesh
+
+    from addon import Scanner
+
+    plate = trimesh.creation.box(extents=(60.0, 60.0, 1.5))
+    plate.apply_translation((0.0, 0.0, 0.75))
+    path = tmp_path / "plate.stl"
+    plate.export(path)
+    scanner = Scanner(workpiece=str(path), render=None)
+    scanner.config = scanner.config.with_overrides(engine="raycast")
+    steps = scanner.adaptive(max_profiles=160)
+    report = scanner.report()
+    assert report.coverage_measurable > 0.95  # the truth: the view saw the whole top
+    assert steps[-1].coverage_estimate > 0.5, [s.coverage_estimate for s in steps]
