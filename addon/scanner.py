@@ -399,6 +399,23 @@ class Scanner:
             return None
         return collision_model(self.config).clearance_at(self._q, self._table_rad)
 
+    def _check_can_move(self, what: str) -> None:
+        """CollisionError where the robot stands in a collision now: no motion starts from
+        there (every move was refused with the budget or the box blamed: a start_deg that put
+        the probe in a tall part)."""
+        here = self.clearance()
+        if here is None or here.first_collision is None:
+            return
+        hit = here.first_collision[0]
+        at_start = np.array_equal(self._q, self._start_joints()) and self._table_rad == (
+            float(self.config.waypoints.table_rad[0]) if len(self.config.waypoints) else 0.0)
+        where = ("at the start pose (the config's [robot] start_deg)" if at_start and self.config.q_start is not None
+                 else "at the start pose" if at_start else "where the robot stands now")
+        how = "touches" if hit.distance_mm <= 0 else f"comes within {hit.distance_mm:.2f} mm of"
+        raise CollisionError(f"{what}: {where} the {hit.body_a} {how} the {hit.body_b} (at least "
+                             f"{self.config.safety.min_clearance_mm:g} mm allowed), and no motion starts from a "
+                             f"colliding pose: give a start pose that keeps the robot and probe clear of the part")
+
     @staticmethod
     def _as_pose(pose) -> np.ndarray:
         if isinstance(pose, tuple) and len(pose) == 2:
@@ -716,6 +733,7 @@ class Scanner:
         kept = (self._planner, self._planner_config)
         # The planner's candidates, probe and table are the config's: a config replaced since
         # (another probe, table or fixtures) gets a new planner, which learns what was measured.
+        self._check_can_move("the planner cannot start")
         if self._planner is None or not self._planner.fits(lo, hi, settings.voxel_mm) \
                 or self._planner_config is not self.config:
             t = time.perf_counter()

@@ -828,3 +828,30 @@ def test_a_plate_thinner_than_a_cell_is_estimated_on_the_layer_holding_its_top(t
     report = scanner.report()
     assert report.coverage_measurable > 0.95  # the truth: the view saw the whole top
     assert steps[-1].coverage_estimate > 0.5, [s.coverage_estimate for s in steps]
+
+
+def test_a_start_pose_inside_the_part_is_named_before_the_planner_runs(tmp_path, capsys):
+    """A tower 300 mm tall reaching the demo's start pose: every move was refused from there
+    and the command blamed the budget or the box (a hunt)."""
+    import trimesh
+
+    tower = trimesh.creation.box(extents=(30.0, 30.0, 300.0))
+    tower.apply_translation((0.0, 0.0, 150.0))
+    tower.export(tmp_path / "tower.stl")
+    demo = (Path(__file__).resolve().parents[2] / "rigs" / "scenes" / "demo.toml").read_text()
+    start = [ln for ln in demo.splitlines() if ln.startswith("start_deg")][0]
+    config = tmp_path / "tower.toml"
+    config.write_text(f'name = "tower"\n[robot]\nrig = "adept_viper_s650"\n{start}\n[probe]\nrig = "default"\n'
+                      '[workpiece]\nfile = "tower.stl"\n[render]\nengine = "raycast"\n[[path]]\nkind = "sweep"\n'
+                      'frames = 2\nfrom_mm = [-10.0, 0.0, 200.0]\nto_mm = [10.0, 0.0, 200.0]\n')
+    # the truth, from the geometry alone: the probe's laser at the start lies 3 mm from the
+    # tower's side, its body in it
+    from addon import Scanner
+
+    origin = Scanner.from_config(config).pose()[:3, 3]
+    assert abs(tower.nearest.signed_distance([origin])[0]) < 10.0
+    out = tmp_path / "out"
+    assert main(["adaptive", str(config), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "start_deg" in err and "touches the workpiece" in err and "max-profiles" not in err, err
+    assert not out.exists()
