@@ -206,7 +206,8 @@ class Scanner:
         unknown = sorted(set(overrides) - set(allowed))
         if unknown:
             raise InputError(f"Scanner.from_config: unknown override {unknown[0]!r}; allowed: {', '.join(allowed)}")
-        return cls(config=load_scan_config(name_or_path).with_overrides(**overrides), scene=scene)
+        return cls(config=load_scan_config(name_or_path, path_required=False).with_overrides(**overrides),
+                   scene=scene)
 
     # -- state ---------------------------------------------------------------------------
     def _start_joints(self) -> np.ndarray:

@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from headless import preflight
     from headless.scan import default_out, print_summary, progress_and_lock
 
-    given = load_scan_config(args.config)
+    given = load_scan_config(args.config, path_required=False)  # the planner ignores [[path]]
     config = given.with_overrides(engine=args.engine)
     settings = config.adaptive
     if args.max_profiles is not None:

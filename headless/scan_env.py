@@ -104,7 +104,7 @@ class ScanPlanningEnv(gym.Env):
         if not isinstance(turn_part, (bool, np.bool_)):
             raise InputError(f"turn_part must be True or False, got {turn_part!r}")
         if isinstance(config, (str, os.PathLike)):
-            config = load_scan_config(os.fspath(config))
+            config = load_scan_config(os.fspath(config), path_required=False)
         elif not hasattr(config, "adaptive"):
             raise InputError(f"config must be a scan config's name, a path to its .toml file or a loaded ScanConfig, "
                              f"got {config!r}")

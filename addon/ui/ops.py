@@ -238,8 +238,9 @@ def _message(exc: Exception) -> str:
     return str(exc) if isinstance(exc, ScannerError) else f"{type(exc).__name__}: {exc}"
 
 
-def _panel_config(context, config: str):
-    """A scan config: the operator's own (a name or a .toml path), else the panel's choice."""
+def _panel_config(context, config: str, path_required: bool = True):
+    """A scan config: the operator's own (a name or a .toml path), else the panel's choice
+    (``path_required=False``: the adaptive scan's, which ignores [[path]])."""
     from ..core.config.scan import load_scan_config
 
     s = context.scene.scanner
@@ -249,7 +250,7 @@ def _panel_config(context, config: str):
         return _cell_config(s)
     else:
         source = models.chosen_file(s.scan_file, "scan") if s.scan_config == models.FILE else s.scan_config
-    return load_scan_config(source)
+    return load_scan_config(source, path_required=path_required)
 
 
 def _cell_config(s):
@@ -743,8 +744,8 @@ class SCANNER_OT_adaptive(_SteppedScan, bpy.types.Operator):
         from ..scanner import Scanner
 
         s = context.scene.scanner
-        cfg = _with_engine(context, _with_panel_sensor(context, _panel_config(context, self.config), self.config),
-                           self.engine)
+        given = _panel_config(context, self.config, path_required=False)  # the planner ignores [[path]]
+        cfg = _with_engine(context, _with_panel_sensor(context, given, self.config), self.engine)
         self._budget = self.max_profiles or s.adaptive_budget or cfg.adaptive.max_profiles
         self._folder = _checked_output(self.output_dir or context.scene.scanner.output_dir, f"{cfg.name} adaptive",
                                        cfg.input_files())

@@ -855,3 +855,21 @@ def test_a_start_pose_inside_the_part_is_named_before_the_planner_runs(tmp_path,
     err = capsys.readouterr().err
     assert "start_deg" in err and "touches the workpiece" in err and "max-profiles" not in err, err
     assert not out.exists()
+
+
+def test_a_config_without_a_path_serves_the_planner_and_the_scanner_but_not_a_scan(tmp_path, capsys):
+    """The planner ignores [[path]], yet a config without one was refused ("path: missing
+    (required)") by the command and Scanner.from_config (a hunt); a scan still needs one."""
+    from addon import Scanner
+
+    demo = (Path(__file__).resolve().parents[2] / "rigs" / "scenes" / "demo.toml").read_text()
+    text = demo[:demo.index("[[path]]")] + "\n[adaptive]\nmax_profiles = 200\n" if "[adaptive]" not in demo else None
+    assert text is not None and "[[path]]" not in text
+    config = tmp_path / "no_path.toml"
+    config.write_text(text)
+    assert len(Scanner.from_config(config).config.waypoints) == 0
+    assert main(["adaptive", str(config), "--engine", "raycast", "--out", str(tmp_path / "a"), "--quiet"]) == 0
+    assert json.loads((tmp_path / "a" / "report.json").read_text())["frames"] > 0
+    capsys.readouterr()
+    assert main(["scan", str(config), "--engine", "raycast", "--out", str(tmp_path / "s"), "--quiet"]) == 2
+    assert "a scan needs at least one [[path]]" in capsys.readouterr().err

@@ -343,8 +343,10 @@ def _rig_path(base: Path, value: str) -> str:
     return value
 
 
-def load_scan_config(name_or_path: str | Path) -> ScanConfig:
-    """Read and check a scan config; every problem is a ConfigError naming file, key and allowed values."""
+def load_scan_config(name_or_path: str | Path, *, path_required: bool = True) -> ScanConfig:
+    """Read and check a scan config; every problem is a ConfigError naming file, key and allowed values.
+    ``path_required=False`` (the adaptive planner's, a Scanner's: they ignore [[path]] or move
+    step by step) takes a config without [[path]] entries, its path then empty."""
     path = resolve_rig("scenes", name_or_path)
     top = load_toml(path)
     base = path.parent
@@ -433,7 +435,7 @@ def load_scan_config(name_or_path: str | Path) -> ScanConfig:
                                     f"{'polished' if material == 'mirror' else 'matt'}); leave it out, or make "
                                     f"the material glossy")
     workpiece = _workpiece(wt, base)
-    waypoints = _paths(top, table)
+    waypoints = _paths(top, table, path_required)
     render, resolution = _render(top.table("render", default={}))
     if resolution is not None:
         try:
@@ -603,7 +605,12 @@ def _workpiece(t: Table, base: Path) -> Workpiece:
     return wp
 
 
-def _paths(top: Table, table: Turntable) -> scanpath.Waypoints:
+def _paths(top: Table, table: Turntable, required: bool = True) -> scanpath.Waypoints:
+    if not top.has("path"):
+        if required:
+            raise top.error("path", "missing: a scan needs at least one [[path]] entry (the adaptive command, "
+                                    "which ignores the path, and a Scanner take a config without one)")
+        return scanpath.Waypoints(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0, int))
     parts = []
     for i, p in enumerate(top.tables("path")):
         kind = p.string("kind", choices=PATH_KINDS)
@@ -625,7 +632,8 @@ def _paths(top: Table, table: Turntable) -> scanpath.Waypoints:
             raise p.table_error(str(exc)) from None  # the message names the key
         p.finish()
     if not parts:
-        raise top.error("path", "at least one [[path]] is needed")
+        raise top.error("path", "at least one [[path]] is needed" + (
+            "" if required else " (or none at all: the adaptive planner and a Scanner take a config without one)"))
     return scanpath.concatenate(parts)
 
 
