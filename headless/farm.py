@@ -381,12 +381,12 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
         # From here on a stop (Ctrl-C) is looked at, and the stop's message knows the shards to
         # do (a stop was held until the first shard finished: minutes with Cycles).
         progress("shards", 0, len(todo))
-        worker_addresses = sorted(client.scheduler_info()["workers"])
+        worker_addresses = sorted(_workers(client, where))
         log(f"farm: scheduler {address}, {len(worker_addresses)} workers"
             + ("" if worker_addresses else " (none yet: the shards wait for workers to join it)"))
         if not worker_addresses:
             _wait_for_workers(client, where, todo, progress)
-            worker_addresses = sorted(client.scheduler_info()["workers"])  # those that joined
+            worker_addresses = sorted(_workers(client, where))  # those that joined
 
         def send_inputs():
             """The config (with its meshes) and the plan, to every worker once, not with every task."""
@@ -431,14 +431,15 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
             if info is None:
                 # Dask cancels a task whose scattered inputs went down with a dying worker
                 # (they have no recipe to recompute them): scatter again and resubmit.
+                _workers(client, where)  # a scheduler gone cancels every shard: that, not a dead worker
                 tries[s.index] += 1
                 if tries[s.index] > SHARD_RETRIES:
                     raise ScannerError(f"{s.describe()} was cancelled by the cluster {tries[s.index]} times "
                                        "(its workers keep dying); the shards finished are kept, nothing merged")
                 log(f"  {s.describe()} cancelled by the cluster (a worker died); submitting it again")
-                if not client.scheduler_info()["workers"]:
+                if not _workers(client, where):
                     _wait_for_workers(client, where, todo, progress, done)
-                worker_addresses = sorted(set(worker_addresses) | set(client.scheduler_info()["workers"]))
+                worker_addresses = sorted(set(worker_addresses) | set(_workers(client, where)))
                 shared = send_inputs()
                 again = submit(s)
                 shard_of[again] = s
@@ -465,7 +466,7 @@ def _wait_for_workers(client, where: str, todo, progress, done: int = 0) -> None
     one line saying so. (Sending the scan with no worker there failed after 30 s with Dask's
     "No valid workers found", though the log had said the shards would wait.)"""
     t = time.monotonic()
-    while not client.scheduler_info()["workers"]:
+    while not _workers(client, where):
         if time.monotonic() - t > WORKER_WAIT_S:
             raise ScannerError(f"no worker joined {where} in {WORKER_WAIT_S / 60:.0f} minutes: start workers on it "
                                f"(dask worker {client.scheduler.address}, docs/farm.md) and run the scan again")
@@ -474,6 +475,16 @@ def _wait_for_workers(client, where: str, todo, progress, done: int = 0) -> None
             client.wait_for_workers(1, timeout=2)
         except Exception:  # a timeout: look for a stop, and again
             pass
+
+
+def _workers(client, where: str) -> dict:
+    """The workers the scheduler knows, or ScannerError where the scheduler is gone (its
+    answer then has no workers at all: a KeyError's traceback before)."""
+    info = client.scheduler_info() if client.status == "running" else {}
+    if "workers" not in info:
+        raise ScannerError(f"{where} stopped answering (the scheduler is gone); the shards finished are kept, run "
+                           f"the scan again to go on")
+    return info["workers"]
 
 
 def _lost_connection(exc: BaseException) -> bool:

@@ -115,9 +115,10 @@ def test_a_scheduler_port_that_accepts_and_stays_silent_is_refused_not_waited_on
 
 
 @contextmanager
-def scheduler_and_worker(cwd, env):
+def scheduler_and_worker(cwd, env, procs_out: list | None = None):
     """A Dask scheduler and one worker started as separate processes in ``cwd`` with ``env``
-    (as on a cluster), stopped on leaving; yields the scheduler's address."""
+    (as on a cluster), stopped on leaving; yields the scheduler's address (and puts the two
+    processes in ``procs_out``, where given)."""
     import socket
     import subprocess
     import sys
@@ -135,12 +136,40 @@ def scheduler_and_worker(cwd, env):
         time.sleep(3)
         procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard"], **quiet))
         time.sleep(4)
+        if procs_out is not None:
+            procs_out.extend(procs)
         yield address
     finally:
         for p in procs:
             p.terminate()
         for p in procs:
             p.wait(timeout=30)
+
+
+def test_a_scheduler_that_stops_during_the_scan_is_one_line(tmp_path):
+    """The scheduler killed after the first shard: the cancelled shards were taken for a dead
+    worker's and the scan ended in a KeyError's traceback, exit 1 (a hunt, 4 runs in 5)."""
+    import os
+    import subprocess
+    import sys
+
+    repo = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(repo)}
+    procs = []
+    with scheduler_and_worker(tmp_path, env, procs) as address:
+        scan = subprocess.Popen([sys.executable, "-m", "headless", "scan", "demo", "--engine", "raycast", "--frames",
+                                 "0:60", "--shard-frames", "5", "--scheduler", address, "--out", str(tmp_path / "out")],
+                                cwd=repo, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        lines = []
+        for line in scan.stderr:
+            lines.append(line)
+            if "shard 0 done" in line:
+                procs[0].kill()
+                break
+        lines += scan.stderr.readlines()
+        assert scan.wait(timeout=300) == 2, "".join(lines)[-2000:]
+    err = "".join(lines)
+    assert "Traceback" not in err and "stopped answering" in err, err[-2000:]
 
 
 def test_a_cluster_that_cannot_import_the_scanner_is_named_in_one_line(tmp_path):
