@@ -6,7 +6,8 @@ refused in one line instead of failing after an hour (or taking the machine down
 - the render's size: memory for one frame's images against the memory this machine has
   free, and a time estimate against a limit (both refused unless ``--force``);
 - the temporary folder: room for one render call's image files, and the process's
-  file-size limit (a render that hits either crashes inside Blender);
+  file-size limit (a render that hits either crashes inside Blender; the raycast engine
+  writes none);
 - a Dask scheduler's address: something answers there within a few seconds.
 
 The estimates are upper bounds from the full sensor (the band of rows a scan renders is
@@ -30,6 +31,10 @@ from addon.core.files import check_output_folder
 MEMORY_BYTES_PER_PIXEL = 100
 EXR_BYTES_PER_PIXEL = 12  # RGB float32, uncompressed, per view
 PIXELS_PER_SECOND = 4e5  # Cycles at one sample, two CPU cores (bench scan: the demo at 160x160)
+# The raycast engine casts rays, writes no image files and has no samples: the demo at
+# 1280x1024 ran 23 profiles/s here (bench scan), 60 M sensor pixels a second; half that
+# keeps the estimate an upper bound (the Cycles rate made an hour's raycast scan 8 h).
+RAYCAST_PIXELS_PER_SECOND = 3e7
 MAX_HOURS = 8.0  # a longer estimate is refused unless --force
 # A local farm's worker: a Python process with bpy loaded and the cell built, before any frame
 # (a Cycles worker of the demo peaked at 484 MB). The check counted only the frames, and let
@@ -47,6 +52,12 @@ class RenderBudget:
     cameras: int
     samples: int
     chunk_frames: int
+    engine: str = "cycles"
+
+    @property
+    def writes_images(self) -> bool:
+        """Whether its frames go through image files (the raycast engine's do not)."""
+        return self.engine != "raycast"
 
     @property
     def memory_bytes(self) -> int:
@@ -59,7 +70,10 @@ class RenderBudget:
 
     @property
     def seconds(self) -> float:
-        return self.frames * self.cameras * self.width * self.height * max(self.samples, 1) / PIXELS_PER_SECOND
+        pixels = self.frames * self.cameras * self.width * self.height
+        if not self.writes_images:
+            return pixels / RAYCAST_PIXELS_PER_SECOND
+        return pixels * max(self.samples, 1) / PIXELS_PER_SECOND
 
 
 def folder_argument(text: str) -> str:
@@ -77,7 +91,8 @@ def render_budget(config) -> RenderBudget:
 
     probe, r = config.probe, with_sensor(config.render, config.sensor)  # the samples a sensor model asks for
     w, h = probe.cols_px, probe.rows_px
-    return RenderBudget(int(w), int(h), len(config.waypoints), 2, int(r.samples), config.leave_out.chunk_frames)
+    return RenderBudget(int(w), int(h), len(config.waypoints), 2, int(r.samples), config.leave_out.chunk_frames,
+                        r.engine)
 
 
 def available_memory() -> int | None:
@@ -124,7 +139,8 @@ def check_render_size(budget: RenderBudget, force: bool = False, memory: int | N
         raise InputError(f"a {size} frame needs about {_size(budget.memory_bytes)} of memory to render and this "
                          f"machine has {_size(memory)} free; use a smaller --resolution (or --force)")
     if not force and budget.seconds > MAX_HOURS * 3600:
-        raise InputError(f"{budget.frames} frames at {size}, {budget.samples} sample(s), would take up to "
+        how = f"{budget.samples} sample(s)" if budget.writes_images else "ray cast"
+        raise InputError(f"{budget.frames} frames at {size}, {how}, would take up to "
                          f"{_duration(budget.seconds)} on this CPU (more than {MAX_HOURS:g} h); use fewer frames "
                          f"or pixels, or --force to run it anyway")
 
@@ -132,6 +148,8 @@ def check_render_size(budget: RenderBudget, force: bool = False, memory: int | N
 def check_temp_room(budget: RenderBudget, folder: str | Path | None = None) -> None:
     """Refuse when the temporary folder cannot hold one render call's image files, or one
     image file is larger than the process may write (ulimit -f): Blender crashes on both."""
+    if not budget.writes_images:
+        return
     folder = Path(folder or tempfile.gettempdir())
     need = budget.exr_bytes * budget.cameras * budget.chunk_frames
     try:

@@ -810,6 +810,27 @@ def test_the_time_check_counts_the_budgets_profiles_not_the_configs_path(tmp_pat
     assert not (tmp_path / "out").exists()
 
 
+def test_the_raycast_engine_is_costed_as_what_it_does_not_as_cycles(tmp_path, monkeypatch):
+    """The pre-scan checks costed a raycast scan as Cycles: a 4 560-frame hires scan (about
+    3 minutes at the measured 23 profiles/s) was refused as 8.3 h, and a small TMPDIR or
+    ulimit -f refused it for image files it never writes (a hunt)."""
+    import resource
+
+    from addon.core.config.rigs import load_probe
+    from headless import preflight
+
+    hires = replace(load_scan_config("demo"), probe=load_probe("hires")).with_overrides(engine="raycast")
+    budget = preflight.render_budget(replace(hires, waypoints=hires.waypoints.select(np.zeros(4560, int))))
+    assert budget.frames == 4560 and budget.seconds < 3600, budget.seconds  # 8.3 h before
+    with pytest.raises(InputError, match="would take up to"):
+        preflight.check_render_size(replace(budget, engine="cycles"))
+    preflight.check_render_size(budget)
+    monkeypatch.setattr(resource, "getrlimit", lambda which: (1000, 1000))  # ulimit -f of 1 kB
+    preflight.check_temp_room(budget)  # no image files: nothing to refuse
+    with pytest.raises(InputError, match="ulimit"):
+        preflight.check_temp_room(replace(budget, engine="cycles"))
+
+
 def test_a_plate_thinner_than_a_cell_is_estimated_on_the_layer_holding_its_top(tmp_path):
     """A plate under 2 mm thick has its top in the model's bottom layer, which the estimate
     leaves out as the table top: after a view that saw all of its top the estimate read 0 and
