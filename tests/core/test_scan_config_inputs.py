@@ -147,3 +147,12 @@ def test_a_controller_table_without_ik_controller_is_named_for_it(tmp_path):
     typo = demo_with(tmp_path, old="[robot]\n", new="[robot]\nikk = 1\n", name="typo.toml")
     with pytest.raises(ConfigError, match=r"allowed here: .*controller"):
         load_scan_config(typo)
+
+
+def test_samples_the_raycast_engine_cannot_take_are_refused_with_the_overrides():
+    """--engine raycast --samples 4 passed the overrides and was refused by the first frame's
+    worker, after a local farm had started (a hunt)."""
+    demo = load_scan_config("demo")
+    with pytest.raises(InputError, match=r"--samples \(samples\) 4 with the raycast engine: .*need engine cycles"):
+        demo.with_overrides(engine="raycast", samples=4)
+    assert demo.with_overrides(engine="raycast", samples=1).render.engine == "raycast"

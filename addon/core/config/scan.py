@@ -276,6 +276,9 @@ class ScanConfig:
             render = replace(render, samples=samples,
                              filter_width_px=box_width(render.engine, render.pixel_filter, samples,
                                                        render.filter_width_px))
+            why = replace(cfg, render=render).raycast_refusal()
+            if why:  # (refused by the first frame's worker before, after a local farm had started)
+                raise InputError(f"--samples (samples) {samples} with the raycast engine: {why}")
         cfg = replace(cfg, render=render)
         if resolution is not None:
             size = resolution if isinstance(resolution, (tuple, list)) else ()
