@@ -156,3 +156,18 @@ def test_samples_the_raycast_engine_cannot_take_are_refused_with_the_overrides()
     with pytest.raises(InputError, match=r"--samples \(samples\) 4 with the raycast engine: .*need engine cycles"):
         demo.with_overrides(engine="raycast", samples=4)
     assert demo.with_overrides(engine="raycast", samples=1).render.engine == "raycast"
+
+
+def test_a_config_named_by_a_relative_path_keeps_whole_paths(tmp_path, monkeypatch):
+    """report.json named the config and its mesh relative to the folder the scan ran in, so a
+    merge elsewhere, or the default output folder's check, read them as other files (a hunt)."""
+    mesh = trimesh.creation.box(extents=(20.0, 20.0, 10.0))
+    mesh.apply_translation((0.0, 0.0, 5.0))
+    (tmp_path / "a").mkdir()
+    mesh.export(tmp_path / "a" / "part.stl")
+    text = DEMO[:DEMO.index("[workpiece]")] + '[workpiece]\nfile = "part.stl"\n' + DEMO[DEMO.index("[[path]]"):]
+    (tmp_path / "a" / "scan.toml").write_text(text)
+    monkeypatch.chdir(tmp_path)
+    cfg = load_scan_config("a/scan.toml")
+    assert cfg.source == str(tmp_path / "a" / "scan.toml")
+    assert Path(cfg.workpiece.source) == tmp_path / "a" / "part.stl"

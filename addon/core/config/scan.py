@@ -351,8 +351,11 @@ def load_scan_config(name_or_path: str | Path, *, path_required: bool = True) ->
     ``path_required=False`` (the adaptive planner's, a Scanner's: they ignore [[path]] or move
     step by step) takes a config without [[path]] entries, its path then empty."""
     path = resolve_rig("scenes", name_or_path)
-    top = load_toml(path)
-    base = path.parent
+    top = load_toml(path)  # (its errors name the file as given)
+    # The files it names are found from its folder, and the report keeps them (and it) whole:
+    # relative, a report named files relative to wherever the scan ran, and an output folder's
+    # owner was read from another folder as a file that is not there.
+    base = path.absolute().parent
     name = top.string("name", default=path.stem)
     description = top.string("description", default="")
 
@@ -501,7 +504,7 @@ def load_scan_config(name_or_path: str | Path, *, path_required: bool = True) ->
     mismatch = laser_engine_mismatch(render.engine, render.laser)
     if mismatch:
         raise ConfigError(f"{path}: render.laser: {mismatch}")
-    cfg = ScanConfig(name, str(path), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
+    cfg = ScanConfig(name, str(path.absolute()), robot, probe, table, workpiece, waypoints, q_start, render, detect_method,
                      detect, tri_method, fuse, leave_out, cov, description, profile_filter=profile_filter,
                      safety=safety, fixtures=fixtures, adaptive=adaptive)
     cfg = cfg.with_realism(sensor, material, roughness)
