@@ -18,7 +18,6 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
-import sys
 import tempfile
 from pathlib import Path
 
@@ -33,7 +32,7 @@ from ..core.optics.sensor import MAX_SHUTTER_FRAMES
 from .cameras import CLIP_START_M, EEVEE_CLIP_START_M, probe_cameras
 from .compat import ensure_node_tree, new_world
 from .compat import BLENDER_ENGINES
-from .session import use_device
+from .session import blender_output_captured, use_device
 
 VIEWS = (("left", "_L"), ("right", "_R"))
 
@@ -210,36 +209,6 @@ def ctrl_c_after_render():
     if asked:
         raise KeyboardInterrupt(RAISED_AFTER_RENDER)
 
-
-
-@contextlib.contextmanager
-def blender_output_captured():
-    """Keep Blender's per-frame log lines ("Fra: ...", "Saved: '...exr'") off the terminal.
-
-    Blender writes them to file descriptor 1 from C, below Python's ``sys.stdout``, so the
-    descriptor itself is pointed at a temporary file for the call; should the render fail,
-    the last lines of that log go into the error.
-    """
-    sys.stdout.flush()
-    try:
-        saved = os.dup(1)
-    except OSError:  # no descriptor 1 (a GUI without a console): nothing to keep quiet
-        yield
-        return
-    with tempfile.TemporaryFile(prefix="scanner-blender-log-") as log:
-        os.dup2(log.fileno(), 1)
-        try:
-            yield
-        except Exception as exc:
-            os.dup2(saved, 1)
-            log.seek(0)
-            tail = log.read()[-2000:].decode(errors="replace").strip()
-            if tail:
-                exc.add_note("Blender's log ended with:\n" + tail)
-            raise
-        finally:
-            os.dup2(saved, 1)
-            os.close(saved)
 
 
 def read_image(path: str | Path) -> np.ndarray:

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+import tempfile
+
 import bpy  # first: it puts Blender's own modules (addon_utils) on the path
 
 import addon_utils  # noqa: E402
@@ -42,7 +47,8 @@ def use_device(scene: bpy.types.Scene, device: str = "CPU") -> str:
             prefs.compute_device_type = backend
         except TypeError:
             continue
-        prefs.get_devices()
+        with blender_output_captured():  # Cycles logs each backend it cannot load (CUEW, HIPEW) to stdout
+            prefs.get_devices()
         gpus = [d for d in prefs.devices if d.type == backend]
         if gpus:
             for d in prefs.devices:
@@ -50,3 +56,33 @@ def use_device(scene: bpy.types.Scene, device: str = "CPU") -> str:
             scene.cycles.device = "GPU"
             return f"GPU ({backend}: {', '.join(d.name for d in gpus)})"
     return "CPU"
+
+
+@contextlib.contextmanager
+def blender_output_captured():
+    """Keep Blender's per-frame log lines ("Fra: ...", "Saved: '...exr'") off the terminal.
+
+    Blender writes them to file descriptor 1 from C, below Python's ``sys.stdout``, so the
+    descriptor itself is pointed at a temporary file for the call; should the render fail,
+    the last lines of that log go into the error.
+    """
+    sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:  # no descriptor 1 (a GUI without a console): nothing to keep quiet
+        yield
+        return
+    with tempfile.TemporaryFile(prefix="scanner-blender-log-") as log:
+        os.dup2(log.fileno(), 1)
+        try:
+            yield
+        except Exception as exc:
+            os.dup2(saved, 1)
+            log.seek(0)
+            tail = log.read()[-2000:].decode(errors="replace").strip()
+            if tail:
+                exc.add_note("Blender's log ended with:\n" + tail)
+            raise
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)

@@ -237,3 +237,17 @@ def test_the_blender_cell_pages_example_runs_and_sees_the_laser_line():
     last = out.stdout.strip().splitlines()[-1]
     assert last.startswith("1 2 (160, 160, 3) "), last  # one frame, both cameras, the default sensor
     assert float(last.rsplit(" ", 1)[1]) > 0.1  # the laser line lights some pixels red
+
+
+def test_looking_for_a_gpu_writes_nothing_to_standard_output(scene, capfd):
+    """Cycles logs each GPU backend it cannot load ("CUEW initialization failed") to file
+    descriptor 1: asked for CUDA on a machine without one, a --quiet scan's stdout, which should
+    hold the summary alone, carried those lines (a hunt), one pair per farm worker."""
+    from addon.scene.session import use_device
+
+    capfd.readouterr()
+    used = use_device(scene, "CUDA")
+    out = capfd.readouterr().out
+    assert out == "", out
+    scene.cycles.device = "CPU"
+    assert used == "CPU" or used.startswith("GPU (CUDA")
