@@ -330,10 +330,13 @@ class NextBestView:
                              + (": choose() gives None when no view is left worth scanning" if c is None else ""))
         # Profiles measured since this planner last learnt (a manual sweep between its views)
         # first: its own frames below would otherwise count them as seen.
+        t = time.perf_counter()
         self.catch_up(scanner)
         before = self.space.counts()["unknown"]
         expected = next_view.new_cells(self.space, self.probe, c.waypoints().probe2table)
+        learning = time.perf_counter() - t
         profiles = yield from scanner.scan_path_steps(waypoints_from_here(c.waypoints(), scanner.table_deg), progress)
+        t = time.perf_counter()
         for p in profiles:
             self.learn(p.probe2table[:3, 3], p.points)
         self.frames_seen = max(self.frames_seen, profiles[-1].frame + 1) if profiles else self.frames_seen
@@ -346,7 +349,9 @@ class NextBestView:
         # asking whether the robot could reach over for it took 0.9 s of a decision.
         self.impossible.update((c.key, c.twin_key))
         self.looked = True
-        return profiles, before - self.space.counts()["unknown"]
+        learnt = before - self.space.counts()["unknown"]
+        scanner.add_time("planner", learning + time.perf_counter() - t)  # the model's updates
+        return profiles, learnt
 
 
 def waypoints_from_here(waypoints, table_deg_now: float):
@@ -419,7 +424,9 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_
         log(f"adaptive: planner set up in {setup_s:.2f} s ({len(planner.pool)} candidate sweeps)")
     planner.min_gain = int(min_gain)
     seen, outside = planner.points_seen, planner.points_outside  # this run's share is warned of, once
+    t = time.perf_counter()
     caught = planner.catch_up(scanner)
+    scanner.add_time("planner", time.perf_counter() - t)
     if log and caught:
         log(f"adaptive: learnt from the {caught} profiles measured before this run")
     steps = [] if steps is None else steps
@@ -440,9 +447,11 @@ def adaptive_steps(scanner, lo, hi, *, max_profiles: int = AdaptiveSettings.max_
     while taken < max_profiles and not reached:
         say("adaptive", taken, max_profiles)  # a stop asked for during the last sweep takes effect here
         yield taken
-        t = time.perf_counter()
+        t, motion = time.perf_counter(), scanner.plan_seconds()
         chosen = planner.choose(scanner, max_profiles - taken)
         planning = time.perf_counter() - t
+        # the choice, less the motion planning it asked of the Scanner (already its "plan")
+        scanner.add_time("planner", max(planning - (scanner.plan_seconds() - motion), 0.0) + setup_s)
         if log:
             for why in planner.refused:
                 log(f"  refused {why}")

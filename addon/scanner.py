@@ -417,6 +417,16 @@ class Scanner:
                              f"{self.config.safety.min_clearance_mm:g} mm allowed), and no motion starts from a "
                              f"colliding pose: give a start pose that keeps the robot and probe clear of the part")
 
+    def add_time(self, stage: str, seconds: float) -> None:
+        """Count ``seconds`` to report.json's ``time_s[stage]`` (a planner's own work: the
+        reference planner counts its model's updates and its choices as "planner")."""
+        self._timing[stage] = self._timing.get(stage, 0.0) + float(seconds)
+
+    def plan_seconds(self) -> float:
+        """The seconds counted so far to the "plan" stage (motion planning and its collision
+        checks), for a planner that times its own work apart from the Scanner's."""
+        return self._timing["plan"]
+
     @staticmethod
     def _as_pose(pose) -> np.ndarray:
         if isinstance(pose, tuple) and len(pose) == 2:

@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-gain", type=int,
                         help=f"new cells a view must promise (default: the config's, else {AdaptiveSettings.min_gain})")
     parser.add_argument("--target-coverage", type=float, metavar="F",
-                        help="stop once the planner's own coverage estimate reaches this share, 0..1 "
+                        help="stop once the planner's own coverage estimate reaches this share, over 0 and at most 1 "
                              "(default: the config's, else none)")
     parser.add_argument("--engine", choices=ENGINES,
                         help="render engine, as for scan (default: the config's); raycast needs no Blender")

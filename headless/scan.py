@@ -410,8 +410,9 @@ def print_summary(result, wall: float) -> None:
                         if count)
     print(f"  kept          {r['points_fused']} points fused from both cameras; dropped after detection: "
           f"{dropped or 'none'}")
-    stages = ", ".join(f"{name} {ts[name]:.2f}" for name in ("plan", "scene", "render", "detect", "triangulate",
-                                                             "neighbours", "metrics", "write") if name in ts)
+    stages = ", ".join(f"{name} {ts[name]:.2f}" for name in ("plan", "planner", "scene", "render", "detect",
+                                                             "triangulate", "neighbours", "metrics", "write")
+                       if name in ts)
     # A farm's shards ran side by side, or in earlier tasks (a merge): their stages add up over
     # the workers and can exceed the command's own time.
     summed = " (scene to triangulate summed over the shards' workers)" if "farm" in r else ""
