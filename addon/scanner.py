@@ -754,23 +754,34 @@ class Scanner:
         done = self._extra.get("adaptive", {}).get("sweeps", [])
         steps: list = []
         finished = False
+        earlier = self._extra.get("adaptive", {}).get("max_profiles", 0)
+
+        def record():
+            # Over every adaptive() call on this Scanner: the sweeps all of them took, within
+            # the budgets all of them were given; kept up to date after each sweep, so that a
+            # result saved between two sweeps lists those done (it had no record at all).
+            self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": earlier + budget,
+                                       "target_coverage": target, "sweeps": done + [s.as_dict() for s in steps]}
+
+        run = adaptive_steps(self, lo, hi, max_profiles=budget, min_gain=gain, target_coverage=target,
+                             voxel_mm=settings.voxel_mm, progress=progress, log=log, planner=self._planner,
+                             setup_s=setup, steps=steps, numbered_from=len(done))
         try:
-            yield from adaptive_steps(self, lo, hi, max_profiles=budget, min_gain=gain, target_coverage=target,
-                                      voxel_mm=settings.voxel_mm, progress=progress, log=log,
-                                      planner=self._planner, setup_s=setup, steps=steps, numbered_from=len(done))
+            recorded = 0
+            for taken in run:
+                if len(steps) != recorded:
+                    record()
+                    recorded = len(steps)
+                yield taken
             finished = True
             # What the run noticed about the box joins the report's warnings (printed under --quiet too).
             self._warnings += [w for w in self._planner.warnings if w not in self._warnings]
         finally:  # a run dropped or stopped after some sweeps still lists them beside their frames
+            run.close()
             if not (finished or steps):
                 self._planner, self._planner_config = kept
             else:
-                # Over every adaptive() call on this Scanner: the sweeps all of them took, within
-                # the budgets all of them were given.
-                earlier = self._extra.get("adaptive", {}).get("max_profiles", 0)
-                self._extra["adaptive"] = {"box_mm": [lo.tolist(), hi.tolist()], "max_profiles": earlier + budget,
-                                           "target_coverage": target,
-                                           "sweeps": done + [s.as_dict() for s in steps]}
+                record()
         return steps
 
     # -- results -------------------------------------------------------------------------

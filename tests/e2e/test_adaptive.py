@@ -899,3 +899,22 @@ def test_a_config_without_a_path_serves_the_planner_and_the_scanner_but_not_a_sc
     capsys.readouterr()
     assert main(["scan", str(config), "--engine", "raycast", "--out", str(tmp_path / "s"), "--quiet"]) == 2
     assert "a scan needs at least one [[path]]" in capsys.readouterr().err
+
+
+def test_a_result_saved_between_two_sweeps_lists_the_sweeps_done(tmp_path):
+    """The adaptive record joined the report only when the run ended: a result saved between
+    two sweeps had 160 frames and no record of the sweep that took them (a hunt)."""
+    from addon import Scanner
+
+    scanner = Scanner.from_config("demo", engine="raycast")
+    run = scanner.adaptive_steps(max_profiles=300)
+    mid = None
+    for _ in run:
+        if mid is None and scanner.frames_taken >= 160:
+            mid = scanner.result(tmp_path / "mid").report
+    end = scanner.result(tmp_path / "end").report
+    assert mid is not None and end["frames"] > mid["frames"]
+    sweeps = mid["adaptive"]["sweeps"]
+    assert sweeps and sum(s["profiles"] for s in sweeps) <= mid["frames"]
+    assert end["adaptive"]["sweeps"][:len(sweeps)] == sweeps and end["adaptive"]["max_profiles"] == 300
+    assert sum(s["profiles"] for s in end["adaptive"]["sweeps"]) == end["frames"]
