@@ -45,10 +45,10 @@ import signal
 import sys
 from pathlib import Path
 
-from addon.core.errors import FolderBusy, ScannerError
+from addon.core.errors import ScannerError, TemporaryFailure
 
 EXIT_USER_ERROR = 2
-EXIT_BUSY = 75  # sysexits' EX_TEMPFAIL: the output folder is another scan's for now; try again later
+EXIT_BUSY = 75  # sysexits' EX_TEMPFAIL: the output folder is another scan's, or the cluster went; try again later
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -230,7 +230,7 @@ def _exit_code(args: argparse.Namespace, stops) -> int:
             # ends with the failure's code), never raised into the handler printing it.
             stops.record_only = True
             raise
-    except FolderBusy as exc:
+    except TemporaryFailure as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BUSY
     except ScannerError as exc:

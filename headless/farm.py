@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Callable
 
 from addon.core.scan import shards
-from addon.core.errors import InputError, ScannerError, check_whole
+from addon.core.errors import InputError, ScannerError, TemporaryFailure, check_whole
 
 # Times a shard is submitted again after the cluster cancels it (its scattered inputs lost
 # with a dying worker) before the farm gives up.
@@ -393,7 +393,7 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
             try:
                 return client.scatter([config, plan], broadcast=True, hash=False)
             except Exception as exc:  # the workers went (died, or left the scheduler) while it sent
-                raise ScannerError(f"could not send the scan to the workers of {where}: they left while it was "
+                raise TemporaryFailure(f"could not send the scan to the workers of {where}: they left while it was "
                                    f"sent ({type(exc).__name__}: {str(exc)[:120]}); the shards finished are kept, "
                                    f"run the scan again to go on") from None
 
@@ -425,7 +425,7 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
                     if not (fut.cancelled() or "Cancelled" in type(exc).__name__ or _lost_connection(exc)):
                         raise
                     if _lost_connection(exc) and client.status != "running":
-                        raise ScannerError(f"{where} stopped answering ({type(exc).__name__}); the shards finished "
+                        raise TemporaryFailure(f"{where} stopped answering ({type(exc).__name__}); the shards finished "
                                            f"are kept, run the scan again to go on") from None
             fut.release()  # its result is read: nothing more to keep on a worker that may die
             if info is None:
@@ -468,7 +468,7 @@ def _wait_for_workers(client, where: str, todo, progress, done: int = 0) -> None
     t = time.monotonic()
     while not _workers(client, where):
         if time.monotonic() - t > WORKER_WAIT_S:
-            raise ScannerError(f"no worker joined {where} in {WORKER_WAIT_S / 60:.0f} minutes: start workers on it "
+            raise TemporaryFailure(f"no worker joined {where} in {WORKER_WAIT_S / 60:.0f} minutes: start workers on it "
                                f"(dask worker {client.scheduler.address}, docs/farm.md) and run the scan again")
         progress("shards", done, len(todo))
         try:
@@ -482,7 +482,7 @@ def _workers(client, where: str) -> dict:
     answer then has no workers at all: a KeyError's traceback before)."""
     info = client.scheduler_info() if client.status == "running" else {}
     if "workers" not in info:
-        raise ScannerError(f"{where} stopped answering (the scheduler is gone); the shards finished are kept, run "
+        raise TemporaryFailure(f"{where} stopped answering (the scheduler is gone); the shards finished are kept, run "
                            f"the scan again to go on")
     return info["workers"]
 

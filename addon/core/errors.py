@@ -24,9 +24,14 @@ class InputError(ScannerError, ValueError):
     """A value passed to a function is malformed (wrong shape, non-finite, non-rigid)."""
 
 
-class FolderBusy(ScannerError):
-    """Another scan holds the output folder: nothing is wrong with the input, and the same
-    command may work later (the command line exits with its own code for it)."""
+class TemporaryFailure(ScannerError):
+    """Nothing is wrong with the input: something the command needs is not there for now
+    (another scan's output folder, a cluster that went away), and the same command may work
+    later (the command line exits 75, sysexits' EX_TEMPFAIL, for it)."""
+
+
+class FolderBusy(TemporaryFailure):
+    """Another scan holds the output folder."""
 
 
 class CollisionError(ScannerError):

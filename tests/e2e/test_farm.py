@@ -148,7 +148,8 @@ def scheduler_and_worker(cwd, env, procs_out: list | None = None):
 
 def test_a_scheduler_that_stops_during_the_scan_is_one_line(tmp_path):
     """The scheduler killed after the first shard: the cancelled shards were taken for a dead
-    worker's and the scan ended in a KeyError's traceback, exit 1 (a hunt, 4 runs in 5)."""
+    worker's and the scan ended in a KeyError's traceback, exit 1 (a hunt, 4 runs in 5). A
+    cluster gone is no fault of the scan: exit 75, try again later, as for a busy folder."""
     import os
     import subprocess
     import sys
@@ -167,7 +168,7 @@ def test_a_scheduler_that_stops_during_the_scan_is_one_line(tmp_path):
                 procs[0].kill()
                 break
         lines += scan.stderr.readlines()
-        assert scan.wait(timeout=300) == 2, "".join(lines)[-2000:]
+        assert scan.wait(timeout=300) == 75, "".join(lines)[-2000:]
     err = "".join(lines)
     assert "Traceback" not in err and "stopped answering" in err, err[-2000:]
 
