@@ -68,24 +68,24 @@ def _clean_sys_path() -> None:
 
 
 def run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, threads: int | None = None,
-              owner: str | None = None) -> dict:
+              owner: str | None = None, progress=None) -> dict:
     """On a worker: scan the shard's frames and write its file. Returns a short summary.
     ``owner``: the output folder's lock as the scan that asked for the shard holds it; a shard
     that finishes once that scan has stopped (the lock gone, or another scan's) writes
     nothing: a cluster cannot stop a task that is running, and the folder is no longer its."""
     with _SHARD_LOCK:
-        return _run_shard(config, plan, shard, path, fingerprint, threads, owner)
+        return _run_shard(config, plan, shard, path, fingerprint, threads, owner, progress)
 
 
 def _run_shard(config, plan, shard: shards.Shard, path: str, fingerprint: str, threads: int | None,
-               owner: str | None) -> dict:
+               owner: str | None, progress=None) -> dict:
     _clean_sys_path()
     from addon.core.scan.outputs import blender_version
     from addon.pipeline import ScanRun
 
     t = time.perf_counter()
     cell = _WORKER_CELL.get(fingerprint)  # (Blender cell, raycast renderer) built for an earlier shard
-    run = ScanRun(config, plan=plan, frames=shard.frames, threads=threads,
+    run = ScanRun(config, progress=progress, plan=plan, frames=shard.frames, threads=threads,
                   scene_cell=None if cell is None else cell[0], raycaster=None if cell is None else cell[1])
     _WORKER_CELL.clear()
     _WORKER_CELL[fingerprint] = (run.scene_cell, run.raycaster)
@@ -209,8 +209,9 @@ def check_scheduler(address: str) -> str:
     return address
 
 
-def run_one_shard(config, out_dir: str | Path, shard_frames: int, index: int) -> dict:
-    """Compute shard ``index`` in this process, no Dask (one task of a render-farm manager's job)."""
+def run_one_shard(config, out_dir: str | Path, shard_frames: int, index: int, progress=None) -> dict:
+    """Compute shard ``index`` in this process, no Dask (one task of a render-farm manager's job);
+    ``progress(stage, done, total)`` as a scan's."""
     from addon.pipeline import plan_scan
 
     plan = plan_scan(config)
@@ -219,7 +220,7 @@ def run_one_shard(config, out_dir: str | Path, shard_frames: int, index: int) ->
         raise InputError(f"--shard {index!r}: this scan has shards 0-{len(parts) - 1} at {shard_frames} frames each")
     s = parts[index]
     path = Path(out_dir) / "shards" / s.file_name()
-    info = run_shard(config, plan, s, str(path), scan_fingerprint(config, plan))
+    info = run_shard(config, plan, s, str(path), scan_fingerprint(config, plan), progress=progress)
     return {**info, "path": str(path), "describe": s.describe(), "of": len(parts)}
 
 

@@ -326,7 +326,19 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
 def _run_shard(args: argparse.Namespace, config, out: str) -> int:
     from headless.farm import run_one_shard
 
-    info = run_one_shard(config, out, args.shard_frames, args.shard)
+    # (no lock: a farm job's tasks write into the same --out at once; a task monitor still
+    # wants to see the shard move, which printed nothing for its whole run)
+    bar, stops = ProgressBar(args.quiet), getattr(args, "stops", None)
+
+    def progress(stage, done, total):
+        bar(stage, done, total)
+        if stops is not None:
+            stops.progress(stage, done, total)
+
+    try:
+        info = run_one_shard(config, out, args.shard_frames, args.shard, progress=progress)
+    finally:
+        bar.finish()
     print(f"  {info['describe']} of {info['of']}: {info['points']} points in {info['seconds']:.1f} s -> "
           f"{info['path']}")
     return 0

@@ -490,9 +490,13 @@ def test_a_farm_manager_can_run_one_shard_per_task_then_merge(single, tmp_path):
     early = subprocess.run(base + ["--merge"], cwd=repo, capture_output=True, text=True)
     assert early.returncode == 2 and "2 of 2 shards are not ready" in early.stderr, early.stderr
     for k in (1, 0):  # tasks may run in any order
-        task = subprocess.run(base + ["--shard", str(k)], cwd=repo, capture_output=True, text=True)
+        # (shard 1 without --quiet: a task shows its progress, as a scan does; it printed none)
+        task = subprocess.run(base[:-1] + ["--shard", str(k)] + (["--quiet"] if k == 0 else []), cwd=repo,
+                              capture_output=True, text=True)
         assert task.returncode == 0, task.stderr[-2000:]
         assert f"shard {k} (frames {10 * k}-{10 * k + 9}) of 2" in task.stdout
+        assert ("/10 frames" in task.stderr and "(100 %)" in task.stderr) if k == 1 else "frames" not in task.stderr, \
+            task.stderr
     merged = subprocess.run(base + ["--merge"], cwd=repo, capture_output=True, text=True)
     assert merged.returncode == 0, merged.stderr[-2000:]
     cloud = load_ply(out / "cloud.ply")
