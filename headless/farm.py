@@ -33,6 +33,7 @@ from typing import Callable
 
 from addon.core.scan import shards
 from addon.core.errors import InputError, ScannerError, TemporaryFailure, check_whole
+from addon.core.machine import usable_cpus
 
 # Times a shard is submitted again after the cluster cancels it (its scattered inputs lost
 # with a dying worker) before the farm gives up.
@@ -353,7 +354,7 @@ def _compute_shards(config, plan, todo, folder: Path, fp: str, out_dir, workers:
     """Compute the shards ``todo`` ((shard, why) pairs) on the cluster, each writing its file
     into ``folder``; returns the scheduler's address and the workers'."""
     workers = max(1, min(workers, len(todo)))  # a local cluster starts no worker that would have no shard
-    threads = render_threads or (None if scheduler else max(1, (os.cpu_count() or 1) // workers))
+    threads = render_threads or (None if scheduler else max(1, usable_cpus() // workers))
     try:
         return _run_on_cluster(config, plan, todo, folder, fp, out_dir, workers, scheduler, threads, log, progress)
     except Exception as exc:  # Dask hands a worker's ImportError on wrapped in a plain Exception

@@ -22,6 +22,7 @@ from dataclasses import replace
 
 import numpy as np
 from headless.bench import whole
+from addon.core.machine import usable_cpus
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -50,15 +51,13 @@ def scenarios(args):
 
 
 def run(args: argparse.Namespace) -> int:
-    import os
-
     from addon.core.errors import InputError
     from addon.pipeline import run_scan
     from headless.farm import run_farm
 
     if args.frames < 8 or args.hires_frames < 8 or args.repeats < 1:
         raise InputError("--frames and --hires-frames must be at least 8 (four shards per worker), --repeats at least 1")
-    cores = os.cpu_count() or 1
+    cores = usable_cpus()
     layouts = [None, (1, 1), (2, 1), (1, cores)]  # one process, then (workers, render threads each)
     rows = []
     for name, cfg in scenarios(args):

@@ -269,3 +269,22 @@ def test_a_forked_child_of_a_process_that_cast_rays_casts_too(tmp_path):
         "os._exit(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))\n")
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, (done.returncode, done.stderr[-1000:])
+
+
+def test_the_ray_casters_threads_are_the_cpus_this_process_may_use(monkeypatch):
+    """Threads came from os.cpu_count(), the machine's CPUs: under taskset or a batch system's
+    cpuset (one CPU of 64) every worker ran a thread per core it did not have (a hunt)."""
+    import os
+
+    from addon.core.machine import usable_cpus
+
+    if hasattr(os, "sched_setaffinity"):
+        allowed = os.sched_getaffinity(0)
+        try:
+            os.sched_setaffinity(0, {min(allowed)})
+            assert usable_cpus() == 1
+        finally:
+            os.sched_setaffinity(0, allowed)
+        assert usable_cpus() == len(allowed)
+    monkeypatch.setattr(os, "process_cpu_count", lambda: 3, raising=False)
+    assert usable_cpus() == 3

@@ -43,6 +43,7 @@ import numpy as np
 import trimesh
 
 from ..errors import InputError
+from ..machine import usable_cpus
 from .surfaces import DIFFUSE_SURFACES, FIXTURE, SHARP_EDGE_DEG, TABLE_TOP
 from .laser_profile import LASER_RGB, angular_sigma_rad, gobo_strength, laser_power_w
 from .probe import Probe
@@ -137,7 +138,7 @@ class RaycastScene:
 
     def __init__(self, surfaces: list[tuple[trimesh.Trimesh, tuple[float, float, float]]], threads: int | None = None):
         """``threads``: how many cores cast rays (None: all)."""
-        self.threads = max(1, int(threads or os.cpu_count() or 1))
+        self.threads = max(1, int(threads or usable_cpus()))
         try:
             import embreex  # noqa: F401
         except ImportError as exc:  # pragma: no cover - the lock installs it
