@@ -316,9 +316,7 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
             timing[k] = timing.get(k, 0.0) + float(r.timing.get(k, 0.0))
     devices = {r.render_device for r in results if r.render_device}
     blenders = {r.blender for r in results if r.blender}  # the workers', not this process's (it has none)
-    software = software_versions()
-    if blenders:
-        software["blender"] = ", ".join(sorted(blenders))
+    software = software_versions(", ".join(sorted(blenders)) if blenders else None)
     extra = {"render_device": ", ".join(sorted(devices)) if devices else None, "software": software,
              # A merge computes nothing: no workers; all its shards were there ("reused").
              # The workers that computed shards (a scheduler's, as it had them at the start); None

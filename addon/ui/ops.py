@@ -622,7 +622,8 @@ class SCANNER_OT_scan(_SteppedScan, bpy.types.Operator):
     def _finish(self, context, scanner, _):
         result = scanner.result(self._folder)
         if not result.report["points"]:  # nothing to bring in
-            codes = ", ".join(f"{k.lower()} {v}" for k, v in sorted(result.report["column_codes"].items()) if k != "OK")
+            codes = ", ".join(f"{k.lower()} {v}" for k, v in sorted(result.report["column_codes"].items())
+                              if k != "OK" and v)
             # (A scan that built its cell afresh took the old cell's cloud with it.)
             kept = ("the scene's cloud is left as it was" if models.cell_object(models.CLOUD_NAME) is not None
                     else "no cloud is brought in")

@@ -375,7 +375,7 @@ def _summary(res) -> tuple[str, bool]:
     r = res.report
     e = r["error_um"]
     finite_ok = finite(res.cloud.points)
-    codes = ", ".join(f"{k.lower()} {v}" for k, v in sorted(r["column_codes"].items()) if k != "OK")
+    codes = ", ".join(f"{k.lower()} {v}" for k, v in sorted(r["column_codes"].items()) if k != "OK" and v)
     part = (f"{r['points_on_part']} points on the part, RMS {e['rms_um']:.1f} µm, max {e['max_um']:.0f} µm"
             if r["points_on_part"] else "no points on the part")
     text = f"{part}; {r['valid_fraction'] * 100:.0f} % of columns kept" + (f" (rejected: {codes})" if codes else "")

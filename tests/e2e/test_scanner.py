@@ -708,3 +708,18 @@ def test_the_report_tells_apart_two_sensors_with_the_same_effects():
     assert said[0]["sensor_settings"] == {"distortion": [-0.05, 0.0, 0.0, 0.0]}
     assert said[1]["sensor_settings"] == {"distortion": [-0.05, 0.0, 0.0, 0.0], "undistort": False}
     assert Scanner.from_config("demo", engine="raycast").report().to_dict()["config"]["sensor_settings"] == {}
+
+
+def test_a_reports_keys_are_the_same_whatever_the_scan_met():
+    """column_codes listed only the codes some column met (column_codes["EDGE"] a KeyError on
+    another scan), and a farm's software.blender came last where a scan's came fifth (a hunt):
+    a machine reading report.json finds every key, in one order."""
+    from addon import Scanner
+    from addon.core.optics.detect import LineCode
+
+    scanner = Scanner.from_config("demo", engine="raycast")
+    scanner.measure()
+    report = scanner.report().to_dict()
+    assert list(report["column_codes"]) == sorted(c.name for c in LineCode)
+    assert sum(report["column_codes"].values()) > 0 and 0 in report["column_codes"].values()
+    assert list(report["software"])[:5] == ["scanner", "python", "numpy", "opencv", "blender"]

@@ -22,6 +22,7 @@ from ..geometry import metrics
 from ..geometry.cloud import Cloud, ply_bytes
 from ..geometry.footprint import measurable_points
 from ..geometry.surface_fit import across_line
+from ..optics.detect import LineCode
 from ..optics.sensor import EFFECTS, SensorModel
 from ..kinematics.turntable import TABLE_RADIUS_MM, TABLE_SECTIONS, TABLE_THICKNESS_MM, table_top_mesh
 from .plan import Plan, cell_surfaces, fixture_warnings, table_fixtures
@@ -72,14 +73,12 @@ def blender_version() -> str | None:
     return bpy.app.version_string if bpy is not None and hasattr(bpy, "app") else None
 
 
-def software_versions() -> dict:
-    """What produced a scan: this simulator's version, Python, numpy, OpenCV, Blender where it
-    is loaded (this core never imports it), and the geometry packages installed."""
+def software_versions(blender: str | None = None) -> dict:
+    """What produced a scan: this simulator's version, Python, numpy, OpenCV, Blender (``blender``
+    where given: a farm's workers'; else the one loaded here, None where none is: this core
+    never imports it), and the geometry packages installed. The keys keep one order."""
     out = {"scanner": simulator_version(), "python": platform.python_version(), "numpy": np.__version__,
-           "opencv": cv2.__version__}
-    blender = blender_version()
-    if blender is not None:
-        out["blender"] = blender
+           "opencv": cv2.__version__, "blender": blender or blender_version()}
     for key, dist in VERSIONED.items():
         try:
             out[key] = metadata.version(dist)
@@ -152,7 +151,9 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         "frames": n,
         "points": len(cloud),
         "valid_fraction": stats["valid"] / max(stats["columns"], 1),
-        "column_codes": dict(sorted(stats["codes"].items())),  # sorted: the same file from the same scan
+        # Every code, sorted (the same file from the same scan, and the same keys from every
+        # scan: a code no column met was missing, a KeyError for a reader).
+        "column_codes": {name: int(stats["codes"].get(name, 0)) for name in sorted(c.name for c in LineCode)},
         # After detection: columns dropped on the way to a point, by reason (no detection, a ray
         # grazing the laser plane, out of the range, steep, a run's edge, the cameras in conflict),
         # and the points both cameras agreed on.
