@@ -253,11 +253,17 @@ def run_farm(config, out_dir: str | Path, *, workers: int = 2, scheduler: str | 
     fp = scan_fingerprint(config, plan)
     n = len(plan.q)
     size = shard_frames or shards.default_shard_frames(n, workers)
-    parts = shards.split(n, size)
     # The workers write the shards: a relative folder would be read from each worker's own
     # working folder (a trial: a cluster's shards went there, none came back, and the merge
     # failed). Made absolute, it names the same folder on a shared disk.
     folder = Path(out_dir).absolute() / "shards"
+    if shard_frames is None:  # the split follows --workers: a run resumed with others keeps the earlier one
+        earlier = _earlier_split(folder, n, fp, size)
+        if earlier is not None:
+            log(f"farm: keeping the split of this scan's earlier run ({earlier} frames a shard, where --workers "
+                f"{workers} gives {size}), whose finished shards are there")
+            size = earlier
+    parts = shards.split(n, size)
     todo = [(s, why) for s in parts if (why := _not_ready(folder, s, fp)) is not None]
     reused = len(parts) - len(todo)
     if not (merge_only and todo):  # a merge that cannot be made says only why (one line)
@@ -335,6 +341,27 @@ def _drop_if_empty(folder: Path) -> None:
         folder.rmdir()
     except OSError:
         pass
+
+
+def _earlier_split(folder: Path, n: int, fp: str, size: int) -> int | None:
+    """The frames per shard of this scan's shard files in ``folder`` where another split than
+    ``size`` holds more of them valid (a stopped run resumed with other --workers recomputed
+    every shard, and called the finished ones another split's); None where none does."""
+    sizes = set()
+    for p in folder.glob("shard_*.npz") if folder.is_dir() else ():
+        try:
+            first, last = (int(v) for v in p.stem.split("_")[1:3])
+        except ValueError:
+            continue
+        if first == 0 and last >= 0:  # the first shard's size is the split's
+            sizes.add(last + 1)
+
+    def valid(k: int) -> int:
+        return sum(1 for s in shards.split(n, k) if (folder / s.file_name()).exists() and _not_ready(folder, s, fp)
+                   is None)
+
+    best = max(sorted(sizes - {size}), key=valid, default=None)
+    return best if best is not None and valid(best) > valid(size) else None
 
 
 def _not_ready(folder: Path, s: shards.Shard, fp: str) -> str | None:

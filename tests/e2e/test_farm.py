@@ -676,3 +676,21 @@ def test_a_scheduler_without_workers_waits_for_one_to_join(config, single, tmp_p
     # The report counts the worker that joined and computed the shards (0 and [] before: read
     # before the wait).
     assert res.report["farm"]["workers"] == 1 and len(res.report["farm"]["worker_addresses"]) == 1
+
+
+def test_a_run_resumed_with_other_workers_keeps_the_earlier_split_and_its_shards(config, single, tmp_path):
+    """The split follows --workers: a stopped --workers 3 run resumed with --workers 2 read
+    its finished shards as another split's and recomputed everything (a hunt)."""
+    raycast = config.with_overrides(engine="raycast")
+    out = tmp_path / "out"
+    farm.run_farm(raycast, out, workers=1, log=lambda m: None)  # 20 frames: 4 shards of 5
+    made = sorted((out / "shards").glob("shard_*.npz"))
+    assert len(made) == 4
+    made[1].unlink()  # as if stopped before that shard finished
+    lines = []
+    res = farm.run_farm(raycast, out, workers=2, log=lines.append)  # would split into 4s
+    assert any("keeping the split" in line for line in lines), lines
+    assert res.report["farm"]["shard_frames"] == 5 and res.report["farm"]["computed"] == 1, res.report["farm"]
+    assert res.report["farm"]["reused"] == 3
+    same_cloud(res.cloud, farm.run_farm(raycast, tmp_path / "fresh", workers=1, shard_frames=20,
+                                        log=lambda m: None).cloud)
