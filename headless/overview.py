@@ -89,14 +89,24 @@ def _with_scan(args, scene, render_overview) -> int:
     import addon.ui as ui
     from addon.core.config.scan import load_scan_config
     from addon.scene.cell import SceneCell
+    from addon.scene.session import blender_output_captured
 
     ui.register()
     try:
         s = scene.scanner
         s.scan_config = "FILE"
         s.scan_file = str(load_scan_config(args.scan).source)
+        told: list = []
         try:
-            bpy.ops.scanner.scan(frames=args.frames, output_dir=str(scan_folder(args.out)))
+            # Blender's own log goes with the operator's report to stdout (Cycles' "CUEW
+            # initialization failed" where no CUDA is installed): the report is passed on alone.
+            try:
+                with blender_output_captured(told):
+                    bpy.ops.scanner.scan(frames=args.frames, output_dir=str(scan_folder(args.out)))
+            finally:
+                reported = [ln for ln in "".join(told).splitlines() if ln.startswith(("Info:", "Warning:"))]
+                if reported:
+                    print("\n".join(reported), flush=True)
         except RuntimeError as exc:  # the operator's own report: its last line says what went wrong
             from addon.core.errors import ScannerError
 

@@ -137,6 +137,10 @@ def test_overview_with_a_scan_keeps_the_scans_files_beside_the_picture(tmp_path)
     kept = sorted(p.name for p in (tmp_path / "cell-scan").glob("*/*"))
     assert kept == ["cloud.ply", "preview.png", "report.json"] and (tmp_path / "cell.png").is_file()
     assert str(tmp_path / "cell-scan") in out.stdout
+    # stdout: the operator's report and the picture's path, not Blender's own log (Cycles
+    # logged "CUEW initialization failed" there where no CUDA is installed)
+    lines = out.stdout.strip().splitlines()
+    assert [ln.split(":")[0] for ln in lines] == ["Info", "wrote " + str(tmp_path / "cell.png")], lines
 
 
 @needs_bpy

@@ -59,12 +59,13 @@ def use_device(scene: bpy.types.Scene, device: str = "CPU") -> str:
 
 
 @contextlib.contextmanager
-def blender_output_captured():
+def blender_output_captured(kept: list | None = None):
     """Keep Blender's per-frame log lines ("Fra: ...", "Saved: '...exr'") off the terminal.
 
     Blender writes them to file descriptor 1 from C, below Python's ``sys.stdout``, so the
     descriptor itself is pointed at a temporary file for the call; should the render fail,
-    the last lines of that log go into the error.
+    the last lines of that log go into the error. ``kept``: a list that gets what was written,
+    as text, for a caller that passes some of it on.
     """
     sys.stdout.flush()
     try:
@@ -86,3 +87,6 @@ def blender_output_captured():
         finally:
             os.dup2(saved, 1)
             os.close(saved)
+            if kept is not None:
+                log.seek(0)
+                kept.append(log.read().decode(errors="replace"))
