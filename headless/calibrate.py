@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  camera {c}   reprojection {cam['reprojection_error_px']:.3f} px over {cam['corners']} corners; "
                   f"f {dev['fx_px']:+.2f}/{dev['fy_px']:+.2f} px, c {dev['cx_px']:+.2f}/{dev['cy_px']:+.2f} px, "
                   f"position {dev['position_mm'] * 1e3:.0f} um, rotation {dev['rotation_deg'] * 60:.1f} arcmin "
-                  f"from the truth")
+                  f"from the truth" + (f"; k1 {cam['distortion'][0]:+.4f}" if s["distortion_fitted"] else ""))
         laser = s["laser"]
         print(f"  laser plane  fit {laser['fit_rms_mm'] * 1e3:.1f} um RMS over {laser['points']} points; "
               f"tilt {laser['deviation']['tilt_deg'] * 60:.1f} arcmin, offset {laser['deviation']['offset_mm'] * 1e3:+.0f}"

@@ -359,3 +359,21 @@ def test_undistort_false_keeps_a_calibrated_probe_from_undistorting():
     assert len(got) >= len(expected) - 2 > 100  # (the filter drops the line's two end columns)
     nearest = np.linalg.norm(got.points[:, None] - expected.points[None], axis=2).min(axis=1)
     assert nearest.max() < 1e-6
+
+
+def test_the_laser_planes_offset_deviation_is_calibrated_minus_truth():
+    """Every deviation is calibrated minus truth but the plane's offset, whose sign was flipped
+    (a hunt: "+6 um" for a plane that sat at -6.4 µm): a plane moved +0.2 mm along the probe's
+    x, and one tilted about y through the point 0.2 mm along x at mid-range, both read +0.2."""
+    probe = load_probe("default")
+    exact = ProbeCalibration.of(probe)
+    mid = 0.5 * sum(probe.z_range_mm)
+    n = np.asarray(exact.plane_normal, dtype=float)
+    moved = replace(exact, plane_offset_mm=float(exact.plane_offset_mm + 0.2 * n[0]))
+    assert deviations(probe, moved)["laser"]["offset_mm"] == pytest.approx(0.2, abs=1e-9)
+    a = np.radians(1.0)
+    tilted_n = np.array([np.cos(a), 0.0, np.sin(a)]) * np.sign(n[0])
+    through = np.array([0.2, 0.0, mid])
+    tilted = replace(exact, plane_normal=tilted_n, plane_offset_mm=float(tilted_n @ through))
+    dev = deviations(probe, tilted)["laser"]
+    assert dev["offset_mm"] == pytest.approx(0.2, abs=1e-9) and dev["tilt_deg"] == pytest.approx(1.0, abs=1e-9)

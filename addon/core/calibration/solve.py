@@ -370,7 +370,8 @@ def _plane_std(probe, board, views, mount_inv, normal, scatter, bundle) -> dict:
 def deviations(true_probe: Probe, calibrated: ProbeCalibration, true_distortion=()) -> dict:
     """Each calibrated parameter minus the truth: per camera f_x, f_y, c_x, c_y (px), the
     distortion coefficients, position (mm) and rotation (deg) in the probe frame; the laser
-    plane's tilt (deg) and its offset where the beam crosses mid-range (mm)."""
+    plane's tilt (deg) and its offset (mm): where along the probe's x it crosses the beam's
+    axis at mid-range (the true plane crosses at 0)."""
     true_dist = np.zeros(5)
     true_dist[:len(true_distortion)] = true_distortion
     out = {}
@@ -389,7 +390,8 @@ def deviations(true_probe: Probe, calibrated: ProbeCalibration, true_distortion=
     n = calibrated.plane_normal
     out["laser"] = {
         "tilt_deg": float(np.degrees(np.arccos(np.clip(abs(n[0]), 0.0, 1.0)))),
-        "offset_mm": float(n @ np.array([0.0, 0.0, 0.5 * (z0 + z1)]) - calibrated.plane_offset_mm),
+        # (calibrated minus truth like the rest: it read truth minus calibrated, the sign flipped)
+        "offset_mm": float((calibrated.plane_offset_mm - n[2] * 0.5 * (z0 + z1)) / n[0]),
     }
     return out
 
