@@ -892,3 +892,27 @@ def test_a_scan_saturated_throughout_names_the_exposure(tmp_path):
     said = [w for w in report["warnings"] if w.startswith("the scan measured")]
     assert len(said) == 1 and "were saturated" in said[0] and "exposure_ms" in said[0], report["warnings"]
     assert report["column_codes"]["SATURATED"] > 0
+
+
+def test_a_scan_that_lost_most_of_its_line_to_saturation_says_so(tmp_path):
+    """Columns clipped at full scale are dropped one by one: a scan left with 160 of its 3 320
+    points on the part said nothing while any point survived (a hunt). The shares are counted
+    from the report's own columns; an exposure that clips none says nothing."""
+    # the realistic-sensor scene's glossy cylinder, turned grey, its [sensor] table ours
+    base = (REPO / "rigs" / "scenes" / "cylinder_realistic.toml").read_text()
+    base = base[:base.index("\n[sensor]\n")].replace('material = "glossy"', 'material = "grey"').replace(
+        "roughness = 0.2\n", "").replace("bounces = 2", "bounces = 0").replace("ambient = 0.25", "ambient = 0.0")
+    lines = []
+    for exposure in (6.0, 0.5):
+        text = base + f"\n[sensor]\nsaturate = true\nexposure_ms = {exposure}\nseed = 1\n"
+        config = scene(tmp_path, text, f"bright{exposure}.toml")
+        out = tmp_path / f"o{exposure}"
+        assert main(["scan", config, "--engine", "raycast", "--frames", "0:40:4", "--out", str(out), "--quiet"]) == 0
+        report = json.loads((out / "report.json").read_text())
+        codes = report["column_codes"]
+        lit = sum(v for k, v in codes.items() if k != "NO_LINE")
+        said = [w for w in report["warnings"] if "were saturated" in w]
+        lines.append((exposure, codes["SATURATED"] / lit, said, report["points_on_part"]))
+    (_, share, said, _), (_, low_share, low_said, _) = lines
+    assert share > 0.3 and len(said) == 1 and "exposure_ms" in said[0], lines
+    assert low_share < 0.1 and not low_said, lines

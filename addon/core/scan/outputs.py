@@ -87,6 +87,7 @@ def software_versions(blender: str | None = None) -> dict:
     return out
 
 SMALL_SHARE = 0.05  # a path measuring less of its part than this is said to miss most of it
+SATURATED_SHARE = 0.1  # saturated columns, of those that saw a line, above which a scan says so
 
 
 def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, out_dir: str | Path | None,
@@ -126,7 +127,16 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
             why += (f"; {saturated} of the columns were saturated, the line clipped at full scale: a shorter "
                     f"[sensor] exposure_ms or a lower gain (or auto_exposure)")
         warnings.append(f"the scan measured {what}: {why}")
-    elif n and 0 < share < SMALL_SHARE and not step_by_step and config.path_frames is None:
+    else:
+        # Clipped lines are dropped column by column: a scan that lost most of its line to
+        # saturation said nothing while any point survived (a hunt: 160 of 3 320 points left).
+        codes = stats.get("codes", {})
+        saturated, lit = codes.get("SATURATED", 0), sum(v for k, v in codes.items() if k != "NO_LINE")
+        if saturated and saturated >= SATURATED_SHARE * lit:
+            warnings.append(f"{saturated} of the {lit} sensor columns that saw a line ({saturated / lit * 100:.0f} %) "
+                            f"were saturated, the line clipped at full scale, and dropped: a shorter [sensor] "
+                            f"exposure_ms or a lower gain (or auto_exposure)")
+    if n and np.any(on_part) and 0 < share < SMALL_SHARE and not step_by_step and config.path_frames is None:
         warnings.append(f"the path can measure only {share * 100:.1f} % of the part's surface (whole-part coverage "
                         f"{quality['coverage'] * 100:.1f} %): most of the part lies outside what it scans; "
                         "a path of the part's own size: [[path]] entries, or the adaptive planner")
