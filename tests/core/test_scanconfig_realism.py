@@ -48,6 +48,14 @@ def test_sensor_keys_reach_the_model(tmp_path):
     ("[sensor]\nnoise = 1\n", "", "sensor.noise"),
     ("", 'material = "chrome"\n', "grey, dark, glossy, mirror"),
     ("", "roughness = 2.0\n", "workpiece.roughness"),
+    # taken, and doing nothing (a hunt): each needs its effect on, or one value for one thing
+    ("[sensor]\nsaturate = true\ntarget_peak = 0.5\n", "", "sensor.target_peak: acts only with auto_exposure = true"),
+    ("[sensor]\nf_number = 4.0\n", "", "sensor.f_number: acts only with speckle or defocus = true"),
+    ("[sensor]\nnoise = true\nwavelength_nm = 905.0\n", "", "sensor.wavelength_nm: acts only with speckle or"),
+    ("[sensor]\nspeckle = true\nfocus_mm = 150.0\n", "", "sensor.focus_mm: acts only with defocus = true"),
+    ("[sensor]\nspeckle = true\nf_number = 0.3\n", "", "sensor.f_number: 0.3 is out of range"),
+    ("[sensor]\nspeckle = true\npixel_pitch_um = 40.0\nsensor_width_mm = 3.0\n", "",
+     "sensor.pixel_pitch_um: and sensor_width_mm both set the pixel pitch"),
 ])
 def test_bad_sensor_and_surface_keys_name_what_is_allowed(tmp_path, extra, workpiece, fragment):
     with pytest.raises(ConfigError) as err:

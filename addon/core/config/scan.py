@@ -713,14 +713,19 @@ def _sensor(t: Table) -> SensorModel:
                 "auto_exposure"):
         kw[key] = t.boolean(key, default=getattr(d, key))
     for key, lo in (("exposure_ms", 0.0), ("gain", 0.0), ("full_well_e", 0.0),
-                    ("electrons_per_unit", 0.0), ("sensor_width_mm", 0.0), ("f_number", 0.0),
-                    ("wavelength_nm", 0.0), ("frame_rate_hz", 0.0)):
+                    ("electrons_per_unit", 0.0), ("sensor_width_mm", 0.0), ("wavelength_nm", 0.0),
+                    ("frame_rate_hz", 0.0)):
         kw[key] = t.number(key, default=getattr(d, key), lo=lo, hi=1e7, lo_open=True)
+    # f/0.5 is the fastest a lens in air can be (f/0.3 was taken, and all but removed speckle)
+    kw["f_number"] = t.number("f_number", default=d.f_number, lo=0.5, hi=1e7)
     kw["target_peak"] = t.number("target_peak", default=d.target_peak, lo=0.0, hi=1.0, lo_open=True)  # of full scale
     for key in ("read_noise_e", "dark_offset_dn", "prnu"):
         kw[key] = t.number(key, default=getattr(d, key), lo=0.0, hi=1e7)
     for key in ("pixel_pitch_um", "focus_mm"):  # absent: derived from the probe (see SensorModel)
         kw[key] = t.number(key, default=None, lo=0.0, hi=1e7, lo_open=True)
+    if t.has("pixel_pitch_um") and t.has("sensor_width_mm"):  # (the pitch won without a word)
+        raise t.error("pixel_pitch_um", "and sensor_width_mm both set the pixel pitch (the width over the "
+                                        "sensor's columns): give one of them")
     kw["bit_depth"] = t.integer("bit_depth", default=d.bit_depth)
     if kw["bit_depth"] not in BIT_DEPTHS:
         raise t.error("bit_depth", f"must be one of {', '.join(map(str, BIT_DEPTHS))}, got {kw['bit_depth']}")
@@ -734,7 +739,11 @@ def _sensor(t: Table) -> SensorModel:
              ("saturate", "noise")),
             (("read_noise_e", "dark_offset_dn", "prnu"), ("noise",)),
             (("exposure_ms",), ("saturate", "noise", "motion_blur")),
-            (("frame_rate_hz",), ("motion_blur",))):
+            (("frame_rate_hz",), ("motion_blur",)),
+            # (these three were taken and did nothing: the clouds byte for byte the same)
+            (("target_peak",), ("auto_exposure",)),
+            (("f_number", "wavelength_nm"), ("speckle", "defocus")),
+            (("focus_mm",), ("defocus",))):
         given = [k for k in keys if t.has(k) and not (k == "auto_exposure" and not kw[k])]
         if given and not any(kw[w] for w in switches):
             raise t.error(given[0], f"acts only with {' or '.join(switches)} = true, and this [sensor] has "
