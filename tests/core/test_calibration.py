@@ -377,3 +377,34 @@ def test_the_laser_planes_offset_deviation_is_calibrated_minus_truth():
     tilted = replace(exact, plane_normal=tilted_n, plane_offset_mm=float(tilted_n @ through))
     dev = deviations(probe, tilted)["laser"]
     assert dev["offset_mm"] == pytest.approx(0.2, abs=1e-9) and dev["tilt_deg"] == pytest.approx(1.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("change, said", [
+    (dict(plane_normal=np.array([0.0, 0.0, 1.0])), "laser plane's normal is 90° from the design's"),
+    (dict(plane_offset_mm=500.0), "laser plane lies 500 mm from the design's"),
+    (dict(fx=0.5), "fx_px 165.9 is 0.5 times the design"),
+    (dict(turn=90.0), "camera 0 is turned 90° from the design"),
+    (dict(k1=5.0), "k1 5 is beyond any lens's"),
+    (dict(fx=1.01, k1=-0.2), None),  # a real lens, a real calibration's error: taken
+])
+def test_a_calibration_far_from_its_probes_design_is_refused_where_it_is_read(tmp_path, change, said):
+    """A plane 90° off, a focal length of half a pixel or an offset of 500 mm loaded, and the
+    scan found 0 points and blamed the sensor; k1 = 5 scanned at 4.7 mm RMS without a word (a
+    hunt). Each is checked against the probe's design when the rig is read."""
+    probe = load_probe("default")
+    exact = ProbeCalibration.of(probe)
+    cams = list(exact.cameras)
+    K = cams[0].K.copy()
+    K[0, 0] *= change.get("fx", 1.0)
+    dist = np.array([change.get("k1", 0.0), 0.0, 0.0, 0.0, 0.0])
+    pose = cams[0].cam2probe @ (rot_y(np.radians(change["turn"])) if "turn" in change else np.eye(4))
+    cams[0] = CameraModel(K, dist, pose)
+    cal = replace(exact, cameras=tuple(cams), **{k: v for k, v in change.items()
+                                                   if k in ("plane_normal", "plane_offset_mm")})
+    path = tmp_path / "probe.toml"
+    path.write_text(probe_toml(replace(probe, calibration=cal)))
+    if said is None:
+        assert load_probe(path).calibration is not None
+        return
+    with pytest.raises(ConfigError, match=r"\[calibration\]: .*" + said.replace("(", r"\(")):
+        load_probe(path)

@@ -268,6 +268,11 @@ def _read_probe(path: Path) -> Probe:
                       line_width_mm=width, fan_rad=math.radians(fan), wavelength_nm=wavelength, mount=mount,
                       source=source, calibration=calibration)
         check_not_grazing(probe)
+        wrong = None if calibration is None else calibration.implausible(probe)
+        if wrong:
+            raise InputError(f"[calibration]: {wrong}: a calibration corrects its probe's design by small "
+                             f"amounts, and this one is of another probe, or written wrong (python -m headless "
+                             f"calibrate CONFIG --out DIR writes one)")
         return probe
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None

@@ -24,6 +24,12 @@ from ..kinematics.transforms import check_transform
 
 NOMINAL_PLANE = (np.array([1.0, 0.0, 0.0]), 0.0)  # X = 0: the laser plane of the probe frame
 NOMINAL_PLANE[0].setflags(write=False)
+# How far a calibration may take a probe from its design (ProbeCalibration.implausible): it
+# corrects by small amounts. Generous: a real one is within tenths of a degree and of a mm.
+PLAUSIBLE_TURN_DEG = 10.0  # the laser plane or a camera turned
+PLAUSIBLE_SHIFT = 0.2      # ... or moved, times the probe's baseline a_mm
+PLAUSIBLE_FOCAL = 1.3      # a focal length, within this factor of the design's
+PLAUSIBLE_K1 = 2.0         # the radial distortion's first coefficient
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,6 +117,44 @@ class ProbeCalibration:
         object.__setattr__(self, "cameras", tuple(self.cameras))
         object.__setattr__(self, "plane_normal", n)
         object.__setattr__(self, "plane_offset_mm", d)
+
+    def implausible(self, probe) -> str | None:
+        """Why this cannot be a calibration of ``probe`` (a correction of its design by small
+        amounts), or None: a laser plane or a camera turned or moved far from the design, a
+        focal length far from it, a principal point off the sensor, a k1 no lens has. (A
+        plane 90° off, or a focal length of half a pixel, loaded and scanned 0 points that
+        blamed the sensor; k1 = 5 scanned at 4.7 mm RMS without a word.)"""
+        n = self.plane_normal
+        tilt = float(np.degrees(np.arccos(min(abs(float(n[0])), 1.0))))
+        if tilt > PLAUSIBLE_TURN_DEG:
+            return f"the laser plane's normal is {tilt:.3g}° from the design's (at most {PLAUSIBLE_TURN_DEG:g}°)"
+        mid = 0.5 * sum(probe.z_range_mm)
+        shift = abs((self.plane_offset_mm - float(n[2]) * mid) / float(n[0]))
+        room = PLAUSIBLE_SHIFT * probe.a_mm
+        if shift > room:
+            return f"the laser plane lies {shift:.3g} mm from the design's at mid-range (at most {room:.3g} mm)"
+        for c, cam in enumerate(self.cameras):
+            where = f"camera {c}"
+            T0 = probe.cam2probe(c)
+            moved = float(np.linalg.norm(cam.cam2probe[:3, 3] - T0[:3, 3]))
+            if moved > room:
+                return f"{where} lies {moved:.3g} mm from the design's position (at most {room:.3g} mm)"
+            R = T0[:3, :3].T @ cam.cam2probe[:3, :3]
+            turn = float(np.degrees(np.arccos(np.clip(0.5 * (np.trace(R) - 1.0), -1.0, 1.0))))
+            if turn > PLAUSIBLE_TURN_DEG:
+                return f"{where} is turned {turn:.3g}° from the design (at most {PLAUSIBLE_TURN_DEG:g}°)"
+            for key, i in (("fx_px", 0), ("fy_px", 1)):
+                ratio = float(cam.K[i, i] / probe.K[i, i])
+                if not 1.0 / PLAUSIBLE_FOCAL <= ratio <= PLAUSIBLE_FOCAL:
+                    return (f"{where}'s {key} {cam.K[i, i]:.4g} is {ratio:.3g} times the design's {probe.K[i, i]:.4g} "
+                            f"(within a factor {PLAUSIBLE_FOCAL:g})")
+            cx, cy = float(cam.K[0, 2]), float(cam.K[1, 2])
+            if not (0.0 <= cx <= probe.cols_px and 0.0 <= cy <= probe.rows_px):
+                return f"{where}'s principal point ({cx:.4g}, {cy:.4g}) px lies off its {probe.cols_px}x{probe.rows_px} sensor"
+            k1 = float(cam.distortion[0]) if len(cam.distortion) else 0.0
+            if abs(k1) > PLAUSIBLE_K1:
+                return f"{where}'s k1 {k1:.3g} is beyond any lens's (at most {PLAUSIBLE_K1:g} either way)"
+        return None
 
     @classmethod
     def of(cls, probe, source: str = "the probe's true geometry") -> "ProbeCalibration":
