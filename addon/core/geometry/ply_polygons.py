@@ -1,10 +1,11 @@
-"""Binary PLY files whose faces mix polygon sizes, which trimesh cannot read.
+"""PLY files read face by face: polygons of any size, in binary and in ASCII.
 
-Blender's own PLY exporter writes binary by default and keeps n-gons (a cylinder's caps are
-32-gons beside its quads); trimesh reads a binary face list only where every face has as
-many corners as the first ("PLY is unexpected length!"). This reads such a file's vertices
-and faces itself and leaves the rest to trimesh: the faces are fanned into triangles as
-trimesh fans an ASCII file's, so the same mesh saved either way gives the same part.
+Blender's own PLY exporter keeps n-gons (a cylinder's caps are 32-gons beside its quads, an
+L-profile's caps concave). trimesh reads a binary face list only where every face has as
+many corners as the first ("PLY is unexpected length!"), and splits every polygon into a fan
+from its first corner, which puts a triangle across a concave face's notch. This reads the
+vertices and the faces' corner lists itself (beside other face properties, such as colours)
+and leaves the splitting to polygons.triangulate; trimesh reads what this does not.
 """
 
 from __future__ import annotations
@@ -28,13 +29,14 @@ def _header(data: bytes, path: Path) -> tuple[str, list, int]:
     if not data.startswith(b"ply") or end < 0:
         return None
     start = data.index(b"\n", end) + 1
-    order, elements = None, []
+    order, elements = None, []  # order "" for ASCII
     for raw in data[:end].decode("ascii", "replace").splitlines():
         words = raw.split()
         if not words:
             continue
         if words[0] == "format":
-            order = {"binary_little_endian": "<", "binary_big_endian": ">"}.get(words[1] if len(words) > 1 else "")
+            order = {"binary_little_endian": "<", "binary_big_endian": ">", "ascii": ""}.get(
+                words[1] if len(words) > 1 else "")
         elif words[0] == "element" and len(words) == 3:
             elements.append((words[1], int(words[2]), []))
         elif words[0] == "property" and elements:
@@ -52,9 +54,8 @@ def _header(data: bytes, path: Path) -> tuple[str, list, int]:
 
 
 def read_polygon_ply(path: str | Path):
-    """(vertices (n, 3) float64, faces (m, 3) int64 triangles) of a binary PLY whose faces may mix
-    polygon sizes; None where the file is not a binary PLY with vertices and faces this reads
-    (trimesh's word stands then)."""
+    """(vertices (n, 3) float64, polygons: a list of index arrays) of a PLY; None where the file
+    is not a PLY with vertices and faces this reads (trimesh's word stands then)."""
     path = Path(path)
     data = path.read_bytes()
     head = _header(data, path)
@@ -62,15 +63,62 @@ def read_polygon_ply(path: str | Path):
         return None
     order, elements, at = head
     try:
-        return _read(data, order, elements, at, path)
-    except ValueError:  # numpy's "buffer is smaller than requested size"
-        raise InputError(f"{path}: the binary PLY holds fewer bytes than its header announces: the file is cut "
-                         f"short; export it again") from None
+        got = _read(data, order, elements, at, path) if order else _read_ascii(data, elements, at, path)
+    except (ValueError, IndexError):  # numpy's "buffer is smaller than requested size"; text cut short
+        what = "the binary PLY holds fewer bytes" if order else "the PLY's text holds fewer numbers"
+        raise InputError(f"{path}: {what} than its header announces: the file is cut short; export it "
+                         f"again") from None
+    if got is None:
+        return None
+    vertices, polygons = got
+    if isinstance(polygons, np.ndarray):
+        bad = int(np.sum((polygons < 0).any(axis=1) | (polygons >= len(vertices)).any(axis=1))) \
+            if polygons.shape[1] >= 3 else len(polygons)
+    else:
+        bad = sum(1 for p in polygons if len(p) < 3 or p.min(initial=0) < 0 or p.max(initial=0) >= len(vertices))
+    if bad:
+        raise InputError(f"{path}: {bad} of its {len(polygons)} faces name fewer than three corners or corners "
+                         f"beyond its {len(vertices)} vertices; export it again")
+    return vertices, polygons
+
+
+def _read_ascii(data: bytes, elements: list, at: int, path: Path):
+    words = data[at:].split()
+    i, vertices, polygons = 0, None, None
+    for name, count, props in elements:
+        if name == "vertex":
+            if any(isinstance(kind, tuple) for _, kind in props) or not {"x", "y", "z"} <= {p for p, _ in props}:
+                return None
+            n = len(props)
+            block = np.asarray(words[i:i + count * n], dtype=np.float64).reshape(count, n)
+            i += count * n
+            cols = [p for p, _ in props]
+            vertices = block[:, [cols.index(c) for c in "xyz"]]
+        elif name == "face":
+            polygons = []
+            for _ in range(count):
+                for prop, kind in props:
+                    if isinstance(kind, tuple):
+                        k = int(words[i])
+                        corners = np.asarray(words[i + 1:i + 1 + k], dtype=np.int64)
+                        if len(corners) != k:
+                            raise IndexError
+                        i += 1 + k
+                        if prop in ("vertex_indices", "vertex_index"):
+                            polygons.append(corners)
+                    else:
+                        i += 1
+        else:
+            width = sum(1 for _, kind in props if not isinstance(kind, tuple))
+            if width != len(props):
+                return None  # lists in another element: not this reader's case
+            i += count * width
+    if vertices is None or polygons is None or len(polygons) != next(c for n, c, _ in elements if n == "face"):
+        return None
+    return vertices, polygons
 
 
 def _read(data: bytes, order: str, elements: list, at: int, path: Path):
-    import trimesh
-
     vertices = polygons = None
     for name, count, props in elements:
         fixed = all(not isinstance(kind, tuple) for _, kind in props)
@@ -83,19 +131,31 @@ def _read(data: bytes, order: str, elements: list, at: int, path: Path):
                     return None
                 vertices = np.column_stack([block[c].astype(np.float64) for c in "xyz"])
             continue
-        if name != "face" or len(props) != 1:
-            return None  # lists elsewhere, or beside other face properties: not this reader's case
-        count_type, item_type = (k.newbyteorder(order) for k in props[0][1])
-        polygons, view = [], memoryview(data)
+        lists = [(p, kind) for p, kind in props if isinstance(kind, tuple)]
+        if name != "face" or len(lists) != 1 or lists[0][0] not in ("vertex_indices", "vertex_index"):
+            return None  # lists elsewhere: not this reader's case
+        view = memoryview(data)
+        if len(props) == 1:  # corner lists alone: all triangles (or all of one size) read at once
+            count_type, item_type = (k.newbyteorder(order) for k in props[0][1])
+            first = int(np.frombuffer(view, dtype=count_type, count=1, offset=at)[0]) if count else 0
+            row = np.dtype([("n", count_type), ("i", item_type, (max(first, 1),))])
+            if count and at + count * row.itemsize <= len(data):
+                block = np.frombuffer(view, dtype=row, count=count, offset=at)
+                if np.all(block["n"] == first):
+                    polygons = block["i"].astype(np.int64).reshape(count, max(first, 1))
+                    at += count * row.itemsize
+                    continue
+        polygons = []
         for _ in range(count):
-            n = int(np.frombuffer(view, dtype=count_type, count=1, offset=at)[0])
-            at += count_type.itemsize
-            polygons.append(np.frombuffer(view, dtype=item_type, count=n, offset=at).astype(np.int64))
-            at += n * item_type.itemsize
+            for prop, kind in props:
+                if isinstance(kind, tuple):
+                    count_type, item_type = (k.newbyteorder(order) for k in kind)
+                    n = int(np.frombuffer(view, dtype=count_type, count=1, offset=at)[0])
+                    at += count_type.itemsize
+                    polygons.append(np.frombuffer(view, dtype=item_type, count=n, offset=at).astype(np.int64))
+                    at += n * item_type.itemsize
+                else:
+                    at += kind.itemsize
     if vertices is None or polygons is None:
         return None
-    bad = [p for p in polygons if len(p) < 3 or p.min(initial=0) < 0 or p.max(initial=0) >= len(vertices)]
-    if bad:
-        raise InputError(f"{path}: {len(bad)} of its {len(polygons)} faces name fewer than three corners or corners "
-                         f"beyond its {len(vertices)} vertices")
-    return vertices, np.asarray(trimesh.geometry.triangulate_quads(polygons), dtype=np.int64).reshape(-1, 3)
+    return vertices, polygons

@@ -21,6 +21,7 @@ import trimesh
 
 from ..errors import InputError
 from .ply_polygons import read_polygon_ply
+from .polygons import needs_own_obj_reader, read_obj, triangulate
 from .shapes import Cylinder, PlanePatch, Sphere, StepBlock
 from ..kinematics.transforms import check_transform, rot_z, trans
 
@@ -435,18 +436,26 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     try:
         # Unprocessed first: processing drops the faces of NaN vertices without a word. A broken
         # file's arithmetic (normals of infinite vertices) warns; what is wrong is said below.
+        # Polygons split in their own plane (see polygons.py): an OBJ or a PLY with n-gons.
+        own = None
+        if path.suffix.lower() == ".obj" and needs_own_obj_reader(path):
+            own = read_obj(path)
+        elif path.suffix.lower() == ".ply" and not _misnamed(path):
+            own = read_polygon_ply(path)
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            mesh = trimesh.load(path, force="mesh", process=False)
+            if own is not None:
+                mesh = trimesh.Trimesh(own[0], triangulate(*own), process=False)
+            else:
+                mesh = trimesh.load(path, force="mesh", process=False)
+    except InputError:
+        raise
     except Exception as exc:  # trimesh raises many kinds for broken files
         if _text_has_non_finite(path):  # a text reader stops at "nan" with words of its own
             raise InputError(f"{path}: its coordinates include NaN or infinite values; a workpiece needs finite "
                              f"ones") from None
         # A binary PLY mixing polygon sizes (Blender's exporter's default), which trimesh cannot read.
-        polygons = read_polygon_ply(path) if path.suffix.lower() == ".ply" and not _misnamed(path) else None
-        if polygons is None:
-            raise InputError(_misnamed(path) or f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
-        mesh = trimesh.Trimesh(*polygons, process=False)
+        raise InputError(_misnamed(path) or f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
     zero = _obj_zero_index_line(path) if path.suffix.lower() == ".obj" else None
     if zero:  # the reader drops such a face without a word
         raise InputError(f"{path}: line {zero} names vertex 0, and an OBJ counts its vertices from 1 (or from -1 "
@@ -462,6 +471,11 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         bad = int(np.sum(~np.isfinite(mesh.vertices).all(axis=1)))
         raise InputError(f"{path}: {bad} {'vertex has' if bad == 1 else 'vertices have'} NaN or infinite "
                          f"coordinates; a workpiece needs finite ones")
+    faces = np.asarray(mesh.faces)
+    if faces.size and (faces.min() < 0 or faces.max() >= len(mesh.vertices)):  # (an IndexError's traceback)
+        bad = int(np.sum((faces < 0).any(axis=1) | (faces >= len(mesh.vertices)).any(axis=1)))
+        raise InputError(f"{path}: {bad} of its {len(faces)} faces name corners beyond its {len(mesh.vertices)} "
+                         f"vertices: the file is damaged; export it again")
     with np.errstate(all="ignore"), warnings.catch_warnings():  # huge coordinates: said below, not as warnings
         warnings.simplefilter("ignore", RuntimeWarning)
         mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
