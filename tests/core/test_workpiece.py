@@ -620,3 +620,45 @@ def test_a_face_naming_a_vertex_not_there_is_one_line(tmp_path, name):
         said = "1 of its 8 faces name fewer than three corners or corners beyond its 12 vertices"
     with pytest.raises(InputError, match=said):
         load_workpiece(path)
+
+
+def _glb_with(path, edit):
+    """A box exported as GLB by trimesh, its JSON chunk changed by ``edit(doc)``."""
+    import json
+    import struct
+
+    data = trimesh.creation.box(extents=(0.04, 0.03, 0.02)).export(file_type="glb")
+    n = struct.unpack("<I", data[12:16])[0]
+    doc = json.loads(data[20:20 + n])
+    edit(doc)
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    rest = data[20 + n:]
+    body = struct.pack("<I", len(text)) + b"JSON" + text + rest
+    path.write_bytes(b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
+
+
+@pytest.mark.parametrize("edit, said", [
+    (lambda d: d.setdefault("extensionsRequired", []).append("KHR_draco_mesh_compression"),
+     r"compressed \(KHR_draco_mesh_compression\), which this reader cannot decode"),
+    (lambda d: d["accessors"][d["meshes"][0]["primitives"][0]["attributes"]["POSITION"]].update(normalized=True),
+     r"quantized to normalized integers \(KHR_mesh_quantization\)"),
+    (lambda d: None, None),
+])
+def test_a_gltf_the_reader_would_read_wrong_is_named_for_its_encoding(tmp_path, edit, said):
+    """A Draco-compressed GLB was refused as "every face names one corner twice", normalized
+    quantized positions as a part 1.3 km across (a hunt): the export option is named."""
+    _glb_with(tmp_path / "box.glb", edit)
+    if said is None:
+        assert np.allclose(sorted(load_workpiece(tmp_path / "box.glb").mesh.extents), [20.0, 30.0, 40.0])
+        return
+    with pytest.raises(InputError, match=said):
+        load_workpiece(tmp_path / "box.glb")
+
+
+def test_a_gltf_written_in_millimetres_is_told_scale_1(tmp_path):
+    """glTF is read in metres: a file in mm reads 1000 times too large, and the hint offered
+    scale = 1000, the default already (a hunt)."""
+    trimesh.creation.box(extents=(40.0, 30.0, 20.0)).export(tmp_path / "mm.glb")
+    with pytest.raises(InputError, match=r"scale = 1 for millimetres"):
+        load_workpiece(tmp_path / "mm.glb")

@@ -399,6 +399,50 @@ def _loose_pieces_note(mesh: trimesh.Trimesh, labels: np.ndarray, path: Path, ro
             f"{it if one else 'them'} from the mesh if {it} {are} not the part's")
 
 
+def _gltf_json(path: Path) -> dict | None:
+    """A glTF's JSON (a .gltf file, or a GLB's first chunk); None where it cannot be read (the
+    mesh reader then says what is wrong)."""
+    import json
+    import struct
+
+    try:
+        with open(path, "rb") as f:
+            head = f.read(20)
+            if head[:4] == b"glTF" and len(head) == 20 and head[16:20] == b"JSON":
+                return json.loads(f.read(struct.unpack("<I", head[12:16])[0]))
+            if path.suffix.lower() == ".gltf":
+                return json.loads(head + f.read())
+    except (OSError, ValueError, UnicodeDecodeError, struct.error):
+        pass
+    return None
+
+
+COMPRESSIONS = ("KHR_draco_mesh_compression", "EXT_meshopt_compression")
+
+
+def _check_gltf_encoding(path: Path) -> None:
+    """Refuse a glTF whose vertices the reader would read wrong, naming the export option: a
+    compressed one (Draco, meshopt: refused as "every face names one corner twice"), or one
+    whose positions are normalized integers (KHR_mesh_quantization: read as 1.3 km across)."""
+    doc = _gltf_json(path)
+    if not isinstance(doc, dict):
+        return
+    named = set(doc.get("extensionsRequired") or []) | set(doc.get("extensionsUsed") or [])
+    squeezed = [e for e in COMPRESSIONS if e in named]
+    if squeezed:
+        raise InputError(f"{path}: its meshes are compressed ({squeezed[0]}), which this reader cannot decode: "
+                         f"export it again without compression (in Blender's glTF exporter, leave Compression off)")
+    accessors = doc.get("accessors") or []
+    for mesh in doc.get("meshes") or []:
+        for prim in (mesh.get("primitives") or []) if isinstance(mesh, dict) else []:
+            at = (prim.get("attributes") or {}).get("POSITION") if isinstance(prim, dict) else None
+            if isinstance(at, int) and 0 <= at < len(accessors) and isinstance(accessors[at], dict) \
+                    and accessors[at].get("normalized"):
+                raise InputError(f"{path}: its vertex positions are quantized to normalized integers "
+                                 f"(KHR_mesh_quantization), which this reader cannot scale back: export it again "
+                                 f"with float positions")
+
+
 def _check_stl_header(path: Path) -> None:
     """A binary STL announces its triangles in its header: a file large enough to hold more than
     MAX_FACES of them that announces more is refused before it is read (a 2 GB file took 15 s
@@ -433,6 +477,8 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     if path.stat().st_size == 0:
         raise InputError(f"{path}: the file is empty (0 bytes); was it written to the end?")
     _check_stl_header(path)
+    if path.suffix.lower() in GLTF_FORMATS:
+        _check_gltf_encoding(path)
     try:
         # Unprocessed first: processing drops the faces of NaN vertices without a word. A broken
         # file's arithmetic (normals of infinite vertices) warns; what is wrong is said below.
@@ -500,9 +546,12 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     if guessed and not FILE_MIN_EXTENT_MM <= extent <= FILE_MAX_EXTENT_MM:
         key = "the workpiece's" if role == "part" else f"the {role}'s"
         unit = "metres" if scale == 1000 else "mm"
+        # (a glTF is read as metres already: its other unit is mm, scale = 1, which went unsaid)
+        examples = ("scale = 1 for millimetres, 25.4 for inches" if scale == 1000
+                    else "scale = 1000 for metres, 25.4 for inches")
         raise InputError(f"{path}: the {role} is {extent:.4g} mm across (read as {unit}); "
                          f"{role}s in a cell are usually {FILE_MIN_EXTENT_MM:g} to {FILE_MAX_EXTENT_MM:g} mm: is the "
-                         f"file in another unit? Set {key} scale key (e.g. scale = 1000 for metres, 25.4 for inches; "
+                         f"file in another unit? Set {key} scale key (e.g. {examples}; "
                          f"scale = {scale:g} where it really is {extent:.4g} mm"
                          f"{PART_SCALE_HINT if role == 'part' else ''})")
     check_mesh(mesh, str(path), fix=f"is scale {scale:g} right?")
