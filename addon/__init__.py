@@ -11,7 +11,8 @@ below are imported on first use, so that importing this package stays light.
 """
 
 __all__ = ["CollisionError", "Profile", "RenderOptions", "ScanConfig", "ScanReport", "Scanner", "UnreachablePose",
-           "ScannerError", "load_probe", "load_robot", "load_scan_config", "load_workpiece", "report_json"]
+           "ScannerError", "load_probe", "load_robot", "load_scan_config", "load_workpiece", "report_json",
+           "resting_on_table"]
 
 _HOMES = {
     "Scanner": ".scanner", "Profile": ".scanner",
@@ -19,7 +20,7 @@ _HOMES = {
     "RenderOptions": ".core.config.render",
     "ScanConfig": ".core.config.scan", "load_scan_config": ".core.config.scan",
     "load_probe": ".core.config.rigs", "load_robot": ".core.config.rigs",
-    "load_workpiece": ".core.geometry.workpiece",
+    "load_workpiece": ".core.geometry.workpiece", "resting_on_table": ".core.geometry.workpiece",
     "UnreachablePose": ".core.errors", "ScannerError": ".core.errors", "CollisionError": ".core.errors",
 }
 

@@ -103,7 +103,8 @@ def _workpiece(value) -> tuple[Workpiece, str | None]:
     a mesh file (no pose of its own: it is put on the table, its lowest point on the top), and
     a line saying so where the file's part was moved."""
     if isinstance(value, Workpiece):
-        check_on_table(value, "move it up (its mesh and truth in the table frame, z = 0 the table top)")
+        check_on_table(value, "move it up (its mesh and truth in the table frame, z = 0 the table top; "
+                              "resting_on_table(part)[0] puts a loaded file's part on the table)")
         check_over_table(value, "move it over the table (its mesh and truth in the table frame, the axis x = y = 0)")
         return value, None
     if not isinstance(value, (str, Path)):

@@ -723,3 +723,27 @@ def test_a_reports_keys_are_the_same_whatever_the_scan_met():
     assert list(report["column_codes"]) == sorted(c.name for c in LineCode)
     assert sum(report["column_codes"].values()) > 0 and 0 in report["column_codes"].values()
     assert list(report["software"])[:5] == ["scanner", "python", "numpy", "opencv", "blender"]
+
+
+def test_the_scanners_unit_refusal_leads_to_a_part_it_takes(tmp_path):
+    """Scanner(workpiece=a file in metres) said to use load_workpiece(path, scale=...), whose
+    part, no longer put on the table, was refused in turn (a hunt). The hint now names the
+    call that places it; followed, the part lies on the table, 1000 times the file's size."""
+    import re
+
+    import trimesh
+
+    from addon import Scanner, load_workpiece, resting_on_table
+    from addon.core.errors import InputError
+
+    box = trimesh.creation.box(extents=(0.04, 0.03, 0.02))  # metres, centred on the origin
+    box.export(tmp_path / "m.stl")
+    with pytest.raises(InputError) as info:
+        Scanner(workpiece=str(tmp_path / "m.stl"))
+    assert "resting_on_table(load_workpiece(path, scale=...))[0]" in str(info.value)
+    part = resting_on_table(load_workpiece(tmp_path / "m.stl", scale=1000.0))[0]
+    bounds = Scanner(workpiece=part).config.workpiece.mesh.bounds
+    np.testing.assert_allclose(bounds, [[-20.0, -15.0, 0.0], [20.0, 15.0, 20.0]], atol=1e-9)
+    assert re.search("resting_on_table", str(pytest.raises(InputError, Scanner,
+                                                          workpiece=load_workpiece(tmp_path / "m.stl",
+                                                                                   scale=1000.0)).value))

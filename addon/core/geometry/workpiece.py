@@ -600,7 +600,8 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     return Workpiece(path.stem, mesh, mesh, str(path), pose, notes)
 
 
-PART_SCALE_HINT = "; in the panel, its Scale field; in a script, load_workpiece(path, scale=...)"
+PART_SCALE_HINT = ("; in the panel, its Scale field; in a script, resting_on_table(load_workpiece(path, scale=...))[0], "
+                   "which puts it on the table as Scanner(workpiece=path) does")
 LOOSE_AREA_SHARE = 0.01  # a piece apart from the mesh's body, under this share of its area, is noted as loose
 LOOSE_GAP_MM = 0.1       # ... where it lies this far from the body at least
 MAX_OVERLAP_BODIES = 50  # closed bodies looked at for reaching into each other
