@@ -662,3 +662,26 @@ def test_a_gltf_written_in_millimetres_is_told_scale_1(tmp_path):
     trimesh.creation.box(extents=(40.0, 30.0, 20.0)).export(tmp_path / "mm.glb")
     with pytest.raises(InputError, match=r"scale = 1 for millimetres"):
         load_workpiece(tmp_path / "mm.glb")
+
+
+def test_an_open_mesh_wound_unevenly_is_made_even_the_way_most_of_it_faces(tmp_path):
+    """Open meshes were re-wound only where closed: one with a patch wound against the rest
+    rendered and measured apart from the same surface wound alike (a hunt). The truth: the
+    surface as written before a third of its faces were turned."""
+    bowl = trimesh.creation.icosphere(subdivisions=3, radius=20.0)
+    bowl.update_faces(bowl.triangles_center[:, 2] < 5.0)  # open at the top
+    bowl.remove_unreferenced_vertices()
+    bowl.apply_translation((0.0, 0.0, 20.0))
+    assert not bowl.is_watertight and bowl.is_winding_consistent
+    faces = np.array(bowl.faces)
+    patch = bowl.triangles_center[:, 0] > 8.0  # under half the area
+    faces[patch] = np.fliplr(faces[patch])
+    trimesh.Trimesh(bowl.vertices, faces, process=False).export(tmp_path / "uneven.stl")
+    wp = load_workpiece(tmp_path / "uneven.stl")
+    assert wp.mesh.is_winding_consistent
+    truth = trimesh.Trimesh(bowl.vertices, bowl.faces, process=False)
+    # every face facing as the surface was written (the loaded face matched by its centre)
+    ids = trimesh.proximity.closest_point(wp.mesh, truth.triangles_center)[2]
+    agree = np.einsum("ij,ij->i", wp.mesh.face_normals[ids], truth.face_normals)
+    assert (agree > 0.99).all(), int(np.sum(agree <= 0.99))
+    assert any(f"{int(patch.sum())} of the" in n and "wound against their neighbours" in n for n in wp.notes), wp.notes

@@ -565,6 +565,27 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
         fixed = trimesh.Trimesh(fixed.vertices, fixed.faces, process=False)  # normals from the new winding
         if fixed.is_winding_consistent:
             as_read, mesh = mesh.face_normals.copy(), fixed
+    elif not mesh.is_winding_consistent and len(mesh.faces) <= MAX_REWOUND_OPEN_FACES:
+        # Open, with faces wound against their neighbours: it rendered and measured apart from
+        # the same surface wound alike (a hunt: RMS 12.1 against 9.9 µm, a point beyond 0.2 mm).
+        # An open surface has no outside to turn to: each piece keeps the side most of its area
+        # faced as written.
+        as_read, fixed = mesh.face_normals.copy(), mesh.copy()
+        trimesh.repair.fix_winding(fixed)
+        fixed = trimesh.Trimesh(fixed.vertices, fixed.faces, process=False)
+        if fixed.is_winding_consistent:
+            labels = _body_labels(fixed)
+            agree = np.einsum("ij,ij->i", fixed.face_normals, as_read) * fixed.area_faces
+            against = np.bincount(labels, weights=agree, minlength=int(labels.max()) + 1) < 0
+            faces = np.array(fixed.faces)
+            flip = against[labels]
+            faces[flip] = np.fliplr(faces[flip])
+            mesh = trimesh.Trimesh(fixed.vertices, faces, process=False)
+            turned = int(np.sum(np.einsum("ij,ij->i", mesh.face_normals, as_read) < 0))
+            notes = (f"{turned} of the {len(mesh.faces)} faces of the open {role} mesh {path.name} were wound "
+                     f"against their neighbours; they were turned to agree with the most of the surface around "
+                     f"them",)
+        as_read = None
     else:
         as_read = None
     if mesh.is_watertight and mesh.is_winding_consistent:
@@ -605,6 +626,7 @@ PART_SCALE_HINT = ("; in the panel, its Scale field; in a script, resting_on_tab
 LOOSE_AREA_SHARE = 0.01  # a piece apart from the mesh's body, under this share of its area, is noted as loose
 LOOSE_GAP_MM = 0.1       # ... where it lies this far from the body at least
 MAX_OVERLAP_BODIES = 50  # closed bodies looked at for reaching into each other
+MAX_REWOUND_OPEN_FACES = 2_000_000  # an open mesh wound unevenly is made even up to this size
 OVERLAP_SAMPLES = 20000  # points spread over the surface to estimate the share inside another body
 RESTS_ON_LOOSE = "so the part rests on it"  # the loose note's words where a loose piece lies lowest
 SINK_TOLERANCE_MM = 0.05  # a part may reach this far below the table top (a mesh's rounding)
