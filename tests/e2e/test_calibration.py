@@ -255,3 +255,21 @@ def test_a_calibrated_probe_given_as_the_rig_is_named_by_its_file_and_calibrates
     assert "calibrated in the cell of" in cfg.probe.calibration.source
     again = calibrate(str(config), None, views=8)
     assert again.fit.probe.name.count("(calibrated)") == 1, again.fit.probe.name
+
+
+def test_a_sensor_too_coarse_to_read_the_board_says_so_not_to_give_more_poses(tmp_path, capsys):
+    """A 16 x 16 sensor was told to give more poses, or poses nearer the middle of the range,
+    where no pose resolves the board's markers (a hunt): the line says how many pixels a
+    marker spans (the board's marker size at mid-range through the probe's focal length) and
+    to calibrate at a larger resolution."""
+    probe = (REPO / "rigs" / "probes" / "default.toml").read_text()
+    probe = probe.replace("rows_px = 160 ", "rows_px = 16 ").replace("cols_px = 160 ", "cols_px = 16 ")
+    assert "rows_px = 16 " in probe and "cols_px = 16 " in probe
+    (tmp_path / "tiny.toml").write_text(probe)
+    demo = (REPO / "rigs" / "scenes" / "demo.toml").read_text().replace('rig = "default"', 'rig = "tiny.toml"')
+    (tmp_path / "scene.toml").write_text(demo)
+    assert main(["calibrate", str(tmp_path / "scene.toml"), "--views", "8", "--out", str(tmp_path / "out"),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "a marker of the board spans only" in err and "larger resolution" in err and "more poses" not in err, err
+    assert not (tmp_path / "out").exists()

@@ -38,6 +38,7 @@ from ..optics.probe import Probe
 from .board import MIN_CORNERS, ChArUcoBoard
 
 MIN_VIEWS = 4          # board views per camera below which Zhang's method is not trusted
+MIN_MARKER_PX = 8.0  # ArUco's 4 x 4 bits and border: about a pixel and a third a cell at least
 MIN_SPREAD_DEG = 5.0   # the board normals must spread at least this much across the views
 MIN_LINE_POINTS = 20   # laser pixels a view needs to add to the plane fit
 PLATE_EDGE_MM = 5.0    # laser points this near the plate's edge are left out (the table is near)
@@ -90,7 +91,19 @@ def calibrate_probe(probe: Probe, board: ChArUcoBoard, views: list[BoardView], *
     probe (its K is the intrinsic guess, its mount the flange-to-probe transform)."""
     size = (probe.cols_px, probe.rows_px)
     obj = board.corners_mm
-    intr = [_intrinsics(probe, obj, views, cam, size, distortion) for cam in (0, 1)]
+    try:
+        intr = [_intrinsics(probe, obj, views, cam, size, distortion) for cam in (0, 1)]
+    except CalibrationError as exc:
+        # A sensor too coarse to read the markers at any pose: more poses cannot help (a
+        # 16-pixel sensor was told to give more, or nearer, poses).
+        marker_px = board.marker_mm * float(probe.K[0, 0]) / (0.5 * sum(probe.z_range_mm))
+        if marker_px < MIN_MARKER_PX:
+            found = str(exc).split(";")[0]
+            raise CalibrationError(f"{found}: a marker of the board spans only {marker_px:.2g} px on this "
+                                   f"{probe.cols_px}x{probe.rows_px} sensor at mid-range, and reading one takes about "
+                                   f"{MIN_MARKER_PX:g}, which no pose changes: calibrate at a larger resolution (the "
+                                   f"probe's rows_px and cols_px)") from None
+        raise
     X, Z, final, errs, std_pose, std_int, bundle = _hand_eye(obj, views, intr, distortion)
     mount_inv = rigid_inverse(probe.mount)
     normal, offset, rms, npts, nviews, scatter = _laser_plane(probe, board, views, final, X, Z, mount_inv)
