@@ -414,6 +414,8 @@ def print_summary(result, wall: float) -> None:
     print(f"  coverage      {measurable}, {r['coverage'] * 100:.1f} % of the whole part, "
           f"within {r['coverage_tolerance_mm']:g} mm of a point")
     c = (r.get("clearance") or {}).get("nearest")
+    if r.get("clearance") is None and any(w.startswith("collision checks were off") for w in r.get("warnings", [])):
+        print("  clearance     not checked ([safety] check = false)")
     if c:
         print(f"  clearance     {c['clearance_mm']:.1f} mm at least, {c['bodies'][0]} to {c['bodies'][1]} at frame "
               f"{c['frame']} (at least {r['clearance']['min_clearance_mm']:g} mm allowed)")

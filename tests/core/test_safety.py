@@ -18,6 +18,9 @@ from addon.core.safety import CollisionModel  # noqa: E402
 from addon.core.scan.plan import check_motion, plan_scan  # noqa: E402
 from addon.scanner import Scanner  # noqa: E402
 from dataclasses import replace  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
 
 # The probe's body reaches 2 mm beyond its origin along the beam (the camera and laser heads).
 HEAD_REACH_MM = 2.0
@@ -634,3 +637,36 @@ def test_a_world_fixture_through_the_tables_disc_is_refused_and_one_beside_or_un
     scanner = Scanner(config=replace(cfg, fixtures=fixtures))
     scanner.turn_table_to(30.0)
     assert scanner.table_deg == pytest.approx(30.0)
+
+
+def test_a_breach_by_a_hair_is_not_shown_as_the_limit_it_breached(tmp_path):
+    """A pose 1.9999 mm from the table was refused as "comes within 2.00 mm; at least 2 mm
+    allowed" (a hunt). The probe's lowest point over the table top: 2 mm less 0.1 µm, from the
+    geometry of a pose 2 mm clear moved down."""
+    demo = (REPO / "rigs" / "scenes" / "demo.toml").read_text()
+    config = tmp_path / "graze.toml"
+    config.write_text(demo[:demo.index("[workpiece]")] + '[workpiece]\nshape = "sphere"\nradius_mm = 5.0\n'
+                      '[workpiece.pose]\nxyz_mm = [0.0, 120.0, 0.0]\n' + demo[demo.index("[[path]]"):])
+    s = Scanner.from_config(config, engine="raycast")
+    s.move_to(([0.0, -40.0, 60.0], [90.0, 180.0, 0.0]))
+    _, clear = s.check_move_to(([0.0, -40.0, 4.0], [90.0, 180.0, 0.0]))
+    assert clear.report()["nearest"]["clearance_mm"] == pytest.approx(2.0, abs=1e-6)
+    with pytest.raises(CollisionError, match=r"comes within 1\.9999\d* mm of the table; at least 2 mm allowed"):
+        s.check_move_to(([0.0, -40.0, 4.0 - 1e-4], [90.0, 180.0, 0.0]))
+
+
+def test_a_scan_with_the_checks_off_says_so(tmp_path, capsys):
+    """[safety] check = false left no trace: report.json's clearance null as for a Scanner that
+    never moved, no summary line (a hunt)."""
+    import json
+
+    from headless.cli import main
+
+    demo = (REPO / "rigs" / "scenes" / "demo.toml").read_text()
+    config = tmp_path / "off.toml"
+    config.write_text(demo + "\n[safety]\ncheck = false\n")
+    assert main(["scan", str(config), "--engine", "raycast", "--frames", "0:3", "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "clearance     not checked ([safety] check = false)" in out
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert report["clearance"] is None and any(w.startswith("collision checks were off") for w in report["warnings"])

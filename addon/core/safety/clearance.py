@@ -116,7 +116,11 @@ class PathClearance:
             where = f"at {frames}" if float(first.position).is_integer() else f"moving to {frames}"
         # The nearest the run comes, not where it starts: a probe that dives into the part
         # first passes the limit at about the limit.
-        how = ("touches" if worst.distance_mm <= 0 else f"comes within {worst.distance_mm:.2f} mm of")
+        # (to 2 decimals a breach of 1.9999 mm read "within 2.00 mm", the limit it breached)
+        shown = f"{worst.distance_mm:.2f}"
+        if float(shown) >= self.min_clearance_mm > worst.distance_mm:
+            shown = f"{worst.distance_mm:.6g}"
+        how = ("touches" if worst.distance_mm <= 0 else f"comes within {shown} mm of")
         # Over a run of frames, the one to look at first: where the two come nearest (or overlap most).
         nearest_at = ""
         if first.frame != last.frame and worst.frame >= 0:

@@ -140,6 +140,11 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
         warnings.append(f"the path can measure only {share * 100:.1f} % of the part's surface (whole-part coverage "
                         f"{quality['coverage'] * 100:.1f} %): most of the part lies outside what it scans; "
                         "a path of the part's own size: [[path]] entries, or the adaptive planner")
+    if not config.safety.check:
+        # (report.json's clearance read null, as for a Scanner that measured without moving,
+        # and the summary left the line out: a shared report did not say nothing was checked)
+        warnings.append("collision checks were off ([safety] check = false): no motion was checked against the "
+                        "table, the part or the fixtures")
     used = (extra or {}).get("render_device")
     if r.engine == "cycles" and r.device != "CPU" and used == "CPU":
         warnings.append(f"render device {r.device} asked for, but no such GPU answered: rendered on the CPU")
