@@ -34,6 +34,8 @@ MIN_GAIN = AdaptiveSettings.min_gain  # new surface cells a view must promise
 OVERVIEW_MAX_TILT_DEG = 45.0  # steeper turns look at the sides and miss the top: not an overview
 MARGIN_MM = 6.0   # the model's box around the part's
 TABLE_CLEARANCE_MM = 0.2  # a point this far above the table top is the part's (see part_radius)
+PLATE_TOP_MIN_MM = 0.5  # a thin part's top, for its coverage estimate: points this far up at least ...
+PLATE_TOP_POINTS = 50   # ... and this many of them (a few noisy table points are no part)
 OUTSIDE_WARNING = 0.05  # a share of the points outside the part's box that says the box is too small
 FIXTURE_NEAR_MM = 0.5  # a point this near one of the table's fixtures is the fixture's
 RUNNERS_UP = 3  # the best candidates after the chosen one that each decision records
@@ -131,6 +133,7 @@ class NextBestView:
         self.table = scanner.config.cell.table
         self.reach: float | None = None  # the farthest the part was measured from the table's axis
         self.top_seen: float | None = None  # the highest the part was measured above the table top
+        self.top_points = 0  # the points that measured it (PLATE_TOP_MIN_MM up at least)
         self.impossible: set = set()  # candidates done, or that the robot cannot do (unreachable, colliding)
         self.refused: list[str] = []  # why, for the last decision
         self.ranked: list = []  # the candidates the last decision ranked, best first (see runners_up)
@@ -251,7 +254,12 @@ class NextBestView:
         if part.any():
             r = float(np.max(np.hypot(P[part, 0], P[part, 1])))
             self.reach = r if self.reach is None else max(self.reach, r)
-            top = float(np.max(P[part, 2]))
+        # The top of a thin part (coverage_estimate), from points clear of the table's noise: a
+        # few table points 0.3 mm up set it and the estimate read 100 % of a part never seen.
+        above_noise = part & (P[:, 2] >= PLATE_TOP_MIN_MM)
+        if above_noise.any():
+            self.top_points += int(np.count_nonzero(above_noise))
+            top = float(np.max(P[above_noise, 2]))
             self.top_seen = top if self.top_seen is None else max(self.top_seen, top)
 
     def overview(self, scanner, live, probe_now, budget):
@@ -311,7 +319,8 @@ class NextBestView:
         # A part measured no higher than the layer the estimate leaves out as the table top (a
         # plate under a cell thick: its box is raised to FLAT_BOX_MM, and a 1.9 mm plate read
         # 0 % after a view that saw all of its top) is estimated on the layer holding its top.
-        if self.top_seen is not None and self.top_seen < lo[2] + self.space.voxel < hi[2]:
+        if self.top_seen is not None and self.top_points >= PLATE_TOP_POINTS \
+                and self.top_seen < lo[2] + self.space.voxel < hi[2]:
             hi[2] = max(self.top_seen, lo[2] + 1e-6)
         return self.space.coverage_estimate(lo, hi)
 

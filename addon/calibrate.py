@@ -135,7 +135,7 @@ def calibrate_steps(config: ScanConfig | str | Path, out_dir: str | Path | None 
     Dropped, it writes nothing and takes the board out of the scene again."""
     t0 = time.perf_counter()
     progress = progress or (lambda stage, done, total: None)
-    cfg = config if isinstance(config, ScanConfig) else load_scan_config(config)
+    cfg = config if isinstance(config, ScanConfig) else load_scan_config(config, path_required=False)
     check_whole(views, "board views", 1, 1000)
     if out_dir is not None:
         check_output_folder(out_dir, FILES)

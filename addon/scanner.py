@@ -180,7 +180,9 @@ class Scanner:
         # training loop's choice, see headless/scan_env.py).
         self.keep_clearance = True
         self._fixture_frames: dict = {}  # {fixture: frames it stood in the way of the laser or a camera}
-        if not len(config.waypoints):
+        # (a config file's own start_deg stands: one without [[path]], as the adaptive planner
+        # takes, started elsewhere than the same file with a path)
+        if not len(config.waypoints) and not (config.source and config.q_start is not None):
             self._look_at_the_table()
 
     @property

@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from addon.core.files import check_output_folder
     from headless.scan import progress_and_lock
 
-    config = load_scan_config(args.config)
+    config = load_scan_config(args.config, path_required=False)  # (the board views are its own)
     if args.views is not None and args.poses:
         raise InputError(f"--views {args.views} and --poses {args.poses} both choose the board views; give one")
     args.views = 20 if args.views is None else args.views

@@ -353,12 +353,16 @@ def _earlier_split(folder: Path, n: int, fp: str, size: int) -> int | None:
             first, last = (int(v) for v in p.stem.split("_")[1:3])
         except ValueError:
             continue
-        if first == 0 and last >= 0:  # the first shard's size is the split's
-            sizes.add(last + 1)
+        k = last - first + 1
+        if k > 0 and first % k == 0:  # a whole shard of a split of k (the last may be shorter)
+            sizes.add(k)
+    counted: dict = {}
 
     def valid(k: int) -> int:
-        return sum(1 for s in shards.split(n, k) if (folder / s.file_name()).exists() and _not_ready(folder, s, fp)
-                   is None)
+        if k not in counted:
+            counted[k] = sum(1 for s in shards.split(n, k)
+                             if (folder / s.file_name()).exists() and _not_ready(folder, s, fp) is None)
+        return counted[k]
 
     best = max(sorted(sizes - {size}), key=valid, default=None)
     return best if best is not None and valid(best) > valid(size) else None

@@ -144,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
         from addon.core.config.scan import load_scan_config
 
         # the config's own robot, solved here (its ik = "controller" would ask this very server)
-        robot = replace(load_scan_config(args.config).robot, ik_via=None)
+        robot = replace(load_scan_config(args.config, path_required=False).robot, ik_via=None)
     else:
         robot = load_robot(args.robot or "adept_viper_s650")
     try:

@@ -51,7 +51,7 @@ def test_sensor_keys_reach_the_model(tmp_path):
     # taken, and doing nothing (a hunt): each needs its effect on, or one value for one thing
     ("[sensor]\nsaturate = true\ntarget_peak = 0.5\n", "", "sensor.target_peak: acts only with auto_exposure = true"),
     ("[sensor]\nf_number = 4.0\n", "", "sensor.f_number: acts only with speckle or defocus = true"),
-    ("[sensor]\nnoise = true\nwavelength_nm = 905.0\n", "", "sensor.wavelength_nm: acts only with speckle or"),
+    ("[sensor]\ndefocus = true\nwavelength_nm = 905.0\n", "", "sensor.wavelength_nm: acts only with speckle = true"),
     ("[sensor]\nspeckle = true\nfocus_mm = 150.0\n", "", "sensor.focus_mm: acts only with defocus = true"),
     ("[sensor]\nspeckle = true\nf_number = 0.3\n", "", "sensor.f_number: 0.3 is out of range"),
     ("[sensor]\nspeckle = true\npixel_pitch_um = 40.0\nsensor_width_mm = 3.0\n", "",

@@ -895,7 +895,10 @@ def test_a_config_without_a_path_serves_the_planner_and_the_scanner_but_not_a_sc
     assert text is not None and "[[path]]" not in text
     config = tmp_path / "no_path.toml"
     config.write_text(text)
-    assert len(Scanner.from_config(config).config.waypoints) == 0
+    scanner = Scanner.from_config(config)
+    assert len(scanner.config.waypoints) == 0
+    # it starts where the file says, as with its path (it looked at the table instead: a review)
+    np.testing.assert_allclose(scanner.q, load_scan_config("demo").q_start, atol=1e-12)
     assert main(["adaptive", str(config), "--engine", "raycast", "--max-profiles", "160", "--out", str(tmp_path / "a"),
                  "--quiet"]) == 0
     report = json.loads((tmp_path / "a" / "report.json").read_text())
@@ -908,3 +911,24 @@ def test_a_config_without_a_path_serves_the_planner_and_the_scanner_but_not_a_sc
     assert main(["scan", str(config), "--engine", "raycast", "--out", str(tmp_path / "s"), "--quiet"]) == 2
     assert "a scan needs at least one [[path]]" in capsys.readouterr().err
 
+
+
+def test_a_few_noisy_table_points_are_not_taken_for_a_thin_parts_top():
+    """The thin-part rule took its top from any point above the table's 0.2 mm: profiles of the
+    table alone, 2 % of their points 0.3 mm up, read an estimate of 100 % (a review). Nothing
+    of the part was measured, so the estimate is 0; a 1.5 mm plate's top is still taken."""
+    from addon import Scanner
+    from addon.adaptive import NextBestView, part_box
+
+    config = load_scan_config("demo")
+    lo, hi = part_box(config)
+    rng = np.random.default_rng(0)
+    for top, share in ((0.3, 0.02), (1.5, 1.0)):
+        planner = NextBestView(Scanner(config=config), lo, hi)
+        for y in np.linspace(lo[1], hi[1], 40):
+            x = np.linspace(lo[0], hi[0], 160)
+            inside = np.abs(x) < 20.0
+            z = np.where((rng.random(160) < share) & inside, top, rng.normal(0.0, 0.02, 160))
+            planner.learn(np.array([0.0, y, 250.0]), np.column_stack([x, np.full_like(x, y), z]))
+        estimate = planner.coverage_estimate()
+        assert (estimate == 0.0) if top < 0.5 else (estimate > 0.5), (top, estimate)

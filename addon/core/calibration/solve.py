@@ -116,6 +116,10 @@ def calibrate_probe(probe: Probe, board: ChArUcoBoard, views: list[BoardView], *
         cams.append(CameraFit(K, dist, X[c], errs[c], zhang_err, std_int[c], std_pose[c], n_views, n_corners))
         models.append(CameraModel(K, dist, mount_inv @ X[c]))
     calibration = ProbeCalibration(tuple(models), normal, offset, source)
+    wrong = calibration.implausible(probe)
+    if wrong:  # (written, it would be refused where the rig is read next, pointing back here)
+        raise CalibrationError(f"the fit is no calibration of this probe: {wrong}; the views taught it too "
+                               f"little, or misread the board: more views, spread over the range")
     return ProbeFit(replace(probe, calibration=calibration), cams, Z, rms, npts, nviews, plane_std)
 
 

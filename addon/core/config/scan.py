@@ -348,8 +348,9 @@ def _rig_path(base: Path, value: str) -> str:
 
 def load_scan_config(name_or_path: str | Path, *, path_required: bool = True) -> ScanConfig:
     """Read and check a scan config; every problem is a ConfigError naming file, key and allowed values.
-    ``path_required=False`` (the adaptive planner's, a Scanner's: they ignore [[path]] or move
-    step by step) takes a config without [[path]] entries, its path then empty."""
+    ``path_required=False`` (the adaptive planner's, a Scanner's, calibrate's, ik-server's: they
+    ignore [[path]] or move step by step) takes a config without [[path]] entries, its path then
+    empty."""
     path = resolve_rig("scenes", name_or_path)
     top = load_toml(path)  # (its errors name the file as given)
     # The files it names are found from its folder, and the report keeps them (and it) whole:
@@ -615,7 +616,8 @@ def _paths(top: Table, table: Turntable, required: bool = True) -> scanpath.Wayp
     if not top.has("path"):
         if required:
             raise top.error("path", "missing: a scan needs at least one [[path]] entry (the adaptive command, "
-                                    "which ignores the path, and a Scanner take a config without one)")
+                                    "which ignores the path, calibrate, ik-server and a Scanner take a config "
+                                    "without one)")
         return scanpath.Waypoints(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0, int))
     parts = []
     for i, p in enumerate(top.tables("path")):
@@ -742,7 +744,8 @@ def _sensor(t: Table) -> SensorModel:
             (("frame_rate_hz",), ("motion_blur",)),
             # (these three were taken and did nothing: the clouds byte for byte the same)
             (("target_peak",), ("auto_exposure",)),
-            (("f_number", "wavelength_nm"), ("speckle", "defocus")),
+            (("f_number",), ("speckle", "defocus")),
+            (("wavelength_nm",), ("speckle",)),
             (("focus_mm",), ("defocus",))):
         given = [k for k in keys if t.has(k) and not (k == "auto_exposure" and not kw[k])]
         if given and not any(kw[w] for w in switches):

@@ -18,7 +18,12 @@ from ..errors import InputError
 
 TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
          "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+         "int64": "i8", "uint64": "u8", "float16": "f2", "half": "f2",
          "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+
+
+class _NotOurs(Exception):
+    """A header this reader does not know (a property type of its own): trimesh reads the file."""
 MAX_HEADER_BYTES = 1 << 16
 
 
@@ -46,7 +51,7 @@ def _header(data: bytes, path: Path) -> tuple[str, list, int]:
                 else:
                     kind = np.dtype(TYPES[words[1]])
             except (KeyError, IndexError):
-                raise InputError(f"{path}: a PLY property the reader does not know: {raw.strip()!r}") from None
+                raise _NotOurs(raw.strip()) from None  # (refused before: trimesh read such files)
             elements[-1][2].append((words[-1], kind))
     if order is None:
         return None
@@ -58,7 +63,10 @@ def read_polygon_ply(path: str | Path):
     is not a PLY with vertices and faces this reads (trimesh's word stands then)."""
     path = Path(path)
     data = path.read_bytes()
-    head = _header(data, path)
+    try:
+        head = _header(data, path)
+    except _NotOurs:
+        return None
     if head is None:
         return None
     order, elements, at = head
@@ -135,16 +143,25 @@ def _read(data: bytes, order: str, elements: list, at: int, path: Path):
         if name != "face" or len(lists) != 1 or lists[0][0] not in ("vertex_indices", "vertex_index"):
             return None  # lists elsewhere: not this reader's case
         view = memoryview(data)
-        if len(props) == 1:  # corner lists alone: all triangles (or all of one size) read at once
-            count_type, item_type = (k.newbyteorder(order) for k in props[0][1])
-            first = int(np.frombuffer(view, dtype=count_type, count=1, offset=at)[0]) if count else 0
-            row = np.dtype([("n", count_type), ("i", item_type, (max(first, 1),))])
-            if count and at + count * row.itemsize <= len(data):
-                block = np.frombuffer(view, dtype=row, count=count, offset=at)
-                if np.all(block["n"] == first):
-                    polygons = block["i"].astype(np.int64).reshape(count, max(first, 1))
-                    at += count * row.itemsize
-                    continue
+        # Every face of one size (all triangles, say), beside other face properties or not: the
+        # rows read at once, as a record each.
+        fields, first, skip = [], None, at
+        for prop, kind in props:
+            if isinstance(kind, tuple):
+                count_type, item_type = (k.newbyteorder(order) for k in kind)
+                first = int(np.frombuffer(view, dtype=count_type, count=1, offset=skip)[0]) if count else 0
+                fields += [("n", count_type), ("i", item_type, (max(first, 1),))]
+                skip += count_type.itemsize + first * item_type.itemsize
+            else:
+                fields.append((f"_{len(fields)}", kind.newbyteorder(order)))
+                skip += kind.itemsize
+        row = np.dtype(fields)
+        if count and first and at + count * row.itemsize <= len(data):
+            block = np.frombuffer(view, dtype=row, count=count, offset=at)
+            if np.all(block["n"] == first):
+                polygons = block["i"].astype(np.int64).reshape(count, first)
+                at += count * row.itemsize
+                continue
         polygons = []
         for _ in range(count):
             for prop, kind in props:

@@ -94,7 +94,11 @@ def _ears(Q: np.ndarray, fan: np.ndarray) -> np.ndarray:
                 continue  # a reflex (or straight) corner is no ear
             others = [i for i in left if i not in (a, b, c)]
             R = Q[others]
-            inside = (_cross(Q[a], Q[b], R) >= -eps) & (_cross(Q[b], Q[c], R) >= -eps) & (_cross(Q[c], Q[a], R) >= -eps)
+            # A corner at the same place as one of the ear's (a vertex written twice, a hole's
+            # bridge) does not block it: counted inside, it left no ear and the fan came back.
+            apart = np.min([np.sum((R - Q[k]) ** 2, axis=1) for k in (a, b, c)], axis=0) > eps
+            inside = apart & (_cross(Q[a], Q[b], R) >= -eps) & (_cross(Q[b], Q[c], R) >= -eps) \
+                & (_cross(Q[c], Q[a], R) >= -eps)
             if not inside.any():
                 tris.append((a, b, c))
                 del left[j]
@@ -105,16 +109,15 @@ def _ears(Q: np.ndarray, fan: np.ndarray) -> np.ndarray:
     return np.asarray(tris, dtype=np.int64)
 
 
-def needs_own_obj_reader(path: Path, limit: int = 64 << 20) -> bool:
+def needs_own_obj_reader(path: Path) -> bool:
     """Whether an OBJ holds a face of more than three corners or a negative index: what
     trimesh's reader gets wrong (fans, and negative indices counted from the file's end)."""
     with open(path, "rb") as f:
-        data = f.read(limit)
-    for line in data.splitlines():
-        if line[:2] == b"f " or line[:2] == b"f\t":
-            words = line.split()[1:]
-            if len(words) > 3 or any(w.startswith(b"-") for w in words):
-                return True
+        for line in f:
+            if line[:2] == b"f " or line[:2] == b"f\t":
+                words = line.split()[1:]
+                if len(words) > 3 or any(w.startswith(b"-") for w in words):
+                    return True
     return False
 
 
@@ -124,7 +127,7 @@ def read_obj(path: str | Path) -> tuple[np.ndarray, list]:
     InputError for a face that names a vertex not there."""
     path = Path(path)
     vertices, polygons = [], []
-    pending = b""
+    pending, highest = b"", (-1, 0)
     with open(path, "rb") as f:
         for number, raw in enumerate(f, start=1):
             raw = pending + raw
@@ -151,12 +154,16 @@ def read_obj(path: str | Path) -> tuple[np.ndarray, list]:
                     except ValueError:
                         raise InputError(f"{path}: line {number}: a face corner {w.decode(errors='replace')!r} "
                                          f"is not a vertex number") from None
-                    at = i - 1 if i > 0 else len(vertices) + i
-                    if i == 0 or not 0 <= at < len(vertices):
-                        raise InputError(f"{path}: line {number} names vertex {i}, and only {len(vertices)} are "
-                                         f"written before it (an OBJ counts them from 1, or from -1 back); export "
-                                         f"it again")
+                    at = i - 1 if i > 0 else len(vertices) + i  # (a positive one may name a vertex written later)
+                    if i == 0 or at < 0:
+                        raise InputError(f"{path}: line {number} names vertex {i}, and an OBJ counts its vertices "
+                                         f"from 1 (or from -1 back, {len(vertices)} written before it); export it "
+                                         f"again")
                     poly.append(at)
+                    highest = max(highest, (at, number))
                 if len(poly) >= 3:
                     polygons.append(poly)
+    if highest[0] >= len(vertices):
+        raise InputError(f"{path}: line {highest[1]} names vertex {highest[0] + 1}, and the file has only "
+                         f"{len(vertices)}; export it again")
     return np.asarray(vertices, dtype=np.float64).reshape(-1, 3), polygons

@@ -427,8 +427,8 @@ def _check_gltf_encoding(path: Path) -> None:
     doc = _gltf_json(path)
     if not isinstance(doc, dict):
         return
-    named = set(doc.get("extensionsRequired") or []) | set(doc.get("extensionsUsed") or [])
-    squeezed = [e for e in COMPRESSIONS if e in named]
+    required = set(doc.get("extensionsRequired") or [])  # (merely used: the file keeps plain data beside it)
+    squeezed = [e for e in COMPRESSIONS if e in required]
     if squeezed:
         raise InputError(f"{path}: its meshes are compressed ({squeezed[0]}), which this reader cannot decode: "
                          f"export it again without compression (in Blender's glTF exporter, leave Compression off)")
