@@ -32,7 +32,8 @@ Commands:
   build-extension      the Blender extension zips (wheels downloaded, Blender's tool builds)
 
 Errors the user can fix (bad rig file, bad value) print one line and exit 2; an output
-folder another scan holds, one line and exit 75 (try again later); Ctrl-C exits 130
+folder another scan holds, or a farm's cluster that went away, one line and exit 75 (try
+again later); Ctrl-C exits 130
 (SIGTERM 143); scan's exit codes are listed in headless/scan.py.
 """
 

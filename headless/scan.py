@@ -3,8 +3,8 @@
 Exit codes: 0 done; 2 the config or an option is wrong, or a file cannot be written
 (one line on stderr, no files written); 3 the scan ran but its RMS error exceeds
 ``--max-rms-um`` (or no point lands on the part), or it covers less of the surface its path
-can measure than ``--min-coverage``; 75 another scan holds the output folder
-(try again later); 130 stopped by Ctrl-C (143: SIGTERM), nothing written.
+can measure than ``--min-coverage``; 75 another scan holds the output folder, or a farm's
+cluster went away (try again later); 130 stopped by Ctrl-C (143: SIGTERM), nothing written.
 
 Before the first render: the config, the options, the output folder, the render's
 size against memory and time, the temporary folder's room and the scheduler's
