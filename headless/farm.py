@@ -419,14 +419,19 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
             _wait_for_workers(client, where, todo, progress)
             worker_addresses = sorted(_workers(client, where))  # those that joined
 
-        def send_inputs():
-            """The config (with its meshes) and the plan, to every worker once, not with every task."""
+        def send_inputs(after=None):
+            """The config (with its meshes) and the plan, to every worker once, not with every task;
+            ``after``: the shard whose workers died, where the scan is sent again."""
             try:
                 return client.scatter([config, plan], broadcast=True, hash=False)
             except Exception as exc:  # the workers went (died, or left the scheduler) while it sent
-                raise TemporaryFailure(f"could not send the scan to the workers of {where}: they left while it was "
-                                   f"sent ({type(exc).__name__}: {str(exc)[:120]}); the shards finished are kept, "
-                                   f"run the scan again to go on") from None
+                why = f"they left while it was sent ({type(exc).__name__}: {str(exc)[:120]}); the shards finished are kept"
+                if after is not None:  # they died in a shard: the same run would kill them again (exit 2)
+                    raise ScannerError(f"could not send the scan again to the workers of {where} after "
+                                       f"{after.describe()} was cancelled: {why}, nothing merged (do its workers "
+                                       f"keep dying in it? out of memory, or a crash in Blender)") from None
+                raise TemporaryFailure(f"could not send the scan to the workers of {where}: {why}, run the scan "
+                                       f"again to go on") from None
 
         shared = send_inputs()
         tries = {s.index: 0 for s, _ in todo}
@@ -471,7 +476,7 @@ def _run_on_cluster(config, plan, todo, folder: Path, fp: str, out_dir, workers:
                 if not _workers(client, where):
                     _wait_for_workers(client, where, todo, progress, done)
                 worker_addresses = sorted(set(worker_addresses) | set(_workers(client, where)))
-                shared = send_inputs()
+                shared = send_inputs(after=s)
                 again = submit(s)
                 shard_of[again] = s
                 pending.add(again)

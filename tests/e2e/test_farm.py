@@ -592,7 +592,8 @@ def always_die_in_shard(index: int):
 def test_workers_that_keep_dying_end_the_scan_in_one_line_and_keep_the_shards_finished(tmp_path):
     """Shard 1 kills every worker that takes it: the command ends with one line, exit 2 (it
     ended in a traceback: the cancellation raised from inside result(), or the scatter to a
-    worker already gone), and nothing merged."""
+    worker already gone), and nothing merged. (The scan sent again after a death, to workers
+    gone meanwhile, stays 2: a cluster gone at the start is 75, try again later.)"""
     import re
     import subprocess
     import sys
