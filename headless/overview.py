@@ -89,7 +89,7 @@ def _with_scan(args, scene, render_overview) -> int:
     import addon.ui as ui
     from addon.core.config.scan import load_scan_config
     from addon.scene.cell import SceneCell
-    from addon.scene.session import blender_output_captured
+    from addon.scene.blender_log import blender_output_captured
 
     ui.register()
     try:

@@ -32,7 +32,8 @@ from ..core.optics.sensor import MAX_SHUTTER_FRAMES
 from .cameras import CLIP_START_M, EEVEE_CLIP_START_M, probe_cameras
 from .compat import ensure_node_tree, new_world
 from .compat import BLENDER_ENGINES
-from .session import blender_output_captured, use_device
+from .blender_log import blender_output_captured
+from .session import use_device
 
 VIEWS = (("left", "_L"), ("right", "_R"))
 

@@ -2,17 +2,13 @@
 
 from __future__ import annotations
 
-import contextlib
-import os
-import sys
-import tempfile
-
 import bpy  # first: it puts Blender's own modules (addon_utils) on the path
 
 import addon_utils  # noqa: E402
 
 from ..core.config.render import DEVICES, ENGINES, GPU_BACKENDS
 from ..core.errors import InputError
+from .blender_log import blender_output_captured
 from .compat import BLENDER_ENGINES
 
 # Blender's name for each engine the render options allow, but the raycast engine, which runs
@@ -56,37 +52,3 @@ def use_device(scene: bpy.types.Scene, device: str = "CPU") -> str:
             scene.cycles.device = "GPU"
             return f"GPU ({backend}: {', '.join(d.name for d in gpus)})"
     return "CPU"
-
-
-@contextlib.contextmanager
-def blender_output_captured(kept: list | None = None):
-    """Keep Blender's per-frame log lines ("Fra: ...", "Saved: '...exr'") off the terminal.
-
-    Blender writes them to file descriptor 1 from C, below Python's ``sys.stdout``, so the
-    descriptor itself is pointed at a temporary file for the call; should the render fail,
-    the last lines of that log go into the error. ``kept``: a list that gets what was written,
-    as text, for a caller that passes some of it on.
-    """
-    sys.stdout.flush()
-    try:
-        saved = os.dup(1)
-    except OSError:  # no descriptor 1 (a GUI without a console): nothing to keep quiet
-        yield
-        return
-    with tempfile.TemporaryFile(prefix="scanner-blender-log-") as log:
-        os.dup2(log.fileno(), 1)
-        try:
-            yield
-        except Exception as exc:
-            os.dup2(saved, 1)
-            log.seek(0)
-            tail = log.read()[-2000:].decode(errors="replace").strip()
-            if tail:
-                exc.add_note("Blender's log ended with:\n" + tail)
-            raise
-        finally:
-            os.dup2(saved, 1)
-            os.close(saved)
-            if kept is not None:
-                log.seek(0)
-                kept.append(log.read().decode(errors="replace"))
