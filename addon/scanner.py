@@ -415,8 +415,7 @@ class Scanner:
             float(self.config.waypoints.table_rad[0]) if len(self.config.waypoints) else 0.0)
         where = ("at the start pose (the config's [robot] start_deg)" if at_start and self.config.q_start is not None
                  else "at the start pose" if at_start else "where the robot stands now")
-        how = "touches" if hit.distance_mm <= 0 else f"comes within {hit.distance_mm:.2f} mm of"
-        raise CollisionError(f"{what}: {where} the {hit.body_a} {how} the {hit.body_b} (at least "
+        raise CollisionError(f"{what}: {where} {here.in_words(hit)} (at least "
                              f"{self.config.safety.min_clearance_mm:g} mm allowed), and no motion starts from a "
                              f"colliding pose: give a start pose that keeps the robot and probe clear of the part")
 

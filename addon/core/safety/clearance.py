@@ -114,13 +114,6 @@ class PathClearance:
                 a, b = int(segment[first.frame]) + 1, int(segment[last.frame]) + 1
                 frames += f" (path[{a}])" if a == b else f" (path[{a}] to path[{b}])"
             where = f"at {frames}" if float(first.position).is_integer() else f"moving to {frames}"
-        # The nearest the run comes, not where it starts: a probe that dives into the part
-        # first passes the limit at about the limit.
-        # (to 2 decimals a breach of 1.9999 mm read "within 2.00 mm", the limit it breached)
-        shown = f"{worst.distance_mm:.2f}"
-        if float(shown) >= self.min_clearance_mm > worst.distance_mm:
-            shown = f"{worst.distance_mm:.6g}"
-        how = ("touches" if worst.distance_mm <= 0 else f"comes within {shown} mm of")
         # Over a run of frames, the one to look at first: where the two come nearest (or overlap most).
         nearest_at = ""
         if first.frame != last.frame and worst.frame >= 0:
@@ -133,8 +126,19 @@ class PathClearance:
             # table scanned the same path once started elbow up).
             allowed += ("; the arm itself is in the way: another posture may clear it (IK takes the branch nearest "
                         "the joints it starts from: [robot] start_deg in a config)")
-        return (f"{where}: {_the(self.label(first.body_a))} {how} {_the(self.label(first.body_b))}{nearest_at}; "
-                f"{allowed}")
+        # The nearest the run comes, not where it starts: a probe that dives into the part
+        # first passes the limit at about the limit.
+        return f"{where}: {self.in_words(first, worst.distance_mm)}{nearest_at}; {allowed}"
+
+    def in_words(self, c: Contact, distance_mm: float | None = None) -> str:
+        """A contact in a sentence, "the probe touches the workpiece" or "link 3 comes within
+        1.20 mm of the table", at ``distance_mm`` (its own where not given)."""
+        d = c.distance_mm if distance_mm is None else distance_mm
+        shown = f"{d:.2f}"
+        if float(shown) >= self.min_clearance_mm > d:
+            shown = f"{d:.6g}"  # (to 2 decimals a breach of 1.9999 mm read "within 2.00 mm", the limit)
+        how = "touches" if d <= 0 else f"comes within {shown} mm of"
+        return f"{_the(self.label(c.body_a))} {how} {_the(self.label(c.body_b))}"
 
     def robot_pair(self, c: Contact) -> bool:
         """Both bodies are the robot's (links, base, probe)."""
