@@ -3,7 +3,7 @@
 Usage (from the repository root, with any Python 3; set-up finds CPython 3.13)::
 
     python3 -m headless.bootstrap demo            # set up, then: python -m headless demo
-    python3 -m headless.bootstrap test [ARGS]     # set up, then: python -m pytest [ARGS]
+    python3 -m headless.bootstrap test [ARGS]     # set up, then: python -m pytest [ARGS] on every CPU (up to 4)
     python3 -m headless.bootstrap ANY ARGS        # set up, then: python -m headless ANY ARGS
     python3 -m headless.bootstrap blender-env 4.5 # set up a bare bpy of that Blender, print its python
 
@@ -279,7 +279,7 @@ def main(argv: list[str]) -> int:
     ensure_venv()
     py = str(venv_python())
     if argv[0] == "test":
-        rc = run_in_foreground([py, "-m", "pytest", *argv[1:]])
+        rc = run_in_foreground([py, "-m", "pytest", *spread_over_cpus(argv[1:])])
         if rc == PYTEST_NO_TESTS:
             print("[test] pytest collected no tests for this selection; nothing failed", flush=True)
             return 0
@@ -292,6 +292,20 @@ def main(argv: list[str]) -> int:
     os.chdir(REPO)
     os.execv(py, [py, "-m", "headless", *argv])
     return 1  # not reached
+
+
+# The suite's test files spread over the CPUs (pytest-xdist), each file on one worker so
+# that its module fixtures (a built extension, a calibration's renders) are made once; at
+# most SUITE_WORKERS workers, each of which may hold a Blender and its renders in memory.
+SUITE_WORKERS = 4
+
+
+def spread_over_cpus(args: list[str]) -> list[str]:
+    """pytest's arguments with the workers added, unless they choose their own (``-n 0``
+    runs the suite in one process) or debug (``--pdb`` needs the terminal)."""
+    if any(a in ("--pdb", "--trace", "no:xdist") or a.startswith(("-n", "--numprocesses")) for a in args):
+        return list(args)
+    return [*args, "-n", "auto", "--maxprocesses", str(SUITE_WORKERS), "--dist", "loadfile"]
 
 
 def run_in_foreground(cmd: list[str]) -> int:

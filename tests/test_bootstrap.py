@@ -59,6 +59,21 @@ def test_no_tests_collected_is_not_a_failure(fake_repo, monkeypatch):
     assert bootstrap.main(["test", "-k", "nothing_matches"]) == 0
 
 
+@pytest.mark.parametrize("args, spread", [
+    ((), True), (("tests/core", "-k", "ik"), True), (("-n", "0"), False), (("-n3",), False),
+    (("--numprocesses=2",), False), (("--pdb",), False), (("-p", "no:xdist"), False),
+])
+def test_the_suite_is_spread_over_the_cpus_unless_the_arguments_choose(fake_repo, monkeypatch, args, spread):
+    ran = []
+    monkeypatch.setattr(bootstrap, "ensure_python", lambda: None)
+    monkeypatch.setattr(bootstrap, "run_in_foreground", lambda cmd: ran.append(cmd) or 0)
+    assert bootstrap.main(["test", *args]) == 0
+    pytest_args = ran[0][ran[0].index("pytest") + 1:]
+    assert pytest_args[:len(args)] == list(args)
+    assert ("--dist" in pytest_args and "loadfile" in pytest_args) == spread, pytest_args
+    assert pytest_args.count("-n") + sum(a.startswith("-n") and a != "-n" for a in pytest_args) <= 1
+
+
 def test_a_child_in_the_foreground_gets_the_ctrl_c_and_its_exit_code_comes_back():
     # The terminal's Ctrl-C reaches parent and child alike; the parent must neither die of it
     # nor kill the child, which stops in its own time and whose exit code comes back.
