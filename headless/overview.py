@@ -119,7 +119,13 @@ def _with_scan(args, scene, render_overview) -> int:
         cloud = bpy.data.objects["Scan cloud"]
         cloud.modifiers["Points"].node_group.nodes["Mesh to Points"].inputs["Radius"].default_value = 0.0009
         focus = [o for o in sc.root.all_objects if o.name == "Turntable"]
-        scene.frame_set(scene.frame_end)
+        # The probe's panes show the scan's last frame. The panel put the robot back where it
+        # stood before the scan, which a raycast scan never moved from: its panes were blank.
+        from addon.core.config.scan import parse_frames
+        from addon.core.scan.plan import plan_scan
+
+        scanned = plan_scan(cfg.with_overrides(frames=parse_frames(args.frames, "--frames")))
+        sc.pose(scanned.q[-1], float(scanned.table_rad[-1]))
         path = render_overview(sc, Path(args.out), args.width, args.height, args.samples, focus=focus,
                                before_write=_stop_check(args))
     finally:

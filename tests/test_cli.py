@@ -155,6 +155,24 @@ def test_overview_with_a_scan_keeps_the_scans_files_beside_the_picture(tmp_path)
 
 
 @needs_bpy
+def test_overview_with_a_raycast_scan_shows_the_line_in_the_probes_panes(tmp_path):
+    # (the panel put the robot back where it stood before the scan, which a raycast scan never
+    # moved from: the panes were blank)
+    import cv2
+
+    demo = (Path(REPO) / "rigs" / "scenes" / "demo.toml").read_text()
+    assert 'engine = "cycles"' in demo
+    (tmp_path / "rc.toml").write_text(demo.replace('engine = "cycles"', 'engine = "raycast"'))
+    out = run_cli("overview", "--scan", str(tmp_path / "rc.toml"), "--frames", "0:3", "--out",
+                  str(tmp_path / "cell.png"), "--width", "240", "--height", "160", "--samples", "1")
+    assert out.returncode == 0, out.stderr[-2000:]
+    img = cv2.imread(str(tmp_path / "cell.png"))
+    assert img.shape == (160, 240 + 80, 3)
+    right = img[:, 240:].astype(int)
+    assert (right[..., 2] - right[..., 1]).max() > 100  # the red laser line shows in the probe images
+
+
+@needs_bpy
 @pytest.mark.parametrize("args, said", [
     (("--samples", "128", "--width", "800", "--height", "600"), "interrupted (Ctrl-C) before the first picture"),
     (("--scan", "demo", "--frames", "0:180", "--samples", "4", "--width", "320", "--height", "240"),
