@@ -301,11 +301,17 @@ SUITE_WORKERS = 4
 
 
 def spread_over_cpus(args: list[str]) -> list[str]:
-    """pytest's arguments with the workers added, unless they choose their own (``-n 0``
-    runs the suite in one process) or debug (``--pdb`` needs the terminal)."""
-    if any(a in ("--pdb", "--trace", "no:xdist") or a.startswith(("-n", "--numprocesses")) for a in args):
+    """pytest's arguments with a worker per CPU this process may use added (its affinity
+    mask: a batch job's share, not the node's count), unless there is one CPU, or the
+    arguments choose their own (``-n 0`` runs the suite in one process) or debug (``--pdb``
+    needs the terminal)."""
+    from addon.core.machine import usable_cpus  # (standard library only, as here)
+
+    workers = min(SUITE_WORKERS, usable_cpus())
+    if workers < 2 or any(a in ("--pdb", "--trace", "no:xdist") or a.startswith(("-n", "--numprocesses"))
+                          for a in args):
         return list(args)
-    return [*args, "-n", "auto", "--maxprocesses", str(SUITE_WORKERS), "--dist", "loadfile"]
+    return [*args, "-n", str(workers), "--dist", "loadfile"]
 
 
 def run_in_foreground(cmd: list[str]) -> int:

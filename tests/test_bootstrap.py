@@ -64,7 +64,10 @@ def test_no_tests_collected_is_not_a_failure(fake_repo, monkeypatch):
     (("--numprocesses=2",), False), (("--pdb",), False), (("-p", "no:xdist"), False),
 ])
 def test_the_suite_is_spread_over_the_cpus_unless_the_arguments_choose(fake_repo, monkeypatch, args, spread):
+    import addon.core.machine
+
     ran = []
+    monkeypatch.setattr(addon.core.machine, "usable_cpus", lambda: 2)
     monkeypatch.setattr(bootstrap, "ensure_python", lambda: None)
     monkeypatch.setattr(bootstrap, "run_in_foreground", lambda cmd: ran.append(cmd) or 0)
     assert bootstrap.main(["test", *args]) == 0
@@ -72,6 +75,20 @@ def test_the_suite_is_spread_over_the_cpus_unless_the_arguments_choose(fake_repo
     assert pytest_args[:len(args)] == list(args)
     assert ("--dist" in pytest_args and "loadfile" in pytest_args) == spread, pytest_args
     assert pytest_args.count("-n") + sum(a.startswith("-n") and a != "-n" for a in pytest_args) <= 1
+    assert pytest_args[pytest_args.index("-n") + 1] == "2" if spread else True
+
+
+@pytest.mark.parametrize("cpus, workers", [(1, None), (3, "3"), (64, "4")])
+def test_the_suite_takes_a_worker_per_usable_cpu_up_to_four(fake_repo, monkeypatch, cpus, workers):
+    import addon.core.machine
+
+    ran = []
+    monkeypatch.setattr(addon.core.machine, "usable_cpus", lambda: cpus)
+    monkeypatch.setattr(bootstrap, "ensure_python", lambda: None)
+    monkeypatch.setattr(bootstrap, "run_in_foreground", lambda cmd: ran.append(cmd) or 0)
+    assert bootstrap.main(["test"]) == 0
+    got = ran[0][ran[0].index("-n") + 1] if "-n" in ran[0] else None
+    assert got == workers, ran[0]
 
 
 def test_a_child_in_the_foreground_gets_the_ctrl_c_and_its_exit_code_comes_back():
