@@ -390,6 +390,20 @@ def quality_failure(report: dict, max_rms_um: float | None, min_coverage: float 
     return None
 
 
+def clearance_where(nearest: dict, frames: int) -> str:
+    """Where the report's nearest contact lies, in words: "at frame 12", or on the way there;
+    the start pose; or, in a Scanner session, a move after the last frame, where no frame was
+    taken (its number is the frame it would have been)."""
+    frame, position = nearest["frame"], nearest["position"]
+    if position <= -1:
+        return "at the start pose"
+    if position < 0:
+        return "moving from the start pose to frame 0"
+    if frame >= frames:
+        return "on a move after the last frame" if frames else "on a move before any frame"
+    return f"at frame {frame}" if float(position).is_integer() else f"moving to frame {frame}"
+
+
 def print_summary(result, wall: float) -> None:
     """The scan's summary on stdout: points, error, coverage, clearance, drops, time, speed, files."""
     r = result.report
@@ -417,8 +431,8 @@ def print_summary(result, wall: float) -> None:
     if r.get("clearance") is None and any(w.startswith("collision checks were off") for w in r.get("warnings", [])):
         print("  clearance     not checked ([safety] check = false)")
     if c:
-        print(f"  clearance     {c['clearance_mm']:.1f} mm at least, {c['bodies'][0]} to {c['bodies'][1]} at frame "
-              f"{c['frame']} (at least {r['clearance']['min_clearance_mm']:g} mm allowed)")
+        print(f"  clearance     {c['clearance_mm']:.1f} mm at least, {c['bodies'][0]} to {c['bodies'][1]} "
+              f"{clearance_where(c, r['frames'])} (at least {r['clearance']['min_clearance_mm']:g} mm allowed)")
     ts = r["time_s"]
     dropped = ", ".join(f"{name.replace('_', ' ')} {count}" for name, count in sorted(r["points_dropped"].items())
                         if count)

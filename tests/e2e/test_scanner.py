@@ -747,3 +747,24 @@ def test_the_scanners_unit_refusal_leads_to_a_part_it_takes(tmp_path):
     assert re.search("resting_on_table", str(pytest.raises(InputError, Scanner,
                                                           workpiece=load_workpiece(tmp_path / "m.stl",
                                                                                    scale=1000.0)).value))
+
+
+def test_the_summary_names_a_nearest_contact_on_a_move_after_the_last_frame(tmp_path, capsys):
+    """The probe moved nearer the part after its last frame, and nothing measured there: the
+    summary named "frame 6" of a session of frames 0-5."""
+    import trimesh
+
+    from headless.scan import print_summary
+
+    s = Scanner.from_config("demo", engine="raycast")
+    s.sweep([-30.0, 0.0, 210.0], [30.0, 0.0, 210.0], 6)
+    s.move_to(([0.0, 0.0, 150.0], [90.0, 180.0, 0.0]))
+    # the truth: the probe's origin comes 60 mm nearer the 30 mm sphere than on the sweep
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=30.0)
+    sphere.apply_translation((0.0, 0.0, 30.0))
+    assert abs(sphere.nearest.signed_distance([s.pose()[:3, 3]])[0]) < 125.0
+    report = s.report().to_dict()
+    assert report["clearance"]["nearest"]["frame"] == report["frames"] == 6
+    print_summary(s.result(tmp_path / "out"), 1.0)
+    line = [ln for ln in capsys.readouterr().out.splitlines() if ln.strip().startswith("clearance")][0]
+    assert "on a move after the last frame" in line and "frame 6" not in line, line
