@@ -376,7 +376,7 @@ class Scanner:
         """Collision checks on the motion from the current joints and table angle to these."""
         found = self._check_path(q[None, :], np.array([table_rad]), "move")
         if found is not None:  # the pose moved to: where the next frame will be taken
-            self._clearances.append(found.shifted(self.frames_taken))
+            self._clearances.append(found.shifted(self.frames_taken, move=True))
 
     def _check_path(self, q: np.ndarray, table_rad: np.ndarray, what: str = "sweep", record: bool = True):
         """Collision checks on the motion from the current joints and table angle through q (n, 6):

@@ -279,7 +279,12 @@ def main(argv: list[str]) -> int:
     ensure_venv()
     py = str(venv_python())
     if argv[0] == "test":
-        rc = run_in_foreground([py, "-m", "pytest", *spread_over_cpus(argv[1:])])
+        args = spread_over_cpus(argv[1:])
+        rc = run_in_foreground([py, "-m", "pytest", *args])
+        if rc == PYTEST_NO_TESTS and args != argv[1:]:
+            # Spread, pytest says "no tests ran" of a path that does not exist too: collected
+            # again in one process, such a path is the usage error it is (exit 4).
+            rc = run_in_foreground([py, "-m", "pytest", "--collect-only", "-q", *argv[1:]])
         if rc == PYTEST_NO_TESTS:
             print("[test] pytest collected no tests for this selection; nothing failed", flush=True)
             return 0
@@ -303,13 +308,23 @@ SUITE_WORKERS = 4
 def spread_over_cpus(args: list[str]) -> list[str]:
     """pytest's arguments with a worker per CPU this process may use added (its affinity
     mask: a batch job's share, not the node's count), unless there is one CPU, or the
-    arguments choose their own (``-n 0`` runs the suite in one process) or debug (``--pdb``
-    needs the terminal)."""
+    arguments (or PYTEST_ADDOPTS) choose their own workers or distribution (``-n 0`` runs
+    the suite in one process, ``-p no:xdist`` leaves xdist out), or want the terminal
+    (``--pdb``, ``--trace``; ``-s``, whose output workers would keep)."""
+    import shlex
+
     from addon.core.machine import usable_cpus  # (standard library only, as here)
 
     workers = min(SUITE_WORKERS, usable_cpus())
-    if workers < 2 or any(a in ("--pdb", "--trace", "no:xdist") or a.startswith(("-n", "--numprocesses"))
-                          for a in args):
+    try:
+        added = shlex.split(os.environ.get("PYTEST_ADDOPTS", ""))
+    except ValueError:  # (pytest itself will say what is wrong with it)
+        added = []
+    for a in [*args, *added]:
+        if (a in ("--pdb", "--trace", "-s", "--capture=no", "-d", "--tx") or a.endswith("no:xdist")
+                or a.startswith(("-n", "--numprocesses", "--dist", "--tx="))):
+            return list(args)
+    if workers < 2:
         return list(args)
     return [*args, "-n", str(workers), "--dist", "loadfile"]
 

@@ -61,7 +61,8 @@ def test_no_tests_collected_is_not_a_failure(fake_repo, monkeypatch):
 
 @pytest.mark.parametrize("args, spread", [
     ((), True), (("tests/core", "-k", "ik"), True), (("-n", "0"), False), (("-n3",), False),
-    (("--numprocesses=2",), False), (("--pdb",), False), (("-p", "no:xdist"), False),
+    (("--numprocesses=2",), False), (("--pdb",), False), (("-p", "no:xdist"), False), (("-pno:xdist",), False),
+    (("-s",), False), (("--dist", "load"), False), (("--dist=worksteal",), False),
 ])
 def test_the_suite_is_spread_over_the_cpus_unless_the_arguments_choose(fake_repo, monkeypatch, args, spread):
     import addon.core.machine
@@ -76,6 +77,34 @@ def test_the_suite_is_spread_over_the_cpus_unless_the_arguments_choose(fake_repo
     assert ("--dist" in pytest_args and "loadfile" in pytest_args) == spread, pytest_args
     assert pytest_args.count("-n") + sum(a.startswith("-n") and a != "-n" for a in pytest_args) <= 1
     assert pytest_args[pytest_args.index("-n") + 1] == "2" if spread else True
+
+
+def test_pytest_addopts_that_choose_workers_are_kept(fake_repo, monkeypatch):
+    import addon.core.machine
+
+    monkeypatch.setattr(addon.core.machine, "usable_cpus", lambda: 2)
+    monkeypatch.setenv("PYTEST_ADDOPTS", "-p no:xdist")
+    assert bootstrap.spread_over_cpus(["tests/core"]) == ["tests/core"]
+    monkeypatch.setenv("PYTEST_ADDOPTS", "-x")
+    assert "-n" in bootstrap.spread_over_cpus(["tests/core"])
+
+
+def test_a_path_that_does_not_exist_fails_spread_or_not(fake_repo, monkeypatch):
+    """Spread over workers, pytest says "no tests ran" (exit 5) of a missing path, which the
+    test command took for a selection without tests and passed (a review)."""
+    import addon.core.machine
+
+    ran = []
+
+    def pytest_says(cmd):
+        ran.append(cmd)
+        return 5 if "-n" in cmd else 4  # as pytest 9 with xdist 3.8 answer a missing path
+
+    monkeypatch.setattr(addon.core.machine, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(bootstrap, "ensure_python", lambda: None)
+    monkeypatch.setattr(bootstrap, "run_in_foreground", pytest_says)
+    assert bootstrap.main(["test", "tests/renamed.py"]) == 4
+    assert "--collect-only" in ran[1] and "-n" not in ran[1]
 
 
 @pytest.mark.parametrize("cpus, workers", [(1, None), (3, "3"), (64, "4")])

@@ -3,7 +3,7 @@
 Blender writes its log ("Fra: ...", "Saved: '...exr'", Cycles' "CUEW initialization failed",
 the colour management's "Using OCIO=..." when the OCIO variable is set) from C, below
 Python's ``sys.stdout``; a command whose stdout is its report must not carry it. This module
-does not import bpy: the package imports bpy through it.
+needs nothing of Blender's itself: the package's ``__init__`` imports bpy through it.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ def blender_output_captured(kept: list | None = None):
     the last lines of that log go into the error. ``kept``: a list that gets what was written,
     as text, for a caller that passes some of it on.
     """
-    sys.stdout.flush()
+    if sys.stdout is not None:  # (None with stdout closed: a daemon's, a cron job's)
+        sys.stdout.flush()
     try:
         saved = os.dup(1)
     except OSError:  # no descriptor 1 (a GUI without a console): nothing to keep quiet

@@ -751,7 +751,8 @@ def test_the_scanners_unit_refusal_leads_to_a_part_it_takes(tmp_path):
 
 def test_the_summary_names_a_nearest_contact_on_a_move_after_the_last_frame(tmp_path, capsys):
     """The probe moved nearer the part after its last frame, and nothing measured there: the
-    summary named "frame 6" of a session of frames 0-5."""
+    summary named "frame 6" of a session of frames 0-5; and, once frame 6 was taken elsewhere,
+    "at frame 6" (a review)."""
     import trimesh
 
     from headless.scan import print_summary
@@ -768,3 +769,9 @@ def test_the_summary_names_a_nearest_contact_on_a_move_after_the_last_frame(tmp_
     print_summary(s.result(tmp_path / "out"), 1.0)
     line = [ln for ln in capsys.readouterr().out.splitlines() if ln.strip().startswith("clearance")][0]
     assert "on a move after the last frame" in line and "frame 6" not in line, line
+    # a sweep after it: frame 6 is now taken, at the sweep's start, which the move never reached
+    s.sweep([-30.0, 0.0, 210.0], [30.0, 0.0, 210.0], 3)
+    print_summary(s.result(tmp_path / "out2"), 1.0)
+    line = [ln for ln in capsys.readouterr().out.splitlines() if ln.strip().startswith("clearance")][0]
+    # (the move's 90 mm from the sphere, the probe's origin to its top, less the housing's reach)
+    assert float(line.split()[1]) < 90.0 and "on a move before frame 6" in line, line

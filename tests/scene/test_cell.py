@@ -251,3 +251,17 @@ def test_looking_for_a_gpu_writes_nothing_to_standard_output(scene, capfd):
     assert out == "", out
     scene.cycles.device = "CPU"
     assert used == "CPU" or used.startswith("GPU (CUDA")
+
+
+def test_a_script_with_its_stdout_closed_still_starts_blender():
+    """A daemon's or cron job's script has no stdout: the start of Blender, whose log is kept
+    off stdout, flushed a sys.stdout that is None (a review)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = "from addon.scene.session import new_scene; new_scene(); import sys; sys.stderr.write('started')"
+    run = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).resolve().parents[2],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, close_fds=True,
+                         preexec_fn=lambda: __import__("os").close(1))
+    assert run.returncode == 0 and run.stderr.endswith("started"), run.stderr[-800:]

@@ -1518,21 +1518,21 @@ def test_the_table_angle_of_another_scene_leaves_this_cell_alone(panel):
         bpy.data.scenes.remove(other)
 
 
-def test_probe_views_at_a_negative_frame_are_refused_in_one_line(panel):
+def test_probe_views_at_a_negative_frame_are_refused_in_one_line(panel, tmp_path, monkeypatch):
     # (Blender rendered frame 0, the files of frame -5 were not found: a traceback, and a
-    # temporary folder of images left behind)
-    import glob
+    # temporary folder of images left behind). The temporary folders go to this test's own
+    # folder: other test files' renders come and go in the system's meanwhile.
     import tempfile
 
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     bpy.ops.scanner.build_cell()
-    before = set(glob.glob(f"{tempfile.gettempdir()}/scanner-render-*"))
     panel.frame_set(-5)
     try:
         with pytest.raises(RuntimeError, match="Blender renders frames from 0 on"):
             bpy.ops.scanner.render_views()
     finally:
         panel.frame_set(1)
-    assert set(glob.glob(f"{tempfile.gettempdir()}/scanner-render-*")) == before
+    assert list(tmp_path.glob("scanner-render-*")) == []
 
 
 def test_panel_paths_expand_the_home_folder_and_calibrate_refuses_a_folder_of_an_unsaved_file(panel):

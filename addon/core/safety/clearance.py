@@ -47,6 +47,9 @@ class Contact:
     position: float
     point_a: tuple = (math.nan, math.nan, math.nan)
     point_b: tuple = (math.nan, math.nan, math.nan)
+    # A Scanner's move (move_to, turn_table) between frames: ``position`` is then the frame the
+    # next measurement takes, which the move does not reach (a sweep moves on from it).
+    on_move: bool = False
 
     @property
     def frame(self) -> int:
@@ -57,9 +60,12 @@ class Contact:
         def xyz(p):
             return [None if not math.isfinite(v) else round(float(v), 3) for v in p]
 
-        return {"clearance_mm": round(float(self.distance_mm), 4), "bodies": [self.body_a, self.body_b],
-                "frame": self.frame, "position": round(float(self.position), 4),
-                "points_mm": [xyz(self.point_a), xyz(self.point_b)]}
+        out = {"clearance_mm": round(float(self.distance_mm), 4), "bodies": [self.body_a, self.body_b],
+               "frame": self.frame, "position": round(float(self.position), 4),
+               "points_mm": [xyz(self.point_a), xyz(self.point_b)]}
+        if self.on_move:
+            out["on_move"] = True
+        return out
 
 
 @dataclass
@@ -150,11 +156,12 @@ class PathClearance:
         """A body's name for people: a URDF link's own name beside its number."""
         return self.labels.get(body, body)
 
-    def shifted(self, frames: int) -> "PathClearance":
+    def shifted(self, frames: int, move: bool = False) -> "PathClearance":
         """This check with its path positions counted ``frames`` on (a step-by-step scan's move
-        or sweep, its frames numbered from 0, placed among the frames taken before it)."""
+        or sweep, its frames numbered from 0, placed among the frames taken before it); ``move``:
+        a move between frames, its contacts marked ``on_move``."""
         def on(c: Contact) -> Contact:
-            return replace(c, position=c.position + frames)
+            return replace(c, position=c.position + frames, on_move=c.on_move or move)
 
         return replace(self, nearest={k: on(c) for k, c in self.nearest.items()},
                        collisions=[(on(a), on(b)) for a, b in self.collisions], deepest=[on(c) for c in self.deepest])
