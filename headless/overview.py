@@ -122,10 +122,11 @@ def _with_scan(args, scene, render_overview) -> int:
         # The probe's panes show the scan's last frame. The panel put the robot back where it
         # stood before the scan, which a raycast scan never moved from: its panes were blank.
         from addon.core.config.scan import parse_frames
-        from addon.core.scan.plan import plan_scan
+        from addon.core.kinematics.path import solve_path
 
-        scanned = plan_scan(cfg.with_overrides(frames=parse_frames(args.frames, "--frames")))
-        sc.pose(scanned.q[-1], float(scanned.table_rad[-1]))
+        scanned = cfg.with_overrides(frames=parse_frames(args.frames, "--frames"))
+        sc.pose(solve_path(scanned.cell, scanned.waypoints, scanned.q_start).q[-1],
+                float(scanned.waypoints.table_rad[-1]))
         path = render_overview(sc, Path(args.out), args.width, args.height, args.samples, focus=focus,
                                before_write=_stop_check(args))
     finally:

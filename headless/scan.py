@@ -391,19 +391,13 @@ def quality_failure(report: dict, max_rms_um: float | None, min_coverage: float 
 
 
 def clearance_where(nearest: dict, frames: int) -> str:
-    """Where the report's nearest contact lies, in words: "at frame 12", or on the way there;
-    the start pose; or, in a Scanner session, a move between frames or after the last one
-    (its number is the frame the next measurement takes, which the move does not reach)."""
-    frame, position = nearest["frame"], nearest["position"]
-    if nearest.get("on_move"):  # a Scanner's move between frames: no frame is taken where it goes
-        return f"on a move before frame {frame}" if frame < frames else "on a move after the last frame"
-    if position <= -1:
-        return "at the start pose"
-    if position < 0:
-        return "moving from the start pose to frame 0"
-    if frame >= frames:
-        return "on a move after the last frame" if frames else "on a move before any frame"
-    return f"at frame {frame}" if float(position).is_integer() else f"moving to frame {frame}"
+    """Where the report's nearest contact lies, in words: "at frame 12" (it is looked for at the
+    path's waypoints), or, in a Scanner session, on a move between frames or after the last one
+    (its frame is the one the next measurement takes, which the move does not reach)."""
+    frame = nearest["frame"]
+    if not nearest.get("on_move"):
+        return f"at frame {frame}"
+    return f"on a move before frame {frame}" if frame < frames else "on a move after the last frame"
 
 
 def print_summary(result, wall: float) -> None:

@@ -20,11 +20,11 @@ TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2"
          "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
          "int64": "i8", "uint64": "u8", "float16": "f2", "half": "f2",
          "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+MAX_HEADER_BYTES = 1 << 16
 
 
 class _NotOurs(Exception):
     """A header this reader does not know (a property type of its own): trimesh reads the file."""
-MAX_HEADER_BYTES = 1 << 16
 
 
 def _header(data: bytes, path: Path) -> tuple[str, list, int]:
