@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from headless.bench import whole
+from headless.preflight import frames_argument
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="first run this scan through the Scanner panel's operator and show the imported "
                              "cloud, framed on the table; the scan's files go beside the picture, in a folder "
                              "named after it with -scan (default out/cell_overview-scan/CONFIG NAME/)")
-    parser.add_argument("--frames", default="", help="with --scan: part of the path, as A:B (default all)")
+    parser.add_argument("--frames", type=frames_argument, help="with --scan: part of the path, as A:B (default all)")
     parser.set_defaults(run=run)
 
 

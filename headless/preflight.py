@@ -86,6 +86,25 @@ def folder_argument(text: str) -> str:
     return text
 
 
+def frames_argument(text: str) -> str:
+    """argparse type of a ``--frames`` option: part of the path as A:B (checked as
+    ``parse_frames`` reads it), never empty (an unset shell variable, ``--frames "$PART"``,
+    scanned the whole path without a word)."""
+    import argparse
+
+    from addon.core.config.scan import parse_frames
+    from addon.core.errors import InputError
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty part of the path: give A:B (e.g. 0:40 or ::2), or leave "
+                                         "--frames out for the whole path")
+    try:
+        parse_frames(text, "")
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc).strip()) from None
+    return text
+
+
 def render_budget(config) -> RenderBudget:
     from addon.core.config.render import with_sensor
 

@@ -25,12 +25,12 @@ LARGE_MESH_FACES = 1_000_000  # a part this dense is said to take minutes beyond
 
 
 def add_arguments(parser: argparse.ArgumentParser, demo: bool = False) -> None:
-    from headless.preflight import folder_argument
+    from headless.preflight import folder_argument, frames_argument
 
     if not demo:
         parser.add_argument("config", help="scan config: a name under rigs/scenes/ or a path to a .toml file")
     parser.add_argument("--out", type=folder_argument, help="output folder (default: out/<config name>, with -<engine> added where --engine changes it)")
-    parser.add_argument("--frames", help="part of the path, as A:B (Python slice, e.g. 0:40 or ::2)")
+    parser.add_argument("--frames", type=frames_argument, help="part of the path, as A:B (Python slice, e.g. 0:40 or ::2)")
     from addon.core.config.render import DEVICES, ENGINES
     from addon.core.optics.detect import METHODS as DETECT_METHODS
 

@@ -17,6 +17,7 @@ import sys
 import tempfile
 from pathlib import Path
 from headless.bench import whole
+from headless.preflight import frames_argument
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -25,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("pythons", nargs="*", metavar="PYTHON",
                         help="interpreters to compare (default: this one); each needs bpy and the project's packages")
     parser.add_argument("--rounds", type=whole(), default=5, help="demo runs per interpreter; medians count (default 5)")
-    parser.add_argument("--frames", default=None, help="part of the demo path, as A:B:STEP (default: all 180)")
+    parser.add_argument("--frames", type=frames_argument, help="part of the demo path, as A:B:STEP (default: all 180)")
     parser.set_defaults(run=run)
 
 
