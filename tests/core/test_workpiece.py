@@ -1,6 +1,7 @@
 """Workpieces: one loader for every format, built-in shapes with exact truth, bad meshes refused."""
 
 import math
+from pathlib import Path
 import re
 
 import numpy as np
@@ -508,6 +509,44 @@ def test_a_binary_ply_with_n_gons_cut_short_says_so(tmp_path):
     _hex_prism_ply(tmp_path / "cut.ply", cut=7)
     with pytest.raises(InputError, match=r"cut.ply: the binary PLY holds fewer bytes than its header announces"):
         load_workpiece(tmp_path / "cut.ply")
+
+
+ASCII_TRIANGLE = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                  "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n10 0 0\n0 10 0\n3 0 1 2\n")
+
+
+@pytest.mark.parametrize("name, content, words", [
+    # Each said the reader's own exception: "IndexError: list index out of range",
+    # "KeyError: 'y'", "ValueError: Not a ply file!", or called a stray word a file cut short.
+    ("text.ply", b"hello world\n", "not a PLY file (a PLY begins with the word ply)"),
+    ("picture.ply", b"\x89PNG\r\n\x1a\n" + bytes(200), "not a PLY file"),
+    ("head.ply", ASCII_TRIANGLE.encode()[:60], "its PLY header never ends (the file ends inside it)"),
+    ("only_x.ply", ASCII_TRIANGLE.replace("property float y\n", "").replace("property float z\n", "")
+     .replace("0 0 0\n10 0 0\n0 10 0\n", "0\n10\n0\n").encode(),
+     "its vertices have no y or z (properties: x): a mesh's vertices need x, y and z"),
+    ("word.ply", ASCII_TRIANGLE.replace("10 0 0", "10 0 zz").encode(),
+     "line 11 holds 'zz' where the PLY's header announces numbers"),
+])
+def test_a_file_named_ply_that_is_no_ply_mesh_says_what_is_wrong(tmp_path, name, content, words):
+    (tmp_path / name).write_bytes(content)
+    with pytest.raises(InputError) as err:
+        load_workpiece(tmp_path / name)
+    assert words in str(err.value) and "Error:" not in str(err.value), str(err.value)
+
+
+def test_a_folder_named_as_a_mesh_is_called_a_folder(tmp_path):
+    (tmp_path / "part.stl").mkdir()  # it said "no such file"
+    with pytest.raises(InputError, match="part.stl: is a folder, not a mesh file"):
+        load_workpiece(tmp_path / "part.stl")
+
+
+def test_the_ascii_triangle_of_those_tests_loads():
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "ok.ply"
+        path.write_text(ASCII_TRIANGLE)
+        assert len(load_workpiece(path).mesh.faces) == 1
 
 
 @pytest.mark.parametrize("kind, size", [("sphere", dict(radius_mm=30.0)), ("sphere", dict(radius_mm=100.0)),

@@ -58,6 +58,49 @@ def _header(data: bytes, path: Path) -> tuple[str, list, int]:
     return order, elements, start
 
 
+def check_ply_header(path: str | Path) -> None:
+    """InputError naming what keeps a file named .ply from being a PLY mesh: it does not begin
+    with "ply", its header never ends (cut short), or its vertices lack x, y or z. (trimesh
+    said "IndexError: list index out of range" or "KeyError: 'y'" for these.)"""
+    path = Path(path)
+    with open(path, "rb") as fh:
+        data = fh.read(MAX_HEADER_BYTES)
+    if not data.startswith(b"ply"):
+        raise InputError(f"{path}: not a PLY file (a PLY begins with the word ply); is it another format, or "
+                         f"no mesh at all?")
+    end = data.find(b"end_header")
+    if end < 0:
+        where = ("the file ends inside it" if len(data) < MAX_HEADER_BYTES else
+                 f"no end_header in its first {MAX_HEADER_BYTES // 1024} KB")
+        raise InputError(f"{path}: its PLY header never ends ({where}): the file is cut short or damaged; export "
+                         f"it again")
+    names, in_vertex = [], False
+    for raw in data[:end].decode("ascii", "replace").splitlines():
+        words = raw.split()
+        if words[:1] == ["element"]:
+            in_vertex = len(words) > 1 and words[1] == "vertex"
+        elif words[:1] == ["property"] and in_vertex and len(words) >= 3:
+            names.append(words[-1])
+    missing = [c for c in "xyz" if c not in names]
+    if missing:
+        raise InputError(f"{path}: its vertices have no {' or '.join(missing)} "
+                         f"({'properties: ' + ', '.join(names) if names else 'no vertex element'}): a mesh's "
+                         f"vertices need x, y and z")
+
+
+def _first_non_number(data: bytes, at: int) -> tuple[int, str] | None:
+    """(line number, word) of the first word after the header (at byte ``at``) that is no
+    number, or None."""
+    first_line = data.count(b"\n", 0, at) + 1
+    for k, line in enumerate(data[at:].splitlines()):
+        for word in line.split():
+            try:
+                float(word)
+            except ValueError:
+                return first_line + k, word.decode("ascii", "replace")
+    return None
+
+
 def read_polygon_ply(path: str | Path):
     """(vertices (n, 3) float64, polygons: a list of index arrays) of a PLY; None where the file
     is not a PLY with vertices and faces this reads (trimesh's word stands then)."""
@@ -73,6 +116,10 @@ def read_polygon_ply(path: str | Path):
     try:
         got = _read(data, order, elements, at, path) if order else _read_ascii(data, elements, at, path)
     except (ValueError, IndexError):  # numpy's "buffer is smaller than requested size"; text cut short
+        odd = None if order else _first_non_number(data, at)
+        if odd is not None:
+            raise InputError(f"{path}: line {odd[0]} holds {odd[1]!r} where the PLY's header announces numbers; "
+                             f"export it again") from None
         what = "the binary PLY holds fewer bytes" if order else "the PLY's text holds fewer numbers"
         raise InputError(f"{path}: {what} than its header announces: the file is cut short; export it "
                          f"again") from None
