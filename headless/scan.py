@@ -359,10 +359,14 @@ def _scan_and_summarise(args: argparse.Namespace, config, out: str, farm: bool, 
         from addon import Scanner
 
         scanner = Scanner(config=config)
-        for _ in scanner.run_steps(progress):  # not run(): its report would come before a late stop is heard
-            pass
-        if stops is not None:
-            stops.finish()  # a stop asked for during the last frames: still nothing written; later: results first
+        # Not run(): its report would come before a late stop is heard. Once the last frame is
+        # measured (the bar says 100 %), a stop waits for the results: a stop while the cloud
+        # was put together after it threw the whole scan away.
+        for done, total in scanner.run_steps(progress):
+            if stops is not None and done >= total:
+                stops.finish()  # a stop asked for during the last frames: still nothing written
+        if stops is not None and not stops.finishing:
+            stops.finish()
         result = scanner.result(out)
     wall = time.perf_counter() - t
     print_summary(result, wall)

@@ -317,6 +317,39 @@ def test_a_benchmark_stopped_between_its_scans_says_so(capsys):
                                                "nothing written")
 
 
+LATE_STOP = """
+import os, signal, sys
+from addon.core.geometry import cloud
+own = cloud.CloudAccumulator.cloud
+
+
+def stopped_while_put_together(self):  # every frame measured, the bar at 100 %: then Ctrl-C
+    os.kill(os.getpid(), signal.SIGINT)
+    return own(self)
+
+
+cloud.CloudAccumulator.cloud = stopped_while_put_together
+from headless.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_stop_after_the_last_frame_is_measured_waits_for_the_results(tmp_path):
+    """A Ctrl-C just after the bar said 100 % threw the whole scan away ("interrupted after 3
+    of 3 frames: nothing written") while the docs promise that once every frame is measured a
+    stop waits for the results (a user hit it 2 times in 5)."""
+    script = tmp_path / "late_stop.py"
+    script.write_text(LATE_STOP)
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, str(script), "scan", "demo", "--engine", "raycast", "--frames", "0:3",
+                           "--out", str(out)], cwd=REPO, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(REPO)})
+    assert proc.returncode == 0, proc.stderr[-600:]
+    assert "every frame is measured, so the results are written first" in proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "preview.png", "report.json"]
+    assert json.loads((out / "report.json").read_text())["frames"] == 3
+
+
 def test_a_log_shows_each_stage_of_a_two_stage_run():
     """calibrate renders its board images, then its laser images: in a log (not a terminal)
     the second stage never showed, its count starting where the first had reached 100 %."""
