@@ -374,17 +374,23 @@ def table(rows: list[dict]) -> str:
         plan = (f"{r['plan_max']:.2f} / {r['plan_median']:.2f} s (set-up {r['setup']:.2f} s)"
                 if r["method"] in ADAPTIVE else "")
         estimate = f"{r['estimate'] * 100:.1f} %" if "estimate" in r else ""
-        reach = " | ".join(_reach_text(r.get(key)) for key in (("reach", "reach_yours") if theirs else ("reach",)))
+        reach = " | ".join(_reach_text(r.get(key), r["coverage"])
+                           for key in (("reach", "reach_yours") if theirs else ("reach",)))
         lines.append(f"| {r['part']} | {r['method']} | {r['profiles']} | {r['sweeps']} | {r['coverage'] * 100:.1f} % | "
                      f"{r['measurable'] * 100:.1f} % | {estimate} | {r['path_mm'] / 1000:.2f} m | {plan} | "
                      f"{r['rms']:.1f} | {reach} |")
     return "\n".join(lines)
 
 
-def _reach_text(reach) -> str:
+def _reach_text(reach, target: float) -> str:
+    """The profiles a planner needed to reach ``target``, and their share; "never" with the
+    two coverages to two decimals, which the table's one decimal may show equal (87.1 % and
+    "never" for 87.08 % against 87.11 %)."""
     if reach is None:
         return ""
-    return f"{reach[0]} profiles ({reach[1] * 100:.0f} %)" if reach[0] else "never"
+    if reach[0]:
+        return f"{reach[0]} profiles ({reach[1] * 100:.0f} %)"
+    return f"never ({reach[2] * 100:.2f} % at most, against {target * 100:.2f} %)"
 
 
 def growth_picture(mesh, planner: dict, path) -> None:
@@ -483,8 +489,9 @@ def run(args: argparse.Namespace) -> int:
             row = dict(part=name, method=method, **{k: v for k, v in r.items() if k != "curve"})
             for planner, key in (("planner", "reach"), ("yours", "reach_yours")):
                 if planner in methods and method != planner:
-                    got = reached_with(methods[planner]["curve"], r["coverage"])
-                    row[key] = (got, got / r["profiles"] if got else None)
+                    curve = methods[planner]["curve"]
+                    got = reached_with(curve, r["coverage"])
+                    row[key] = (got, got / r["profiles"] if got else None, max((c for _, c in curve), default=0.0))
             rows.append(row)
         print(f"{name}: " + "; ".join(f"{m} {r['coverage'] * 100:.1f} % in {r['profiles']} profiles"
                                       for m, r in methods.items()), flush=True)

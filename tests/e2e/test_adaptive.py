@@ -932,3 +932,20 @@ def test_a_few_noisy_table_points_are_not_taken_for_a_thin_parts_top():
             planner.learn(np.array([0.0, y, 250.0]), np.column_stack([x, np.full_like(x, y), z]))
         estimate = planner.coverage_estimate()
         assert (estimate == 0.0) if top < 0.5 else (estimate > 0.5), (top, estimate)
+
+
+def test_the_bench_table_says_how_far_a_planner_that_never_reached_a_coverage_fell_short():
+    """A row read "87.1 %" beside "never" for the planner that ended at 87.1 % too: the
+    coverages differed in the third digit. "never" now gives both to two decimals."""
+    from headless.bench.adaptive import reached_with, table
+
+    planner_curve = [(160, 0.639), (405, 0.87079)]
+    row = dict(method="yours", profiles=350, sweeps=3, coverage=0.87112, measurable=1.0, path_mm=500.0, rms=5.0,
+               plan_max=0.2, plan_median=0.1, setup=0.1)
+    got = reached_with(planner_curve, row["coverage"])
+    assert got is None
+    row["reach"] = (got, None, max(c for _, c in planner_curve))
+    text = table([dict(part="sphere", **row)])
+    assert "| 87.1 % |" in text and "never (87.08 % at most, against 87.11 %)" in text
+    row["reach"] = (405, 405 / 350, 0.9)
+    assert "405 profiles (116 %)" in table([dict(part="sphere", **row)])
