@@ -413,7 +413,9 @@ class Scanner:
         hit = here.first_collision[0]
         at_start = np.array_equal(self._q, self._start_joints()) and self._table_rad == (
             float(self.config.waypoints.table_rad[0]) if len(self.config.waypoints) else 0.0)
-        where = ("at the start pose (the config's [robot] start_deg)" if at_start and self.config.q_start is not None
+        # (a Scanner made without a config file has a start pose of its own, not a start_deg)
+        where = ("at the start pose (the config's [robot] start_deg)"
+                 if at_start and self.config.q_start is not None and self.config.source
                  else "at the start pose" if at_start else "where the robot stands now")
         raise CollisionError(f"{what}: {where} {here.in_words(hit)} (at least "
                              f"{self.config.safety.min_clearance_mm:g} mm allowed), and no motion starts from a "

@@ -670,3 +670,19 @@ def test_a_scan_with_the_checks_off_says_so(tmp_path, capsys):
     assert "clearance     not checked ([safety] check = false)" in out
     report = json.loads((tmp_path / "o" / "report.json").read_text())
     assert report["clearance"] is None and any(w.startswith("collision checks were off") for w in report["warnings"])
+
+
+def test_a_scanner_made_without_a_config_names_no_config_when_its_start_pose_collides(tmp_path):
+    """A Scanner given only a part (no config file) whose start pose puts the probe in a tall
+    part was told to mend "the config's [robot] start_deg", which it has none of; a config
+    file's own start pose still names its key."""
+    tall = trimesh.creation.box([300.0, 300.0, 400.0])
+    tall.apply_translation([0.0, 0.0, 200.0])
+    part = Workpiece("tall", tall, tall, "test tall box", np.eye(4))
+    with pytest.raises(CollisionError) as err:
+        Scanner(workpiece=part).adaptive(max_profiles=100)
+    assert "at the start pose the probe touches the workpiece" in str(err.value)
+    assert "config" not in str(err.value) and "start_deg" not in str(err.value)
+    cfg = replace(load_scan_config("demo"), workpiece=part)  # from a file: its start_deg is named
+    with pytest.raises(CollisionError, match=r"at the start pose \(the config's \[robot\] start_deg\)"):
+        Scanner(config=cfg).adaptive(max_profiles=100)
