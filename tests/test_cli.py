@@ -869,6 +869,8 @@ def test_bench_incidence_refuses_an_open_part_before_scanning(tmp_path):
     (("demo", "--frames", ""), "--frames: an empty part of the path"),
     (("bench", "versions", "--frames", ""), "--frames: an empty part of the path"),
     (("scan", "demo", "--frames", "0:9:0"), "--frames: '0:9:0': the step must be a whole number of at least 1"),
+    # A bundled scene's file name, as if it lay here: said "no such file" and nothing more.
+    (("scan", "demo.toml"), "demo.toml: no such file; the bundled scene 'demo' is named without .toml or a folder"),
     (("overview", "--out", "{tmp}"), "is a folder; give the name of the file to write"),
     (("overview", "--out", "{tmp}/newfolder/"), "is a folder; give the name of the file to write"),
     (("overview", "--out", "{tmp}/afile/x.png"), "afile is a file"),

@@ -36,7 +36,10 @@ def resolve_rig(kind: str, name_or_path: str | Path) -> Path:
         if p.is_dir():
             raise ConfigError(f"{p}: a folder, not a {what} file (.toml)")
         if not p.is_file():
-            raise ConfigError(f"{p}: no such file")
+            bundled = RIGS_DIR / kind / p.name
+            hint = (f"; the bundled {what} '{p.stem}' is named without .toml or a folder: {p.stem}"
+                    if p.suffix == ".toml" and bundled.is_file() and not p.is_absolute() else "")
+            raise ConfigError(f"{p}: no such file{hint}")
         return p
     candidate = RIGS_DIR / kind / f"{text}.toml"
     if candidate.is_file():
