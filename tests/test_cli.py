@@ -904,3 +904,20 @@ def test_the_ik_server_stopped_by_sigterm_exits_143():
         assert proc.wait(timeout=30) == 128 + signal.SIGTERM  # it said 130, as for Ctrl-C
     finally:
         proc.kill()
+
+
+def test_a_long_path_says_it_is_planned_first(tmp_path, monkeypatch, capsys):
+    """A path of a million frames was planned for over five minutes before the first progress
+    line, with nothing said. A long path now says so (the threshold lowered here to 3 frames)."""
+    import headless.scan
+    from headless import cli
+
+    code = cli.main(["scan", "demo", "--engine", "raycast", "--frames", "0:3", "--out", str(tmp_path / "a"),
+                     "--quiet"])
+    assert code == 0 and "planning the path first" not in capsys.readouterr().out
+    monkeypatch.setattr(headless.scan, "LONG_PLAN_FRAMES", 3)
+    code = cli.main(["scan", "demo", "--engine", "raycast", "--frames", "0:3", "--out", str(tmp_path / "b"),
+                     "--quiet"])
+    assert code == 0
+    assert "scan: planning the path first: inverse kinematics, reach and collision checks for each of its 3 " \
+           "frames" in capsys.readouterr().out
