@@ -155,7 +155,8 @@ def check_output_folder(folder: str | Path, names=(), what: str = "output folder
     where one of them goes. Nothing is left behind (a trial folder is made and removed)."""
     p = Path(folder)
     if p.exists() and not p.is_dir():
-        raise InputError(f"{what} {p} is a file; give a folder (it is made when missing)")
+        kind = "a file" if p.is_file() else _not_a_file(p)  # (/dev/null was called "a file")
+        raise InputError(f"{what} {p} is {kind}; give a folder (it is made when missing)")
     if p.is_symlink() and not p.exists():
         raise InputError(f"{what} {p} is a link to {os.readlink(p)}, which does not exist; make that folder first, "
                          f"or give another")

@@ -638,6 +638,7 @@ CASES = [
     ("option: --workers with --scheduler", demo("--workers", "2", "--scheduler", "tcp://127.0.0.1:1"), 2,
      "--workers N starts a local cluster of N workers and --scheduler uses a running one's: give one of them"),
     ("out: under /proc", demo("--out", "/proc/scanner-test/out"), 2, "--out /proc/scanner-test/out cannot be written"),
+    ("out: a device", demo("--out", "/dev/null"), 2, "--out /dev/null is a device; give a folder"),  # "is a file"
     ("out: cloud.ply is a folder", out_holds_folder("cloud.ply"), 2, "cloud.ply"),
     ("out: report.json is a folder", out_holds_folder("report.json"), 2, "report.json"),
     ("out: preview.png is a folder", out_holds_folder("preview.png"), 2, "preview.png"),
