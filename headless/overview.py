@@ -103,7 +103,7 @@ def _with_scan(args, scene, render_overview) -> int:
             # initialization failed" where no CUDA is installed): the report is passed on alone.
             try:
                 with blender_output_captured(told):
-                    bpy.ops.scanner.scan(frames=args.frames, output_dir=str(scan_folder(args.out)))
+                    bpy.ops.scanner.scan(frames=args.frames or "", output_dir=str(scan_folder(args.out)))  # "": all
             finally:
                 reported = [ln for ln in "".join(told).splitlines() if ln.startswith(("Info:", "Warning:"))]
                 if reported:

@@ -306,7 +306,7 @@ def _run(args: argparse.Namespace, config, out: str) -> int:
                  f"mesh is faster")
     print(f"scan: {config.name} ({n} frame{'' if n == 1 else 's'}, {config.robot.name}, {config.probe.name}, "
           f"workpiece {config.workpiece.source}, {size})", flush=True)
-    if n >= LONG_PLAN_FRAMES and args.shard is None and not args.merge:
+    if n >= LONG_PLAN_FRAMES and args.shard is None:  # (a --merge plans the whole path too)
         # (a path of a million frames planned for over 5 min before the first progress line)
         print(f"scan: planning the path first: inverse kinematics, reach and collision checks for each of its {n} "
               f"frames (about {n * PLAN_S_PER_FRAME / 60:.0f} min on a 2-core machine)", flush=True)

@@ -135,6 +135,21 @@ def test_overview_picture_is_written(tmp_path):
 
 
 @needs_bpy
+def test_overview_scans_the_whole_path_without_frames(tmp_path):
+    """Without --frames the operator was given None (its default since --frames is checked as
+    it is read) and failed with a traceback: the whole path is scanned (a short raycast one)."""
+    demo = (Path(REPO) / "rigs" / "scenes" / "demo.toml").read_text()
+    short = demo.replace('engine = "cycles"', 'engine = "raycast"').replace("frames = 120", "frames = 4") \
+        .replace("frames = 60", "frames = 2")
+    (tmp_path / "short.toml").write_text(short)
+    out = run_cli("overview", "--scan", str(tmp_path / "short.toml"), "--out", str(tmp_path / "cell.png"),
+                  "--width", "120", "--height", "80", "--samples", "1")
+    assert out.returncode == 0 and "Traceback" not in out.stderr, out.stderr[-2000:]
+    report = json.loads(next((tmp_path / "cell-scan").rglob("report.json")).read_text())
+    assert report["frames"] == 6
+
+
+@needs_bpy
 def test_overview_with_a_scan_keeps_the_scans_files_beside_the_picture(tmp_path):
     # (they went to a temporary folder, deleted at exit, that the operator's message named)
     (tmp_path / "taken-scan").write_text("x")

@@ -384,13 +384,14 @@ def table(rows: list[dict]) -> str:
 
 def _reach_text(reach, target: float) -> str:
     """The profiles a planner needed to reach ``target``, and their share; "never" with the
-    two coverages to two decimals, which the table's one decimal may show equal (87.1 % and
-    "never" for 87.08 % against 87.11 %)."""
+    two coverages to as many decimals (two at least) as tell them apart, which the table's one
+    decimal may show equal (87.1 % and "never" for 87.08 % against 87.11 %)."""
     if reach is None:
         return ""
     if reach[0]:
         return f"{reach[0]} profiles ({reach[1] * 100:.0f} %)"
-    return f"never ({reach[2] * 100:.2f} % at most, against {target * 100:.2f} %)"
+    digits = next((d for d in range(2, 7) if f"{reach[2] * 100:.{d}f}" != f"{target * 100:.{d}f}"), 6)
+    return f"never ({reach[2] * 100:.{digits}f} % at most, against {target * 100:.{digits}f} %)"
 
 
 def growth_picture(mesh, planner: dict, path) -> None:

@@ -947,5 +947,7 @@ def test_the_bench_table_says_how_far_a_planner_that_never_reached_a_coverage_fe
     row["reach"] = (got, None, max(c for _, c in planner_curve))
     text = table([dict(part="sphere", **row)])
     assert "| 87.1 % |" in text and "never (87.08 % at most, against 87.11 %)" in text
+    row["reach"] = (None, None, 0.871119)  # equal to three decimals: more are shown
+    assert "never (87.1119 % at most, against 87.1120 %)" in table([dict(part="sphere", **row)])
     row["reach"] = (405, 405 / 350, 0.9)
     assert "405 profiles (116 %)" in table([dict(part="sphere", **row)])

@@ -10,6 +10,7 @@ and leaves the splitting to polygons.triangulate; trimesh reads what this does n
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,8 @@ TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2"
          "int64": "i8", "uint64": "u8", "float16": "f2", "half": "f2",
          "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
 MAX_HEADER_BYTES = 1 << 16
+END_HEADER = re.compile(rb"^end_header[ \t]*\r?$", re.MULTILINE)  # the line, not the word in a comment
+BOM = b"\xef\xbb\xbf"
 
 
 class _NotOurs(Exception):
@@ -30,12 +33,12 @@ class _NotOurs(Exception):
 def _header(data: bytes, path: Path) -> tuple[str, list, int]:
     """(byte order "<" or ">", [(element, count, [(property, dtype or (count dtype, item dtype))])],
     where the data starts), or None where the file is not a binary PLY."""
-    end = data.find(b"end_header", 0, MAX_HEADER_BYTES)
-    if not data.startswith(b"ply") or end < 0:
+    found = END_HEADER.search(data, 0, MAX_HEADER_BYTES)
+    if not data.startswith(b"ply") or found is None:
         return None
-    start = data.index(b"\n", end) + 1
+    start = found.end() + 1  # (the newline after it)
     order, elements = None, []  # order "" for ASCII
-    for raw in data[:end].decode("ascii", "replace").splitlines():
+    for raw in data[:found.start()].decode("ascii", "replace").splitlines():
         words = raw.split()
         if not words:
             continue
@@ -60,31 +63,34 @@ def _header(data: bytes, path: Path) -> tuple[str, list, int]:
 
 def check_ply_header(path: str | Path) -> None:
     """InputError naming what keeps a file named .ply from being a PLY mesh: it does not begin
-    with "ply", its header never ends (cut short), or its vertices lack x, y or z. (trimesh
-    said "IndexError: list index out of range" or "KeyError: 'y'" for these.)"""
+    with "ply", it ends inside its header (cut short), or its vertices lack x, y or z. (trimesh
+    said "IndexError: list index out of range" or "KeyError: 'y'" for these.) What this cannot
+    judge (a header longer than MAX_HEADER_BYTES, a property type of its own) is left to
+    trimesh."""
     path = Path(path)
     with open(path, "rb") as fh:
         data = fh.read(MAX_HEADER_BYTES)
-    if not data.startswith(b"ply"):
+    text = data[len(BOM):] if data.startswith(BOM) else data  # (some Windows tools write one; trimesh reads past it)
+    if not text.startswith(b"ply"):
         raise InputError(f"{path}: not a PLY file (a PLY begins with the word ply); is it another format, or "
                          f"no mesh at all?")
-    end = data.find(b"end_header")
-    if end < 0:
-        where = ("the file ends inside it" if len(data) < MAX_HEADER_BYTES else
-                 f"no end_header in its first {MAX_HEADER_BYTES // 1024} KB")
-        raise InputError(f"{path}: its PLY header never ends ({where}): the file is cut short or damaged; export "
-                         f"it again")
-    names, in_vertex = [], False
-    for raw in data[:end].decode("ascii", "replace").splitlines():
-        words = raw.split()
-        if words[:1] == ["element"]:
-            in_vertex = len(words) > 1 and words[1] == "vertex"
-        elif words[:1] == ["property"] and in_vertex and len(words) >= 3:
-            names.append(words[-1])
+    if END_HEADER.search(text) is None:
+        if len(data) == MAX_HEADER_BYTES:
+            return  # a long header (comments): trimesh reads on
+        raise InputError(f"{path}: the file ends inside its PLY header (no end_header line): it is cut short or "
+                         f"damaged; export it again")
+    try:
+        head = _header(text, path)
+    except (_NotOurs, ValueError):
+        return
+    if head is None:
+        return  # a format line of its own: trimesh's word
+    vertex = [props for name, _, props in head[1] if name == "vertex"]
+    names = [name for name, _ in vertex[0]] if vertex else []
     missing = [c for c in "xyz" if c not in names]
     if missing:
         raise InputError(f"{path}: its vertices have no {' or '.join(missing)} "
-                         f"({'properties: ' + ', '.join(names) if names else 'no vertex element'}): a mesh's "
+                         f"({'properties: ' + ', '.join(names) if vertex else 'no vertex element'}): a mesh's "
                          f"vertices need x, y and z")
 
 
