@@ -775,3 +775,29 @@ def test_the_summary_names_a_nearest_contact_on_a_move_after_the_last_frame(tmp_
     line = [ln for ln in capsys.readouterr().out.splitlines() if ln.strip().startswith("clearance")][0]
     # (the move's 90 mm from the sphere, the probe's origin to its top, less the housing's reach)
     assert float(line.split()[1]) < 90.0 and "on a move before frame 6" in line, line
+
+
+def test_a_report_says_where_a_scripts_part_stood_and_how_large_it_was_read(tmp_path):
+    """A Scanner's part loaded from a file with a scale and put down by the script left only the
+    file's name in report.json: the scan could not be repeated from it. The report now holds
+    the part's placement and its size as read; both checked against the file's own box."""
+    import trimesh
+
+    from addon import Scanner
+    from addon.core.config.render import RenderOptions
+    from addon.core.geometry.workpiece import load_workpiece, resting_on_table
+
+    box = trimesh.creation.box([0.04, 0.03, 0.02])  # metres, as a CAD export may be
+    box.apply_translation([0.0, 0.0, -0.05])  # below the table: the script lifts it
+    box.export(tmp_path / "block.stl")
+    part, lift = resting_on_table(load_workpiece(tmp_path / "block.stl", scale=1000.0))
+    scanner = Scanner(workpiece=part, render=RenderOptions(engine="raycast"))
+    scanner.move_to(((0.0, 0.0, 180.0), (0.0, 180.0, 0.0)))
+    scanner.measure()
+    config = scanner.result(tmp_path / "out").report["config"]
+    saved = json.loads((tmp_path / "out" / "report.json").read_text())["config"]
+    assert saved["workpiece_size_mm"] == pytest.approx([40.0, 30.0, 20.0], abs=1e-4)  # (STL floats)
+    pose = np.array(saved["workpiece_pose"])
+    assert pose.shape == (4, 4) and lift == pytest.approx(60.0, abs=1e-4)  # its bottom from -60 mm up to the table
+    assert pose[2, 3] == pytest.approx(lift, abs=1e-6)
+    assert config["workpiece"] == str(tmp_path / "block.stl")

@@ -151,6 +151,10 @@ def assemble(config: ScanConfig, plan: Plan, cloud, stats: dict, timing: dict, o
     report = {
         "config": {"name": config.name, "file": config.source, "robot": config.robot.name, "probe": probe.name,
                    "sensor_px": [probe.cols_px, probe.rows_px], "workpiece": config.workpiece.source,
+                   # Where the part stood and how large it was read (a Scanner's part, loaded with a
+                   # scale and put down by a script, left only its file's name)
+                   "workpiece_pose": np.round(np.asarray(config.workpiece.pose, float), 9).tolist(),
+                   "workpiece_size_mm": [round(float(v), 6) for v in config.workpiece.mesh.extents],
                    "engine": r.engine, "samples": r.samples, "detect": config.detect_method,
                    "triangulate": config.triangulate_method, "fuse": config.fuse,
                    "sensor": "ideal" if config.sensor.ideal else sensor_effects(config.sensor),
