@@ -61,31 +61,9 @@ def _header(data: bytes, path: Path) -> tuple[str, list, int]:
     return order, elements, start
 
 
-def check_ply_header(path: str | Path) -> None:
-    """InputError naming what keeps a file named .ply from being a PLY mesh: it does not begin
-    with "ply", it ends inside its header (cut short), or its vertices lack x, y or z. (trimesh
-    said "IndexError: list index out of range" or "KeyError: 'y'" for these.) What this cannot
-    judge (a header longer than MAX_HEADER_BYTES, a property type of its own) is left to
-    trimesh."""
-    path = Path(path)
-    with open(path, "rb") as fh:
-        data = fh.read(MAX_HEADER_BYTES)
-    text = data[len(BOM):] if data.startswith(BOM) else data  # (some Windows tools write one; trimesh reads past it)
-    if not text.startswith(b"ply"):
-        raise InputError(f"{path}: not a PLY file (a PLY begins with the word ply); is it another format, or "
-                         f"no mesh at all?")
-    if END_HEADER.search(text) is None:
-        if len(data) == MAX_HEADER_BYTES:
-            return  # a long header (comments): trimesh reads on
-        raise InputError(f"{path}: the file ends inside its PLY header (no end_header line): it is cut short or "
-                         f"damaged; export it again")
-    try:
-        head = _header(text, path)
-    except (_NotOurs, ValueError):
-        return
-    if head is None:
-        return  # a format line of its own: trimesh's word
-    vertex = [props for name, _, props in head[1] if name == "vertex"]
+def _check_vertex_properties(elements: list, path: Path) -> None:
+    """InputError where the header's vertices lack x, y or z (trimesh said "KeyError: 'y'")."""
+    vertex = [props for name, _, props in elements if name == "vertex"]
     names = [name for name, _ in vertex[0]] if vertex else []
     missing = [c for c in "xyz" if c not in names]
     if missing:
@@ -108,10 +86,22 @@ def _first_non_number(data: bytes, at: int) -> tuple[int, str] | None:
 
 
 def read_polygon_ply(path: str | Path):
-    """(vertices (n, 3) float64, polygons: a list of index arrays) of a PLY; None where the file
-    is not a PLY with vertices and faces this reads (trimesh's word stands then)."""
+    """(vertices (n, 3) float64, polygons: a list of index arrays) of a PLY; None where this
+    reader does not read it (a header longer than MAX_HEADER_BYTES, a property type or format
+    of its own: trimesh's word stands then). InputError, in plain words, where the file is no
+    PLY mesh: it does not begin with "ply", it ends inside its header, its vertices lack x, y
+    or z, or its data is cut short or holds a word that is no number (trimesh said
+    "IndexError: list index out of range" or "KeyError: 'y'" for some of these)."""
     path = Path(path)
     data = path.read_bytes()
+    if data.startswith(BOM):  # (some Windows tools write one; trimesh reads past it too)
+        data = data[len(BOM):]
+    if not data.startswith(b"ply"):
+        raise InputError(f"{path}: not a PLY file (a PLY begins with the word ply); is it another format, or "
+                         f"no mesh at all?")
+    if END_HEADER.search(data) is None:
+        raise InputError(f"{path}: the file ends inside its PLY header (no end_header line): it is cut short or "
+                         f"damaged; export it again")
     try:
         head = _header(data, path)
     except _NotOurs:
@@ -119,6 +109,7 @@ def read_polygon_ply(path: str | Path):
     if head is None:
         return None
     order, elements, at = head
+    _check_vertex_properties(elements, path)
     try:
         got = _read(data, order, elements, at, path) if order else _read_ascii(data, elements, at, path)
     except (ValueError, IndexError):  # numpy's "buffer is smaller than requested size"; text cut short

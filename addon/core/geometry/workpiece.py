@@ -20,7 +20,7 @@ import numpy as np
 import trimesh
 
 from ..errors import InputError
-from .ply_polygons import check_ply_header, read_polygon_ply
+from .ply_polygons import read_polygon_ply
 from .polygons import needs_own_obj_reader, read_obj, triangulate
 from .shapes import Cylinder, PlanePatch, Sphere, StepBlock
 from ..kinematics.transforms import check_transform, rot_z, trans
@@ -479,8 +479,6 @@ def load_workpiece(path: str | Path, pose=None, scale: float | None = None, role
     if path.stat().st_size == 0:
         raise InputError(f"{path}: the file is empty (0 bytes); was it written to the end?")
     _check_stl_header(path)
-    if path.suffix.lower() == ".ply" and not _misnamed(path):
-        check_ply_header(path)
     if path.suffix.lower() in GLTF_FORMATS:
         _check_gltf_encoding(path)
     try:
